@@ -1,0 +1,38 @@
+# snapwarn — one entry point for people and CI.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+PYTEST_ARGS ?=
+
+.PHONY: setup demo test test-slow lint bench serve openapi clean
+
+# Create the virtual environment with the project (editable) and its dev tools, only when
+# missing or when pyproject.toml changed since the last install.
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+## The main job on embedded defaults.
+demo: setup
+	$(BIN)/snapwarn demo
+
+## The default test suite (slow suites excluded; CI runs them with `make test-slow`).
+test: setup
+	$(BIN)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+
+test-slow: setup
+	$(BIN)/python -m pytest -m slow $(PYTEST_ARGS)
+
+lint: setup
+	$(BIN)/ruff check sim service tests bench
+
+bench: setup
+	$(BIN)/python bench/beam.py
+
+clean:
+	rm -rf $(VENV) .pytest_cache build *.egg-info

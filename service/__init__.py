@@ -1,0 +1,1 @@
+"""snapwarn service: analysis (numerics), schemas, REST API, client SDK, CLI."""

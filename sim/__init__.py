@@ -1,0 +1,1 @@
+"""snapwarn simulators: normal forms, Euler beam, discrete Cosserat rod (pure numerics)."""
