@@ -31,6 +31,9 @@ test-slow: setup
 lint: setup
 	$(BIN)/ruff check sim service tests bench
 
+serve: setup
+	$(BIN)/snapwarn serve
+
 bench: setup
 	$(BIN)/python bench/beam.py
 

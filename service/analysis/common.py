@@ -1,0 +1,28 @@
+"""Shared result vocabulary of the analysis layer: flags and the warning class."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+
+class SnapwarnWarning(UserWarning):
+    """A result is usable but doubtful (noise, short record, overdamped mode...)."""
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A machine-readable reason to doubt a result.
+
+    Attributes
+    ----------
+    code : str
+        Stable snake_case identifier (e.g. ``"few_periods"``, ``"low_snr"``, ``"overdamped"``).
+    message : str
+        One human sentence with the numbers that triggered it.
+    """
+
+    code: str
+    message: str
+
+    def to_dict(self) -> dict[str, str]:
+        return asdict(self)
