@@ -1,0 +1,537 @@
+"""Static equilibria of the compressed, end-rotated Euler beam and their bifurcations.
+
+Model (paper, eqs. beam_equation_nodim_static, sol_general_static, BC, geometrical_constraint):
+
+    W'''' + Lambda^2 W'' = 0  on X in [0, 1],   integral_0^1 W'^2 dX = 2,
+    W(0) = W(1) = 0,  W'(0) = mu,  W'(1) = s mu,  s = 0 | -1 | +1 (asym | sym | antisym).
+
+We write lam = Lambda^2 (compression; lam < 0 is tension, reached by some branches at large mu)
+and use the basis {C(X), S(X), X, 1} with
+
+    C(X) = (1 - cos(Lambda X)) / lam,    S(X) = (Lambda X - sin(Lambda X)) / (lam Lambda),
+
+which are entire functions of lam (no degeneration at lam = 0, real for lam < 0). The boundary
+conditions at X = 0 give D = 0, C = mu; the two at X = 1 leave a 2x2 system for (a, b) whose
+determinant vanishes at the Euler eigenvalues (Lambda = 2 pi k, or tan(Lambda/2) = Lambda/2).
+
+A *generic* branch is the curve mu(lam) = sqrt(2 / J(lam)), J = integral of Wh'^2 for the
+solution Wh per unit mu; its folds (minima of J) are saddle-nodes. Where the forcing is
+orthogonal to an Euler mode (symmetric forcing and an antisymmetric mode, or the reverse), a
+pair of *constant-Lambda* branches W = mu Wp + c Phi exists for mu < mu_c = sqrt(2 / J_p): the
+pitchfork at mu_c.
+
+Branch names (fixed at mu -> 0+ by the Euler mode reached and its sign):
+U (first mode, Lambda = 2 pi), S (second, antisymmetric), W (third, Lambda = 4 pi);
+U_A has W(1/2) < 0 (the inverted state, pushed towards the transition by mu > 0),
+S_B and W_B have W(1/4) > 0. With these names the paper's statements hold and are tested:
+asymmetric U_A meets S_B at the fold mu* = 1.7818; symmetric S_A, S_B meet U_A at mu* = 2 and
+U_A meets W_B at mu2* = 2.0119; antisymmetric U_A, U_B meet S_B at mu* = 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+from scipy.optimize import brentq
+
+ACTUATION_SLOPE = {"asymmetric": 0.0, "symmetric": -1.0, "antisymmetric": 1.0}
+_QN = 96  # Gauss-Legendre nodes on [0, 1]: exact to round-off for |Lambda| < ~40
+_XQ, _WQ = np.polynomial.legendre.leggauss(_QN)
+_XQ = 0.5 * (_XQ + 1.0)
+_WQ = 0.5 * _WQ
+_H = 1e-30  # complex-step size
+
+
+class BeamError(ValueError):
+    """Bad input to the beam model; the message names the parameter and the value."""
+
+
+def _slope(actuation: str) -> float:
+    try:
+        return ACTUATION_SLOPE[actuation]
+    except KeyError:
+        raise BeamError(
+            f"actuation must be one of {tuple(ACTUATION_SLOPE)}, got {actuation!r}"
+        ) from None
+
+
+# --------------------------------------------------------------------------------------------
+# Entire basis functions of lam (complex arithmetic so that complex-step derivatives work)
+# --------------------------------------------------------------------------------------------
+def basis(lam: complex, X: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Basis functions and derivatives at points X for compression lam = Lambda^2.
+
+    Returns ``(C, S, S1, Co)`` with C = (1 - cos)/lam, S = (Lambda X - sin)/(lam Lambda),
+    S1 = sin(Lambda X)/Lambda = C', Co = cos(Lambda X) = S1'. Also C = S'. All are entire in lam
+    and evaluated in complex arithmetic (take ``.real`` for real lam).
+    """
+    X = np.asarray(X, dtype=float)
+    lam = complex(lam)
+    z = lam * X * X
+    out_C = np.empty(X.shape, dtype=complex)
+    out_S = np.empty(X.shape, dtype=complex)
+    out_S1 = np.empty(X.shape, dtype=complex)
+    out_Co = np.empty(X.shape, dtype=complex)
+    small = np.abs(z) <= 1.0
+    if np.any(small):
+        Xs, zs = X[small], z[small]
+        # Taylor series in z = lam X^2 (18 terms: error < 1e-17 for |z| <= 1)
+        c = np.zeros_like(zs)
+        s = np.zeros_like(zs)
+        s1 = np.zeros_like(zs)
+        co = np.zeros_like(zs)
+        term_co = np.ones_like(zs)  # (-z)^k / (2k)!
+        for k in range(18):
+            co += term_co
+            s1 += term_co / (2 * k + 1)  # sin(LX)/(L X) = sum (-z)^k/(2k+1)!
+            c += term_co / ((2 * k + 1) * (2 * k + 2))  # (1-cos)/(lam X^2)
+            s += term_co / ((2 * k + 1) * (2 * k + 2) * (2 * k + 3))
+            term_co = term_co * (-zs) / ((2 * k + 1) * (2 * k + 2))
+        out_Co[small] = co
+        out_S1[small] = s1 * Xs
+        out_C[small] = c * Xs**2
+        out_S[small] = s * Xs**3
+    big = ~small
+    if np.any(big):
+        L = np.sqrt(lam)
+        Xb = X[big]
+        sn, cs = np.sin(L * Xb), np.cos(L * Xb)
+        out_Co[big] = cs
+        out_S1[big] = sn / L
+        out_C[big] = 2.0 * np.sin(0.5 * L * Xb) ** 2 / lam
+        out_S[big] = (L * Xb - sn) / (lam * L)
+    return out_C, out_S, out_S1, out_Co
+
+
+def _coeffs(lam: complex, s: float) -> tuple[complex, complex]:
+    """(a, b) per unit mu of the generic solution W = a C + b S + X (lam not an eigenvalue)."""
+    C1, S1v, Si1, _ = basis(lam, np.array([1.0]))
+    C1, S1v, Si1 = C1[0], S1v[0], Si1[0]
+    det = C1 * C1 - S1v * Si1
+    # [[C, S], [S1, C]] (a, b) = (-1, s - 1)
+    a = (-C1 - S1v * (s - 1.0)) / det
+    b = (C1 * (s - 1.0) + Si1) / det
+    return a, b
+
+
+def _J(lam: complex, s: float) -> complex:
+    """J(lam) = integral_0^1 Wh'^2 dX for the unit-mu generic solution (complex-analytic)."""
+    a, b = _coeffs(lam, s)
+    C, S, S1, _ = basis(lam, _XQ)
+    dW = a * S1 + b * C + 1.0
+    return np.sum(_WQ * dW * dW)
+
+
+def J(lam: float, actuation: str) -> float:
+    """Constraint integral per unit mu^2 of the generic branch at compression lam = Lambda^2."""
+    return float(_J(lam, _slope(actuation)).real)
+
+
+def dJ(lam: float, actuation: str) -> float:
+    """dJ/dlam by complex step (exact to round-off)."""
+    return float(_J(complex(lam, _H), _slope(actuation)).imag / _H)
+
+
+def mu_of_lambda2(lam: float, actuation: str) -> float:
+    """mu on the generic branch through compression lam: mu = sqrt(2 / J(lam))."""
+    return math.sqrt(2.0 / J(lam, actuation))
+
+
+# --------------------------------------------------------------------------------------------
+# Euler eigenvalues and modes
+# --------------------------------------------------------------------------------------------
+@cache
+def euler_eigenvalues(count: int = 6) -> tuple[tuple[float, str], ...]:
+    """The first ``count`` Euler buckling eigenvalues Lambda with their symmetry.
+
+    Symmetric modes: Lambda = 2 pi k, Phi = 1 - cos(Lambda X). Antisymmetric: tan(L/2) = L/2.
+    Returns ((Lambda, "sym" | "anti"), ...) in increasing order.
+    """
+    out: list[tuple[float, str]] = []
+    k = 1
+    while len(out) < count + 2:
+        out.append((2.0 * math.pi * k, "sym"))
+        # antisymmetric root of tan(x) = x with x = L/2 in (pi k, pi k + pi/2)
+        f = lambda x: math.sin(x) - x * math.cos(x)  # noqa: E731
+        x = brentq(f, math.pi * k + 1e-9, math.pi * k + math.pi / 2 - 1e-12, xtol=1e-15, rtol=1e-15)
+        out.append((2.0 * x, "anti"))
+        k += 1
+    out.sort()
+    return tuple(out[:count])
+
+
+def _mode_family(index: int) -> str:
+    return "USW"[index] if index < 3 else f"M{index + 1}"
+
+
+def _euler_mode_coeffs(lam: float) -> tuple[float, float]:
+    """(a, b) of the Euler mode a C + b S at an eigenvalue (null vector of the 2x2 system)."""
+    C1, S1v, Si1, _ = (v[0].real for v in basis(lam, np.array([1.0])))
+    A = np.array([[C1, S1v], [Si1, C1]])
+    _, _, vt = np.linalg.svd(A)
+    a, b = vt[-1]
+    return float(a), float(b)
+
+
+def _compatible(sym: str, s: float) -> bool:
+    """Whether end-rotation forcing with slope ratio s is orthogonal to a mode of this symmetry."""
+    return (sym == "sym" and s == 1.0) or (sym == "anti" and s == -1.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Equilibria
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Equilibrium:
+    """One static equilibrium of the beam.
+
+    Attributes
+    ----------
+    actuation : str
+    mu : float
+    branch : str
+        U_A, U_B, S_A, S_B, W_A or W_B.
+    lambda2 : float
+        Lambda^2, the non-dimensional compression F L^2 / B (negative: tension).
+    coeffs : tuple of float
+        (a, b, c, d) of W = a C(X) + b S(X) + c X + d in the entire basis of ``basis``.
+    kind : str
+        "generic" (on a curve mu(Lambda)) or "constant" (constant-Lambda pitchfork pair).
+    """
+
+    actuation: str
+    mu: float
+    branch: str
+    lambda2: float
+    coeffs: tuple[float, float, float, float]
+    kind: str = "generic"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def lam(self) -> float:
+        """Lambda (signed: negative values mean tension, Lambda^2 < 0)."""
+        return math.copysign(math.sqrt(abs(self.lambda2)), self.lambda2)
+
+    def shape(self, X: np.ndarray, derivative: int = 0) -> np.ndarray:
+        """W_eq or its first/second derivative at points X in [0, 1]."""
+        a, b, c, d = self.coeffs
+        C, S, S1, Co = (v.real for v in basis(self.lambda2, np.atleast_1d(X)))
+        if derivative == 0:
+            return a * C + b * S + c * np.asarray(X, float) + d
+        if derivative == 1:
+            return a * S1 + b * C + c
+        if derivative == 2:
+            return a * Co + b * S1
+        if derivative == 3:
+            return -a * self.lambda2 * S1 + b * Co
+        raise BeamError(f"derivative must be 0..3, got {derivative!r}")
+
+    @property
+    def w_half(self) -> float:
+        return float(self.shape(np.array([0.5]))[0])
+
+    @property
+    def w_quarter(self) -> float:
+        return float(self.shape(np.array([0.25]))[0])
+
+    @property
+    def energy(self) -> float:
+        """Bending energy (1/2) integral W''^2 dX (units of B dL / L^2)."""
+        return float(0.5 * np.sum(_WQ * self.shape(_XQ, 2) ** 2))
+
+    @property
+    def constraint(self) -> float:
+        """integral W'^2 dX (= 2 on every equilibrium)."""
+        return float(np.sum(_WQ * self.shape(_XQ, 1) ** 2))
+
+    def spectrum(self, modes: int = 10, **kw):
+        """Linear stability of this equilibrium (see ``stability.spectrum_of``)."""
+        from sim.euler_beam.stability import spectrum_of
+
+        key = ("spectrum", modes, tuple(sorted(kw.items())))
+        if key not in self._cache:
+            self._cache[key] = spectrum_of(self, modes=modes, **kw)
+        return self._cache[key]
+
+    @property
+    def stable(self) -> bool:
+        """True when every sigma^2 of the spectrum is negative."""
+        return bool(np.all(self.spectrum().sigma2 < 0.0))
+
+    def to_dict(self) -> dict:
+        return {
+            "branch": self.branch,
+            "lambda": self.lam,
+            "lambda2": self.lambda2,
+            "w_half": self.w_half,
+            "w_quarter": self.w_quarter,
+            "energy": self.energy,
+            "stable": self.stable,
+            "kind": self.kind,
+        }
+
+
+@dataclass(frozen=True)
+class _Interval:
+    lo: float  # lam bounds (lo may be -inf)
+    hi: float
+    pole: float  # lam of the Euler mode this interval tends to as mu -> 0
+    family: str  # U, S, W
+    rising: bool  # J increasing in lam on the interval
+    name: str = "?"  # branch name, fixed by the shape's sign as mu -> 0 on this piece
+
+
+@cache
+def _structure(actuation: str) -> tuple[tuple[_Interval, ...], tuple[tuple[float, str], ...]]:
+    """Generic intervals (monotone pieces of J between poles and folds) and constant branches."""
+    s = _slope(actuation)
+    modes = euler_eigenvalues(7)
+    fam_of = {L: _mode_family(i) for i, (L, _) in enumerate(modes)}
+    poles = [L * L for L, sym in modes if not _compatible(sym, s)]
+    consts = tuple((L * L, fam_of[L]) for L, sym in modes[:3] if _compatible(sym, s))
+    fam = {L * L: fam_of[L] for L, _ in modes}
+    intervals = [_Interval(-math.inf, poles[0], poles[0], fam[poles[0]], True)]
+    for p, q in zip(poles[:-1], poles[1:]):
+        if fam[p] not in "USW" and fam[q] not in "USW":
+            break
+        eps = 1e-9 * q
+        f = _fold_between(p, q, s)
+        intervals.append(_Interval(p, f, p, fam[p], False))
+        intervals.append(_Interval(f, q, q, fam[q], True))
+        _ = eps
+    keep = tuple(_named(iv, actuation) for iv in intervals if iv.family in "USW")
+    return keep, consts
+
+
+def _named(iv: _Interval, actuation: str) -> _Interval:
+    """Name a generic piece by the sign of its shape next to its Euler pole (mu -> 0+)."""
+    d = 1e-6 * iv.pole
+    lam = iv.pole - d if iv.hi == iv.pole else iv.pole + d
+    e = _generic_eq(actuation, mu_of_lambda2(lam, actuation), lam, "?")
+    return _Interval(iv.lo, iv.hi, iv.pole, iv.family, iv.rising,
+                     _sign_name(iv.family, (e.w_half, e.w_quarter)))
+
+
+def _fold_between(p: float, q: float, s: float) -> float:
+    """lam of the minimum of J between consecutive poles p < q (dJ/dlam = 0)."""
+    g = lambda lam: _J(complex(lam, _H), s).imag / _H  # noqa: E731
+    d = 1e-7 * (q - p)
+    return brentq(g, p + d, q - d, xtol=1e-14, rtol=1e-15, maxiter=200)
+
+
+def _sign_name(family: str, W: np.ndarray) -> str:
+    """A/B suffix from the sign convention (W at X = 1/2 for U, at X = 1/4 for S and W)."""
+    w_half, w_quarter = W
+    if family == "U":
+        return "U_A" if w_half < 0 else "U_B"
+    return f"{family}_B" if w_quarter > 0 else f"{family}_A"
+
+
+def _generic_eq(actuation: str, mu: float, lam: float, name: str) -> Equilibrium:
+    s = _slope(actuation)
+    a, b = (complex(v).real for v in _coeffs(lam, s))
+    return Equilibrium(actuation, mu, name, lam, (a * mu, b * mu, mu, 0.0), "generic")
+
+
+def _particular_at_mode(lam_k: float, s: float) -> tuple[tuple[float, float], tuple[float, float], float, float]:
+    """At a compatible eigenvalue: unit-mu particular (a, b), the mode (a, b), J_p, J_phi.
+
+    The particular solution is made orthogonal to the mode in the constraint inner product,
+    so that J(mu Wp + c Phi) = mu^2 J_p + c^2 J_phi.
+    """
+    C1, S1v, Si1, _ = (v[0].real for v in basis(lam_k, np.array([1.0])))
+    A = np.array([[C1, S1v], [Si1, C1]])
+    rhs = np.array([-1.0, s - 1.0])
+    ab_p = np.linalg.lstsq(A, rhs, rcond=None)[0]
+    if np.linalg.norm(A @ ab_p - rhs) > 1e-8:
+        raise BeamError("forcing is not compatible with the Euler mode (internal error)")
+    ab_m = np.array(_euler_mode_coeffs(lam_k))
+    C, S, S1, _ = (v.real for v in basis(lam_k, _XQ))
+    dWp = ab_p[0] * S1 + ab_p[1] * C + 1.0
+    dPh = ab_m[0] * S1 + ab_m[1] * C
+    proj = np.sum(_WQ * dWp * dPh) / np.sum(_WQ * dPh * dPh)
+    ab_p = ab_p - proj * ab_m
+    dWp = ab_p[0] * S1 + ab_p[1] * C + 1.0
+    return tuple(ab_p), tuple(ab_m), float(np.sum(_WQ * dWp**2)), float(np.sum(_WQ * dPh**2))
+
+
+def equilibria(actuation: str, mu: float, *, branches: tuple[str, ...] | None = None) -> list[Equilibrium]:
+    """Every equilibrium on the six branches U_A, U_B, S_A, S_B, W_A, W_B at this mu.
+
+    Parameters
+    ----------
+    actuation : {"asymmetric", "symmetric", "antisymmetric"}
+    mu : float
+        End rotation parameter (any sign: mu < 0 is the mirror image, A and B exchanged).
+    branches : tuple of str, optional
+        Keep only these branches.
+
+    Returns
+    -------
+    list of Equilibrium
+        Sorted by branch name; a branch absent at this mu (past its fold or pitchfork) is absent.
+    """
+    s = _slope(actuation)
+    mu = float(mu)
+    if not math.isfinite(mu):
+        raise BeamError(f"mu must be finite, got {mu!r}")
+    if mu < 0:
+        mirrored = equilibria(actuation, -mu)
+        swap = {"A": "B", "B": "A"}
+        out = [
+            Equilibrium(actuation, mu, e.branch[:2] + swap[e.branch[2]], e.lambda2,
+                        tuple(-c for c in e.coeffs), e.kind)
+            for e in mirrored
+        ]
+    elif mu == 0.0:
+        out = []
+        for i, (L, _) in enumerate(euler_eigenvalues(3)):
+            a, b = _euler_mode_coeffs(L * L)
+            C, S, S1, _ = (v.real for v in basis(L * L, _XQ))
+            norm = math.sqrt(2.0 / np.sum(_WQ * (a * S1 + b * C) ** 2))
+            for sign in (1.0, -1.0):
+                e = Equilibrium(actuation, 0.0, "?", L * L, (sign * norm * a, sign * norm * b, 0.0, 0.0), "mode")
+                name = _sign_name(_mode_family(i), (e.w_half, e.w_quarter))
+                out.append(Equilibrium(actuation, 0.0, name, L * L, e.coeffs, "mode"))
+    else:
+        intervals, consts = _structure(actuation)
+        target = 2.0 / (mu * mu)
+        out = []
+        for iv in intervals:
+            F = lambda lam: _J(lam, s).real - target  # noqa: E731
+            hi = iv.hi - 1e-12 * abs(iv.hi)
+            if math.isinf(iv.lo):
+                lo = min(iv.hi - 1.0, 0.0)
+                while F(lo) > 0:
+                    lo = 2.0 * lo - 10.0
+                    if lo < -1e7:
+                        break
+            else:
+                lo = iv.lo + 1e-12 * abs(iv.lo)
+            Flo, Fhi = F(lo), F(hi)
+            if Flo * Fhi > 0:
+                continue  # beyond the fold: no equilibrium on this piece
+            lam = brentq(F, lo, hi, xtol=1e-15, rtol=1e-15, maxiter=300)
+            out.append(_generic_eq(actuation, mu, lam, iv.name))
+        for lam_k, family in consts:
+            ab_p, ab_m, Jp, Jphi = _particular_at_mode(lam_k, s)
+            c2 = (2.0 - mu * mu * Jp) / Jphi
+            if c2 <= 0:
+                continue
+            mode = Equilibrium(actuation, 0.0, "?", lam_k, (ab_m[0], ab_m[1], 0.0, 0.0), "mode")
+            for sign in (1.0, -1.0):
+                c = sign * math.sqrt(c2)
+                co = (mu * ab_p[0] + c * ab_m[0], mu * ab_p[1] + c * ab_m[1], mu, 0.0)
+                # named by the sign of its Euler-mode component (the pitchfork amplitude)
+                name = _sign_name(family, (sign * mode.w_half, sign * mode.w_quarter))
+                out.append(Equilibrium(actuation, mu, name, lam_k, co, "constant"))
+    if branches is not None:
+        out = [e for e in out if e.branch in branches]
+    return sorted(out, key=lambda e: e.branch)
+
+
+def equilibrium(actuation: str, mu: float, branch: str = "U_A") -> Equilibrium:
+    """The equilibrium on one branch; BeamError if the branch does not exist at this mu."""
+    found = [e for e in equilibria(actuation, mu) if e.branch == branch]
+    if not found:
+        raise BeamError(
+            f"branch {branch!r} does not exist for {actuation} actuation at mu={mu!r} "
+            "(past its bifurcation)"
+        )
+    return found[0]
+
+
+# --------------------------------------------------------------------------------------------
+# Bifurcations
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BifurcationPoint:
+    """A bifurcation of the U_A branch: where it is and of which kind."""
+
+    mu_star: float
+    lambda_star: float
+    transition: str
+    branches: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Bifurcation:
+    """The transition of an actuation (primary) and any secondary bifurcation of U_A."""
+
+    actuation: str
+    mu_star: float
+    lambda_star: float
+    transition: str
+    branches: tuple[str, ...]
+    secondary: tuple[BifurcationPoint, ...] = ()
+    model: str = "euler-beam"
+
+    def to_dict(self) -> dict:
+        return {
+            "actuation": self.actuation,
+            "model": self.model,
+            "mu_star": self.mu_star,
+            "lambda_star": self.lambda_star,
+            "transition": self.transition,
+            "branches": list(self.branches),
+            "secondary": [
+                {"mu_star": b.mu_star, "lambda_star": b.lambda_star, "transition": b.transition,
+                 "branches": list(b.branches)}
+                for b in self.secondary
+            ],
+        }
+
+
+def _fold_points(actuation: str) -> list[BifurcationPoint]:
+    """Folds (saddle-nodes) of the generic branches: pairs of intervals sharing a fold."""
+    s = _slope(actuation)
+    intervals, _ = _structure(actuation)
+    out = []
+    for left, right in zip(intervals[:-1], intervals[1:]):
+        if left.hi == right.lo and left.hi != left.pole:  # a fold, not a pole
+            lam = left.hi
+            mu = math.sqrt(2.0 / _J(lam, s).real)
+            d = 1e-3 * (right.hi - left.lo)
+            _ = d
+            out.append(BifurcationPoint(mu, math.sqrt(lam), "saddle-node", (left.name, right.name)))
+    return out
+
+
+def _pitchfork_points(actuation: str) -> list[BifurcationPoint]:
+    s = _slope(actuation)
+    _, consts = _structure(actuation)
+    out = []
+    for lam_k, family in consts:
+        _, _, Jp, _ = _particular_at_mode(lam_k, s)
+        mu_c = math.sqrt(2.0 / Jp)
+        # criticality: the side branches (constant Lambda) are stable below mu_c -> supercritical
+        side = [e for e in equilibria(actuation, mu_c * (1 - 1e-3)) if e.kind == "constant"
+                and e.branch[0] == family]
+        kind = "supercritical-pitchfork" if side and all(e.stable for e in side) else "subcritical-pitchfork"
+        trivial = [e.branch for e in equilibria(actuation, mu_c * (1 - 1e-3))
+                   if e.kind == "generic" and abs(e.lambda2 - lam_k) < 0.05 * lam_k]
+        out.append(BifurcationPoint(mu_c, math.sqrt(lam_k), kind,
+                                    tuple(sorted({e.branch for e in side} | set(trivial)))))
+    return out
+
+
+@cache
+def bifurcation(actuation: str) -> Bifurcation:
+    """The shape transition of U_A under this actuation (and its secondary bifurcations).
+
+    The primary transition is the first bifurcation met by U_A as mu increases from 0:
+    asymmetric, the fold U_A/S_B (saddle-node, mu* ~ 1.7818); symmetric, the subcritical
+    pitchfork at mu* = 2 (S_A, S_B on U_A), secondary fold U_A/W_B at mu2* ~ 2.0119;
+    antisymmetric, the supercritical pitchfork at mu* = 2 (U_A, U_B on S_B).
+    """
+    _slope(actuation)
+    points = [p for p in _fold_points(actuation) + _pitchfork_points(actuation) if "U_A" in p.branches]
+    points.sort(key=lambda p: p.mu_star)
+    if not points:
+        raise BeamError(f"no bifurcation of U_A found for actuation={actuation!r}")
+    first, rest = points[0], tuple(points[1:])
+    return Bifurcation(actuation, first.mu_star, first.lambda_star, first.transition,
+                       first.branches, rest)
