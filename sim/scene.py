@@ -21,7 +21,9 @@ class SceneError(ValueError):
     """A scene parameter is out of its domain; the message names the parameter and value."""
 
 
-def _check_finite(name: str, value: float, *, positive: bool = False, nonneg: bool = False) -> float:
+def _check_finite(
+    name: str, value: float, *, positive: bool = False, nonneg: bool = False
+) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):

@@ -41,7 +41,9 @@ def emit(doc: dict[str, Any], *, json_mode: bool, text: str | None = None) -> No
     if json_mode:
         sys.stdout.write(json.dumps(_jsonable(doc), allow_nan=False) + "\n")
     else:
-        sys.stdout.write((text if text is not None else json.dumps(_jsonable(doc), indent=2)) + "\n")
+        sys.stdout.write(
+            (text if text is not None else json.dumps(_jsonable(doc), indent=2)) + "\n"
+        )
 
 
 def emit_error(message: str, *, json_mode: bool) -> None:

@@ -111,7 +111,9 @@ def spectrum_of(eq: Equilibrium, modes: int = 10, *, n: int = DEFAULT_N) -> Spec
     return Spectrum(eq, s2, A, q / (2.0 * lam), n)
 
 
-def spectrum(actuation: str, mu: float, branch: str = "U_A", modes: int = 10, *, n: int = DEFAULT_N) -> Spectrum:
+def spectrum(
+    actuation: str, mu: float, branch: str = "U_A", modes: int = 10, *, n: int = DEFAULT_N
+) -> Spectrum:
     """sigma^2 spectrum of the equilibrium on ``branch`` at ``mu`` (see ``spectrum_of``)."""
     return spectrum_of(equilibrium(actuation, mu, branch), modes, n=n)
 

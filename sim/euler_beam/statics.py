@@ -311,8 +311,9 @@ def _named(iv: _Interval, actuation: str) -> _Interval:
     d = 1e-6 * iv.pole
     lam = iv.pole - d if iv.hi == iv.pole else iv.pole + d
     e = _generic_eq(actuation, mu_of_lambda2(lam, actuation), lam, "?")
-    return _Interval(iv.lo, iv.hi, iv.pole, iv.family, iv.rising,
-                     _sign_name(iv.family, (e.w_half, e.w_quarter)))
+    return _Interval(
+        iv.lo, iv.hi, iv.pole, iv.family, iv.rising, _sign_name(iv.family, (e.w_half, e.w_quarter))
+    )
 
 
 def _fold_between(p: float, q: float, s: float) -> float:
@@ -336,7 +337,9 @@ def _generic_eq(actuation: str, mu: float, lam: float, name: str) -> Equilibrium
     return Equilibrium(actuation, mu, name, lam, (a * mu, b * mu, mu, 0.0), "generic")
 
 
-def _particular_at_mode(lam_k: float, s: float) -> tuple[tuple[float, float], tuple[float, float], float, float]:
+def _particular_at_mode(
+    lam_k: float, s: float
+) -> tuple[tuple[float, float], tuple[float, float], float, float]:
     """At a compatible eigenvalue: unit-mu particular (a, b), the mode (a, b), J_p, J_phi.
 
     The particular solution is made orthogonal to the mode in the constraint inner product,
@@ -358,7 +361,9 @@ def _particular_at_mode(lam_k: float, s: float) -> tuple[tuple[float, float], tu
     return tuple(ab_p), tuple(ab_m), float(np.sum(_WQ * dWp**2)), float(np.sum(_WQ * dPh**2))
 
 
-def equilibria(actuation: str, mu: float, *, branches: tuple[str, ...] | None = None) -> list[Equilibrium]:
+def equilibria(
+    actuation: str, mu: float, *, branches: tuple[str, ...] | None = None
+) -> list[Equilibrium]:
     """Every equilibrium on the six branches U_A, U_B, S_A, S_B, W_A, W_B at this mu.
 
     Parameters
@@ -382,8 +387,14 @@ def equilibria(actuation: str, mu: float, *, branches: tuple[str, ...] | None = 
         mirrored = equilibria(actuation, -mu)
         swap = {"A": "B", "B": "A"}
         out = [
-            Equilibrium(actuation, mu, e.branch[:2] + swap[e.branch[2]], e.lambda2,
-                        tuple(-c for c in e.coeffs), e.kind)
+            Equilibrium(
+                actuation,
+                mu,
+                e.branch[:2] + swap[e.branch[2]],
+                e.lambda2,
+                tuple(-c for c in e.coeffs),
+                e.kind,
+            )
             for e in mirrored
         ]
     elif mu == 0.0:
@@ -393,7 +404,9 @@ def equilibria(actuation: str, mu: float, *, branches: tuple[str, ...] | None = 
             C, S, S1, _ = (v.real for v in basis(L * L, _XQ))
             norm = math.sqrt(2.0 / np.sum(_WQ * (a * S1 + b * C) ** 2))
             for sign in (1.0, -1.0):
-                e = Equilibrium(actuation, 0.0, "?", L * L, (sign * norm * a, sign * norm * b, 0.0, 0.0), "mode")
+                e = Equilibrium(
+                    actuation, 0.0, "?", L * L, (sign * norm * a, sign * norm * b, 0.0, 0.0), "mode"
+                )
                 name = _sign_name(_mode_family(i), (e.w_half, e.w_quarter))
                 out.append(Equilibrium(actuation, 0.0, name, L * L, e.coeffs, "mode"))
     else:
@@ -478,8 +491,12 @@ class Bifurcation:
             "transition": self.transition,
             "branches": list(self.branches),
             "secondary": [
-                {"mu_star": b.mu_star, "lambda_star": b.lambda_star, "transition": b.transition,
-                 "branches": list(b.branches)}
+                {
+                    "mu_star": b.mu_star,
+                    "lambda_star": b.lambda_star,
+                    "transition": b.transition,
+                    "branches": list(b.branches),
+                }
                 for b in self.secondary
             ],
         }
@@ -508,13 +525,26 @@ def _pitchfork_points(actuation: str) -> list[BifurcationPoint]:
         _, _, Jp, _ = _particular_at_mode(lam_k, s)
         mu_c = math.sqrt(2.0 / Jp)
         # criticality: the side branches (constant Lambda) are stable below mu_c -> supercritical
-        side = [e for e in equilibria(actuation, mu_c * (1 - 1e-3)) if e.kind == "constant"
-                and e.branch[0] == family]
-        kind = "supercritical-pitchfork" if side and all(e.stable for e in side) else "subcritical-pitchfork"
-        trivial = [e.branch for e in equilibria(actuation, mu_c * (1 - 1e-3))
-                   if e.kind == "generic" and abs(e.lambda2 - lam_k) < 0.05 * lam_k]
-        out.append(BifurcationPoint(mu_c, math.sqrt(lam_k), kind,
-                                    tuple(sorted({e.branch for e in side} | set(trivial)))))
+        side = [
+            e
+            for e in equilibria(actuation, mu_c * (1 - 1e-3))
+            if e.kind == "constant" and e.branch[0] == family
+        ]
+        kind = (
+            "supercritical-pitchfork"
+            if side and all(e.stable for e in side)
+            else "subcritical-pitchfork"
+        )
+        trivial = [
+            e.branch
+            for e in equilibria(actuation, mu_c * (1 - 1e-3))
+            if e.kind == "generic" and abs(e.lambda2 - lam_k) < 0.05 * lam_k
+        ]
+        out.append(
+            BifurcationPoint(
+                mu_c, math.sqrt(lam_k), kind, tuple(sorted({e.branch for e in side} | set(trivial)))
+            )
+        )
     return out
 
 
@@ -528,10 +558,13 @@ def bifurcation(actuation: str) -> Bifurcation:
     antisymmetric, the supercritical pitchfork at mu* = 2 (U_A, U_B on S_B).
     """
     _slope(actuation)
-    points = [p for p in _fold_points(actuation) + _pitchfork_points(actuation) if "U_A" in p.branches]
+    points = [
+        p for p in _fold_points(actuation) + _pitchfork_points(actuation) if "U_A" in p.branches
+    ]
     points.sort(key=lambda p: p.mu_star)
     if not points:
         raise BeamError(f"no bifurcation of U_A found for actuation={actuation!r}")
     first, rest = points[0], tuple(points[1:])
-    return Bifurcation(actuation, first.mu_star, first.lambda_star, first.transition,
-                       first.branches, rest)
+    return Bifurcation(
+        actuation, first.mu_star, first.lambda_star, first.transition, first.branches, rest
+    )
