@@ -1,0 +1,41 @@
+"""Wire models shared by the REST API and the SDK (pydantic + stdlib only)."""
+
+from service.schemas.common import (
+    PROBLEM_MEDIA_TYPE,
+    PROBLEM_TYPE_PREFIX,
+    Control,
+    FieldError,
+    Health,
+    Problem,
+)
+from service.schemas.detections import Detection, DetectionFlag, DetectionRequest
+from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobStatus, Progress
+from service.schemas.signals import SignalData, SignalIn, SignalMeta
+from service.schemas.simulations import SimulationRequest, SimulationResult
+from service.schemas.sweeps import SimulatedSweep, Sweep, SweepMeasurement, SweepRequest
+
+__all__ = [
+    "PROBLEM_MEDIA_TYPE",
+    "PROBLEM_TYPE_PREFIX",
+    "TERMINAL_STATUSES",
+    "Control",
+    "Detection",
+    "DetectionFlag",
+    "DetectionRequest",
+    "FieldError",
+    "Health",
+    "Job",
+    "JobError",
+    "JobStatus",
+    "Problem",
+    "Progress",
+    "SignalData",
+    "SignalIn",
+    "SignalMeta",
+    "SimulatedSweep",
+    "SimulationRequest",
+    "SimulationResult",
+    "Sweep",
+    "SweepMeasurement",
+    "SweepRequest",
+]

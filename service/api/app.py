@@ -1,0 +1,125 @@
+"""The FastAPI app factory: settings -> store, pools, job runner, routers, error mapping."""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from anyio import to_thread
+from fastapi import Depends, FastAPI
+from fastapi.openapi.utils import get_openapi
+
+from service.api.errors import BodyLimitMiddleware, install_handlers
+from service.api.executor import make_pool, warm_pool
+from service.api.jobs import JobRunner
+from service.api.routers import detections, health, jobs, signals, simulations, sweeps
+from service.api.settings import Settings
+from service.api.state import AppState, require_api_key
+from service.api.storage import Store
+from service.schemas import Problem, SignalIn
+
+log = logging.getLogger("snapwarn.api")
+
+DESCRIPTION = """\
+Early warning of shape transitions of elastic strips, over HTTP.
+
+Upload recorded impulse responses (JSON, CSV, NPY/NPZ, WAV, MATLAB), simulate scenes, detect
+modes, run sweeps as persistent jobs (they survive restarts) and get the transition type and
+mu* with its interval. Every error is an RFC 9457 problem (`application/problem+json`) that
+names the field and the value.
+"""
+
+
+def _lifespan(settings: Settings) -> Any:
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        store = Store(settings.db_url)
+        await to_thread.run_sync(store.create_all)
+        pool = make_pool(settings.executor, settings.analysis_workers, "snapwarn-analysis")
+        state = AppState(settings=settings, store=store, pool=pool)
+        if settings.warm_pool:
+
+            def ready(avail: dict[str, bool]) -> None:
+                state.numerics_cache = (time.monotonic(), avail)
+
+            threading.Thread(target=warm_pool, args=(pool, settings.analysis_workers, ready),
+                             name="snapwarn-warm", daemon=True).start()
+        runner = None
+        if settings.run_jobs:
+            runner = JobRunner(store, settings, partial(
+                make_pool, settings.executor, settings.job_workers, "snapwarn-jobs"))
+            await to_thread.run_sync(runner.start)
+        state.runner = runner
+        app.state.snapwarn = state
+        try:
+            yield
+        finally:
+            app.state.snapwarn = None
+            if runner is not None:
+                await to_thread.run_sync(runner.stop)
+            state.pool.shutdown(wait=False, cancel_futures=True)
+            store.dispose()
+
+    return lifespan
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the app. Nothing is opened until its lifespan starts (uvicorn does that)."""
+    settings = settings or Settings()
+    app = FastAPI(
+        title="snapwarn",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=_lifespan(settings),
+        openapi_url="/openapi.json",
+    )
+    app.state.settings = settings
+    app.state.snapwarn = None
+    install_handlers(app)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.include_router(health.router)
+    guarded = [Depends(require_api_key)]
+    for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
+        app.include_router(r, dependencies=guarded)
+    app.openapi = partial(_openapi, app)  # type: ignore[method-assign]
+    return app
+
+
+def _openapi(app: FastAPI) -> dict[str, Any]:
+    """The OpenAPI document, with the schemas only referenced by hand (problems, uploads)."""
+    if app.openapi_schema:
+        return app.openapi_schema
+    doc = get_openapi(title=app.title, version=app.version, description=app.description,
+                      routes=app.routes)
+    comps = doc.setdefault("components", {}).setdefault("schemas", {})
+    for model in (Problem, SignalIn):
+        schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
+        for name, sub in schema.pop("$defs", {}).items():
+            comps.setdefault(name, sub)
+        comps.setdefault(model.__name__, schema)
+    app.openapi_schema = doc
+    return doc
+
+
+def openapi_document() -> dict[str, Any]:
+    """The OpenAPI document of an app on default settings (what /openapi.json serves)."""
+    return create_app(Settings(api_key=None)).openapi()
+
+
+def export_openapi(path: str | Path) -> Path:
+    """Write the OpenAPI document (sorted keys, 2-space indent, final newline) to ``path``."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(render_openapi(openapi_document()))
+    return p
+
+
+def render_openapi(doc: dict[str, Any]) -> str:
+    return json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"

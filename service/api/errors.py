@@ -1,0 +1,136 @@
+"""Every error as RFC 9457 ``application/problem+json`` naming the field and the value."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from service.api.problems import ApiProblem, wire_value
+from service.schemas.common import PROBLEM_MEDIA_TYPE
+
+log = logging.getLogger("snapwarn.api")
+
+
+def problem_response(problem: ApiProblem, instance: str | None) -> JSONResponse:
+    return JSONResponse(
+        problem.to_dict(instance), status_code=problem.status, media_type=PROBLEM_MEDIA_TYPE,
+        headers=problem.headers or None,
+    )
+
+
+def _field_from_loc(loc: tuple[Any, ...]) -> str:
+    parts = list(loc)
+    if parts and parts[0] in ("body", "query", "path", "header", "form"):
+        parts = parts[1:]
+    out = ""
+    for p in parts:
+        if isinstance(p, int):
+            out += f"[{p}]"
+        else:
+            out += ("." if out else "") + str(p)
+    return out or "body"
+
+
+async def _validation_handler(request: Request, exc: RequestValidationError) -> JSONResponse:
+    errors = []
+    for e in exc.errors():
+        field = _field_from_loc(tuple(e.get("loc", ())))
+        if e.get("type") == "json_invalid":
+            field = "body"
+        errors.append(
+            {"field": field, "value": wire_value(e.get("input")), "message": e.get("msg", "")}
+        )
+    first = errors[:3]
+    detail = "; ".join(f"{x['field']}: {x['value']!r} - {x['message']}" for x in first)
+    if len(errors) > 3:
+        detail += f"; and {len(errors) - 3} more"
+    return problem_response(ApiProblem(422, detail, errors=errors), request.url.path)
+
+
+async def _problem_handler(request: Request, exc: ApiProblem) -> JSONResponse:
+    return problem_response(exc, request.url.path)
+
+
+async def _http_handler(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+    if isinstance(exc, BodyTooLarge):
+        return problem_response(exc.problem, request.url.path)
+    detail = exc.detail if isinstance(exc.detail, str) else str(exc.detail)
+    if exc.status_code == 404 and detail == "Not Found":
+        detail = f"no resource at {request.url.path}"
+    p = ApiProblem(exc.status_code, detail, headers=dict(exc.headers or {}))
+    return problem_response(p, request.url.path)
+
+
+async def _internal_handler(request: Request, exc: Exception) -> JSONResponse:
+    log.exception("unhandled error on %s %s", request.method, request.url.path)
+    p = ApiProblem(500, f"{type(exc).__name__}: the server failed; the error is logged")
+    return problem_response(p, request.url.path)
+
+
+def install_handlers(app: FastAPI) -> None:
+    app.add_exception_handler(RequestValidationError, _validation_handler)
+    app.add_exception_handler(ApiProblem, _problem_handler)
+    app.add_exception_handler(StarletteHTTPException, _http_handler)
+    app.add_exception_handler(Exception, _internal_handler)
+
+
+class BodyTooLarge(HTTPException):
+    """Raised while streaming an oversized body (FastAPI lets HTTPExceptions through)."""
+
+    def __init__(self, problem: ApiProblem) -> None:
+        super().__init__(problem.status, problem.detail)
+        self.problem = problem
+
+
+class BodyLimitMiddleware:
+    """413 for bodies over ``max_bytes``: from Content-Length at once, else while streaming."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+
+    def _problem(self, size: Any) -> ApiProblem:
+        return ApiProblem(
+            413,
+            f"request body of {size} bytes exceeds the limit of {self.max_bytes} bytes "
+            "(setting SNAPWARN_MAX_BODY_BYTES)",
+            field="body",
+            value=size,
+        )
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        for k, v in scope.get("headers", []):
+            if k == b"content-length":
+                try:
+                    size = int(v)
+                except ValueError:
+                    size = -1
+                if size > self.max_bytes:
+                    resp = problem_response(self._problem(size), scope.get("path"))
+                    await _drain_and_send(resp, scope, receive, send)
+                    return
+        seen = 0
+
+        async def limited() -> Message:
+            nonlocal seen
+            msg = await receive()
+            if msg["type"] == "http.request":
+                seen += len(msg.get("body", b""))
+                if seen > self.max_bytes:
+                    raise BodyTooLarge(self._problem(f"more than {self.max_bytes}"))
+            return msg
+
+        await self.app(scope, limited, send)
+
+
+async def _drain_and_send(resp: JSONResponse, scope: Scope, receive: Receive, send: Send) -> None:
+    await resp(scope, receive, send)

@@ -1,0 +1,202 @@
+"""Persistent jobs: a runner claims queued jobs from the database and runs them in a pool.
+
+The state machine lives in the ``jobs`` table (queued -> running -> succeeded | failed):
+- a runner (the API's embedded one, or ``snapwarn worker``) claims a job atomically, bumping
+  ``attempts`` (the fencing token) and heartbeats it while it runs;
+- the job itself runs in a worker process, reports progress and writes its result or error
+  fenced by its attempt, so a write from an attempt that was superseded is dropped;
+- any runner re-queues running jobs whose lease expired or whose owner process is dead on this
+  host (restart after a crash), up to ``job_max_attempts``; beyond it they fail with a reason.
+A job that succeeded is never touched again: nothing completed is lost.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import traceback
+from concurrent.futures import Executor, Future
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
+
+from service.api.problems import ApiProblem
+from service.api.settings import Settings
+from service.api.storage import Store, runner_identity
+
+log = logging.getLogger("snapwarn.jobs")
+
+_stores: dict[str, Store] = {}
+
+
+def _store_for(db_url: str) -> Store:
+    st = _stores.get(db_url)
+    if st is None:
+        st = _stores[db_url] = Store(db_url)
+    return st
+
+
+def _problem_dict(exc: BaseException) -> dict[str, Any]:
+    if isinstance(exc, ApiProblem):
+        return exc.to_dict()
+    return {
+        "type": "urn:snapwarn:problem:internal-error",
+        "title": "Internal error",
+        "status": 500,
+        "detail": f"{type(exc).__name__}: {exc}",
+        "traceback": traceback.format_exception(exc)[-5:],
+    }
+
+
+def run_job(db_url: str, job_id: str, attempt: int) -> str:
+    """Run one claimed job to its end (called in a worker process); returns its status."""
+    from service.api import numerics
+
+    store = _store_for(db_url)
+    job = store.get_job(job_id)
+    if job is None or job.attempts != attempt or job.status != "running":
+        return "superseded"
+    last = [0.0]
+
+    def progress(fraction: float, message: str = "") -> None:
+        now = time.monotonic()
+        if now - last[0] >= 0.2 or fraction >= 1.0:
+            last[0] = now
+            store.job_progress(job_id, attempt, fraction, message)
+
+    try:
+        params = job.params
+        if job.kind == "simulation":
+            progress(0.0, f"simulating ({params['model']})")
+            sim = numerics.simulate(params["scene"], params["model"])
+            row = store_simulated_signal(store, sim, params)
+            result: dict[str, Any] = {"signal_id": row.id}
+        elif job.kind == "sweep-simulated":
+            result = numerics.warn(params, progress)
+        elif job.kind == "sweep-signals":
+            items = []
+            for k, m in enumerate(params["measurements"]):
+                sig = store.get_signal(m["signal_id"])
+                if sig is None:
+                    raise ApiProblem(422, f"signal {m['signal_id']!r} was deleted",
+                                     field=f"measurements[{k}].signal_id", value=m["signal_id"])
+                items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
+                progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
+            progress(0.1, f"analysing {len(items)} signals")
+            result = numerics.sweep_from_signals(items)
+        else:
+            raise ApiProblem(422, f"unknown job kind {job.kind!r}", field="kind", value=job.kind)
+    except Exception as exc:  # noqa: BLE001 - every failure is recorded on the job
+        store.fail_job(job_id, attempt, _problem_dict(exc))
+        return "failed"
+    return "succeeded" if store.finish_job(job_id, attempt, result) else "superseded"
+
+
+def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, Any]) -> Any:
+    """Store a simulated signal with its scene (no physics: just the numbers)."""
+    scene = params["scene"]
+    t = sim["t"]
+    n = len(sim["w"])
+    dt = (float(t[-1]) - float(t[0])) / (n - 1)
+    return store.add_signal(
+        w=sim["w"], dt=dt, t0=float(t[0]), t=t, source="simulation",
+        name=params.get("name"), unit=None, value_unit=None,
+        control={"name": "mu", "value": float(scene.get("mu", 0.0)), "unit": None},
+        metadata={"scene": scene, "model": sim["model"], "w_static": sim["w_static"],
+                  "info": sim["info"]},
+    )
+
+
+class JobRunner:
+    """Claims and runs jobs in a background thread; one per process that runs jobs."""
+
+    def __init__(self, store: Store, settings: Settings, pool_factory: Any) -> None:
+        self.store = store
+        self.settings = settings
+        self._pool_factory = pool_factory
+        self.pool: Executor = pool_factory()
+        self.owner = runner_identity()
+        self._running: dict[str, tuple[int, Future]] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._recover()
+        self._thread = threading.Thread(target=self._loop, name="snapwarn-jobs", daemon=True)
+        self._thread.start()
+
+    def wake(self) -> None:
+        """Look for queued jobs now (called after a job is created)."""
+        self._wake.set()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        try:
+            self.store.worker_gone(self.owner)
+        except Exception:  # noqa: BLE001
+            pass
+
+    def _recover(self) -> None:
+        for job_id, new in self.store.recover_jobs(
+            lease_s=self.settings.job_lease_s, max_attempts=self.settings.job_max_attempts
+        ):
+            log.warning("job %s was interrupted: now %s", job_id, new)
+
+    def _loop(self) -> None:
+        s = self.settings
+        last_beat = 0.0
+        last_recover = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                now = time.monotonic()
+                if now - last_beat >= s.job_heartbeat_s:
+                    last_beat = now
+                    with self._lock:
+                        ids = list(self._running)
+                    self.store.heartbeat_jobs(ids, self.owner)
+                    self.store.worker_heartbeat(self.owner)
+                if now - last_recover >= min(s.job_lease_s / 2, 5.0):
+                    last_recover = now
+                    self._recover()
+                self._claim()
+            except Exception:  # noqa: BLE001 - keep the runner alive (db hiccups)
+                log.exception("job runner iteration failed")
+            self._wake.wait(s.job_poll_s)
+            self._wake.clear()
+
+    def _claim(self) -> None:
+        while True:
+            with self._lock:
+                if len(self._running) >= self.settings.job_workers:
+                    return
+            job = self.store.claim_job(self.owner)
+            if job is None:
+                return
+            try:
+                fut = self.pool.submit(run_job, self.store.url, job.id, job.attempts)
+            except (BrokenProcessPool, RuntimeError):
+                self.pool = self._pool_factory()
+                fut = self.pool.submit(run_job, self.store.url, job.id, job.attempts)
+            with self._lock:
+                self._running[job.id] = (job.attempts, fut)
+            fut.add_done_callback(lambda f, jid=job.id, a=job.attempts: self._done(jid, a, f))
+
+    def _done(self, job_id: str, attempt: int, fut: Future) -> None:
+        with self._lock:
+            self._running.pop(job_id, None)
+        exc = fut.exception() if not fut.cancelled() else None
+        if exc is not None:
+            log.error("job %s attempt %d crashed: %r", job_id, attempt, exc)
+            try:
+                self.store.fail_job(job_id, attempt, _problem_dict(exc))
+            except Exception:  # noqa: BLE001
+                log.exception("could not record the failure of job %s", job_id)
+            if isinstance(exc, BrokenProcessPool):
+                self.pool = self._pool_factory()
+        self._wake.set()

@@ -1,0 +1,23 @@
+"""Shared bits of the routers: problem responses for the OpenAPI document."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from service.schemas.common import PROBLEM_MEDIA_TYPE
+
+_PROBLEM = {"content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}}
+
+
+def problems(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """``responses=`` entries documenting problem answers for ``codes``."""
+    text = {
+        401: "Missing or wrong API key.",
+        404: "No such resource.",
+        409: "The resource is not in a state that allows this.",
+        413: "Payload over the limits (settings).",
+        415: "Unsupported media type or file format.",
+        422: "Invalid input: the field and the value are named.",
+        501: "The numerics this resource needs are not installed yet.",
+    }
+    return {c: {"description": text.get(c, "Error."), **_PROBLEM} for c in codes}

@@ -1,0 +1,280 @@
+"""``/v1/signals``: recorded signals in (JSON or a file), metadata, data, plot, delete."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+from anyio import to_thread
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import ValidationError
+
+from service.api import codec, plots
+from service.api.problems import ApiProblem, invalid, not_found
+from service.api.state import AppState, StateDep, signal_meta
+from service.schemas import Control, SignalData, SignalIn, SignalMeta
+from service.schemas.common import PROBLEM_MEDIA_TYPE
+
+router = APIRouter(prefix="/v1/signals", tags=["signals"])
+
+PROBLEM = {"content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}}
+ERRORS = {
+    404: {"description": "No such signal.", **PROBLEM},
+    413: {"description": "Payload over the limits.", **PROBLEM},
+    415: {"description": "Unknown file format.", **PROBLEM},
+    422: {"description": "Invalid input (the field and the value are named).", **PROBLEM},
+}
+
+UPLOAD_FORM_SCHEMA = {
+    "type": "object",
+    "required": ["file"],
+    "properties": {
+        "file": {"type": "string", "format": "binary",
+                 "description": "CSV with a header, .npy, .npz, .wav or .mat"},
+        "format": {"type": "string", "enum": list(codec.FORMATS),
+                   "description": "Overrides the file extension."},
+        "dt": {"type": "number", "description": "Sampling step when the file has no time."},
+        "t0": {"type": "number"},
+        "unit": {"type": "string", "description": "Time unit (CSV headers may carry it)."},
+        "value_unit": {"type": "string"},
+        "column": {"type": "string", "description": "Column/variable holding w."},
+        "time_column": {"type": "string", "description": "Column/variable holding t."},
+        "channel": {"type": "integer", "description": "WAV channel (default 0)."},
+        "control_name": {"type": "string"},
+        "control_value": {"type": "number"},
+        "control_unit": {"type": "string"},
+        "metadata": {"type": "string", "description": "A JSON object."},
+        "name": {"type": "string"},
+    },
+}
+
+
+def _validation_error(exc: ValidationError) -> RequestValidationError:
+    errs = []
+    for e in exc.errors():
+        e = dict(e)
+        e["loc"] = ("body", *e.get("loc", ()))
+        errs.append(e)
+    return RequestValidationError(errs)
+
+
+def _form_float(form: Any, name: str) -> float | None:
+    v = form.get(name)
+    if v is None or v == "":
+        return None
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise invalid(name, v, "is not a number") from None
+
+
+def _form_str(form: Any, name: str) -> str | None:
+    v = form.get(name)
+    if v is None or v == "":
+        return None
+    if not isinstance(v, str):
+        raise invalid(name, getattr(v, "filename", "<file>"), "must be a text field")
+    return v
+
+
+async def _from_json(request: Request, state: AppState) -> codec.CleanSignal:
+    body = await request.body()
+    try:
+        doc = SignalIn.model_validate_json(body)
+    except ValidationError as exc:
+        raise _validation_error(exc) from None
+    s = state.settings
+    w, t, dt, t0 = await to_thread.run_sync(
+        lambda: codec.clean_signal(w=doc.w, t=doc.t, dt=doc.dt, t0=doc.t0,
+                                   max_samples=s.max_samples, uniform_rtol=s.uniform_rtol))
+    clean = codec.CleanSignal(w=w, t=t, dt=dt, t0=t0, unit=doc.unit, value_unit=doc.value_unit,
+                              source="json", metadata=dict(doc.metadata))
+    clean.metadata.setdefault("_name", doc.name)
+    clean.metadata.setdefault("_control", doc.control.model_dump() if doc.control else None)
+    return clean
+
+
+async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
+    s = state.settings
+    form = await request.form(max_files=1, max_fields=32, max_part_size=s.max_body_bytes)
+    upload = form.get("file")
+    if upload is None or isinstance(upload, str):
+        raise invalid("file", None, "is required (a multipart file field named 'file')")
+    data = await upload.read()
+    fmt = codec.guess_format(upload.filename, upload.content_type, _form_str(form, "format"))
+    channel = _form_float(form, "channel")
+    column, time_column = _form_str(form, "column"), _form_str(form, "time_column")
+    dt, t0 = _form_float(form, "dt"), _form_float(form, "t0")
+    meta_text = _form_str(form, "metadata")
+    metadata: dict[str, Any] = {}
+    if meta_text:
+        try:
+            metadata = json.loads(meta_text)
+        except json.JSONDecodeError as exc:
+            raise invalid("metadata", meta_text, f"is not JSON ({exc.msg})") from None
+        if not isinstance(metadata, dict):
+            raise invalid("metadata", meta_text, "must be a JSON object")
+
+    def work() -> codec.CleanSignal:
+        parsed = codec.parse_upload(data, fmt, column=column, time_column=time_column,
+                                    channel=int(channel or 0))
+        use_dt = dt if dt is not None else (parsed.dt if parsed.dt == parsed.dt else None)
+        t_arr = parsed.t
+        if t_arr is not None and dt is not None:
+            raise invalid("dt", dt, "must not be given: the file has a time column")
+        w, t, step, first = codec.clean_signal(
+            w=parsed.w, t=t_arr, dt=use_dt, t0=t0, max_samples=s.max_samples,
+            uniform_rtol=s.uniform_rtol)
+        parsed.w, parsed.t, parsed.dt, parsed.t0 = w, t, step, first
+        return parsed
+
+    clean = await to_thread.run_sync(work)
+    clean.unit = _form_str(form, "unit") or clean.unit
+    clean.value_unit = _form_str(form, "value_unit") or clean.value_unit
+    file_meta = {"filename": upload.filename, **clean.metadata}
+    clean.metadata = {**metadata, "file": file_meta}
+    cname, cval, cunit = (_form_str(form, "control_name"), _form_float(form, "control_value"),
+                          _form_str(form, "control_unit"))
+    if cval is not None and cval != cval or (cval is not None and abs(cval) == float("inf")):
+        raise invalid("control_value", cval, "must be finite")
+    control = None
+    if cname or cval is not None or cunit:
+        control = Control(name=cname or "mu", value=cval, unit=cunit).model_dump()
+    clean.metadata["_name"] = _form_str(form, "name") or upload.filename
+    clean.metadata["_control"] = control
+    return clean
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=SignalMeta,
+    summary="Store a recorded signal (JSON or a file)",
+    responses=ERRORS,
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": {"$ref": "#/components/schemas/SignalIn"}},
+                "multipart/form-data": {"schema": UPLOAD_FORM_SCHEMA},
+            },
+        }
+    },
+)
+async def create_signal(request: Request, state: StateDep) -> JSONResponse:
+    """JSON ``{"t": [...]}`` or ``{"dt": x}`` with ``{"w": [...]}``, or a multipart file.
+
+    Answers 201 with the signal's metadata and ``Location``.
+    """
+    ctype = request.headers.get("content-type", "").lower()
+    if ctype.startswith("multipart/form-data"):
+        clean = await _from_form(request, state)
+    elif ctype.startswith("application/json") or ctype == "":
+        clean = await _from_json(request, state)
+    else:
+        raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
+                         field="content-type", value=ctype)
+    name = clean.metadata.pop("_name", None)
+    control = clean.metadata.pop("_control", None)
+    if control is not None and control.get("value") is not None:
+        v = control["value"]
+        if v != v or abs(v) == float("inf"):
+            raise invalid("control.value", v, "must be finite")
+    row = await to_thread.run_sync(
+        lambda: state.store.add_signal(
+            w=clean.w, dt=clean.dt, t0=clean.t0, t=clean.t, source=clean.source, name=name,
+            unit=clean.unit, value_unit=clean.value_unit, control=control,
+            metadata=clean.metadata))
+    meta = SignalMeta.model_validate(signal_meta(row))
+    return JSONResponse(meta.model_dump(mode="json"), status_code=201,
+                        headers={"Location": f"/v1/signals/{row.id}"})
+
+
+async def _load(state: AppState, signal_id: str) -> Any:
+    sig = await to_thread.run_sync(state.store.get_signal, signal_id)
+    if sig is None:
+        raise not_found("signal", signal_id)
+    return sig
+
+
+@router.get("/{signal_id}", response_model=SignalMeta, summary="A signal's metadata",
+            responses=ERRORS)
+async def get_signal(signal_id: str, state: StateDep) -> dict[str, Any]:
+    row = await to_thread.run_sync(state.store.get_signal_meta, signal_id)
+    if row is None:
+        raise not_found("signal", signal_id)
+    return signal_meta(row)
+
+
+@router.get(
+    "/{signal_id}/data",
+    response_model=SignalData,
+    summary="A signal's samples: JSON, CSV or NPY",
+    responses={
+        **ERRORS,
+        200: {
+            "description": "JSON (default), CSV (t,w with a header) or NPY ((n, 2) float64).",
+            "content": {"text/csv": {}, "application/x-npy": {}},
+        },
+    },
+)
+async def get_signal_data(
+    signal_id: str,
+    request: Request,
+    state: StateDep,
+    format: Annotated[str | None, Query(pattern="^(json|csv|npy)$",
+                                        description="Overrides the Accept header.")] = None,
+) -> Response:
+    """Exactly the stored float64 samples (17 significant digits in CSV, binary in NPY)."""
+    fmt = format
+    if fmt is None:
+        accept = request.headers.get("accept", "")
+        if "text/csv" in accept:
+            fmt = "csv"
+        elif "application/x-npy" in accept or "application/octet-stream" in accept:
+            fmt = "npy"
+        else:
+            fmt = "json"
+    sig = await _load(state, signal_id)
+    row = sig.row
+    t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
+    if fmt == "csv":
+        body = await to_thread.run_sync(codec.to_csv, t, sig.w, row.unit, row.value_unit)
+        return Response(body, media_type="text/csv", headers={
+            "Content-Disposition": f'attachment; filename="{row.id}.csv"'})
+    if fmt == "npy":
+        return Response(codec.to_npy(t, sig.w), media_type="application/x-npy", headers={
+            "Content-Disposition": f'attachment; filename="{row.id}.npy"'})
+    return JSONResponse({"id": row.id, "t": t.tolist(), "w": sig.w.tolist(), "dt": row.dt,
+                         "unit": row.unit, "value_unit": row.value_unit})
+
+
+@router.delete("/{signal_id}", status_code=204, summary="Delete a signal", responses=ERRORS)
+async def delete_signal(signal_id: str, state: StateDep) -> Response:
+    if not await to_thread.run_sync(state.store.delete_signal, signal_id):
+        raise not_found("signal", signal_id)
+    return Response(status_code=204)
+
+
+@router.get(
+    "/{signal_id}/plot.png",
+    summary="A chart of the signal",
+    responses={**ERRORS, 200: {"content": {"image/png": {}}, "description": "PNG chart."}},
+    response_class=Response,
+)
+async def plot_signal(signal_id: str, state: StateDep) -> Response:
+    sig = await _load(state, signal_id)
+    row = sig.row
+    t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
+    static = (row.meta or {}).get("w_static")
+    png = await state.run(
+        _plot, t, sig.w, row.name or row.id, row.unit, row.value_unit, static)
+    return Response(png, media_type="image/png")
+
+
+def _plot(t: Any, w: Any, title: str, unit: str | None, value_unit: str | None,
+          static: float | None) -> bytes:
+    return plots.signal_plot(t, w, title=title, unit=unit, value_unit=value_unit,
+                             static_level=static, fmt="png")

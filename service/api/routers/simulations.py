@@ -1,0 +1,49 @@
+"""``POST /v1/simulations``: run a scene; cheap models answer at once, others become jobs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from anyio import to_thread
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from service.api import numerics
+from service.api.jobs import store_simulated_signal
+from service.api.routers._common import problems
+from service.api.state import StateDep, job_doc, signal_meta
+from service.schemas import Job, SignalMeta, SimulationRequest, SimulationResult
+
+router = APIRouter(prefix="/v1/simulations", tags=["simulations"])
+
+_NOT_SCENE = {"model", "background", "name"}
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=SimulationResult,
+    summary="Simulate an impulse response and store it as a signal",
+    responses={202: {"description": "Became a job (see /v1/jobs/{id}).",
+                     "model": SimulationResult}, **problems(401, 413, 422, 501)},
+)
+async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResponse:
+    """201 with the stored signal, or 202 with the job that will store it."""
+    scene = req.model_dump(exclude=_NOT_SCENE)
+    await to_thread.run_sync(numerics.check_scene, scene)
+    background = req.background
+    if background is None:
+        background = req.model not in state.settings.sync_simulation_models
+    params: dict[str, Any] = {"scene": scene, "model": req.model, "name": req.name}
+    if background:
+        row = await to_thread.run_sync(state.store.create_job, "simulation", params)
+        if state.runner is not None:
+            state.runner.wake()
+        job = Job.model_validate(job_doc(row))
+        return JSONResponse(SimulationResult(job=job).model_dump(mode="json"), status_code=202,
+                            headers={"Location": f"/v1/jobs/{row.id}"})
+    sim = await state.run(numerics.simulate, scene, req.model)
+    row = await to_thread.run_sync(store_simulated_signal, state.store, sim, params)
+    meta = SignalMeta.model_validate(signal_meta(row))
+    return JSONResponse(SimulationResult(signal=meta).model_dump(mode="json"), status_code=201,
+                        headers={"Location": f"/v1/signals/{row.id}"})

@@ -1,0 +1,83 @@
+"""Service settings: environment variables ``SNAPWARN_*`` (pydantic-settings)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+DEFAULT_DB_URL = "sqlite:///./var/snapwarn.db"
+
+
+def _default_workers() -> int:
+    return max(1, min(4, os.cpu_count() or 1))
+
+
+class Settings(BaseSettings):
+    """Everything the service can be told; each field is also ``SNAPWARN_<FIELD>`` in the env.
+
+    Example: ``SNAPWARN_DB_URL=postgresql+psycopg://user@host/db snapwarn serve``.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="SNAPWARN_", extra="ignore")
+
+    db_url: str = Field(
+        default=DEFAULT_DB_URL,
+        description="SQLAlchemy URL: SQLite file (default) or postgresql+psycopg://...",
+    )
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=0, le=65535)
+    http_workers: int = Field(default=1, ge=1, description="uvicorn worker processes.")
+    log_level: str = "info"
+    api_key: str | None = Field(
+        default=None, description="If set, /v1 requires 'Authorization: Bearer <key>'."
+    )
+
+    # Limits (413 beyond them).
+    max_body_bytes: int = Field(default=64 * 1024 * 1024, ge=1024)
+    max_samples: int = Field(default=4_000_000, ge=2)
+    max_sweep_signals: int = Field(default=500, ge=2)
+    uniform_rtol: float = Field(
+        default=1e-3, gt=0, description="Max relative deviation of diff(t) from its mean."
+    )
+
+    # CPU-bound work.
+    executor: str = Field(
+        default="process", description="'process' (default) or 'thread' for the analysis pool."
+    )
+    analysis_workers: int = Field(default_factory=_default_workers, ge=1)
+    warm_pool: bool = Field(default=True, description="Start and warm the pool at startup.")
+
+    # Jobs.
+    run_jobs: bool = Field(
+        default=True, description="Run jobs in this server; false when `snapwarn worker` does."
+    )
+    job_workers: int = Field(default=1, ge=1, description="Jobs run concurrently per runner.")
+    job_poll_s: float = Field(default=0.2, gt=0)
+    job_heartbeat_s: float = Field(default=1.0, gt=0)
+    job_lease_s: float = Field(
+        default=15.0, gt=0, description="A running job silent this long is resumed elsewhere."
+    )
+    job_max_attempts: int = Field(default=3, ge=1)
+    sync_simulation_models: list[str] = Field(
+        default_factory=lambda: ["normal-form", "euler-beam"],
+        description="Models whose simulations answer at once; others become jobs.",
+    )
+
+    @field_validator("executor")
+    @classmethod
+    def _check_executor(cls, v: str) -> str:
+        if v not in ("process", "thread"):
+            raise ValueError(f"executor must be 'process' or 'thread', got {v!r}")
+        return v
+
+    def sqlite_path(self) -> Path | None:
+        """The SQLite file of ``db_url`` (None for other databases or in-memory)."""
+        prefix = "sqlite:///"
+        if self.db_url.startswith(prefix):
+            p = self.db_url[len(prefix) :]
+            if p and p != ":memory:":
+                return Path(p)
+        return None

@@ -1,0 +1,113 @@
+"""What a running app holds (store, pools, job runner) and the dependencies that reach it."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from typing import Annotated, Any, TypeVar
+
+from fastapi import Depends, Request
+
+from service.api.executor import make_pool, run_in_pool
+from service.api.jobs import JobRunner
+from service.api.problems import ApiProblem
+from service.api.settings import Settings
+from service.api.storage import JobRow, SignalRow, Store, as_utc
+
+T = TypeVar("T")
+
+
+@dataclass
+class AppState:
+    settings: Settings
+    store: Store
+    pool: Executor
+    runner: JobRunner | None = None
+    numerics_cache: tuple[float, dict[str, bool]] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    async def run(self, fn: Callable[..., T], *args: Any) -> T:
+        """Await ``fn(*args)`` in the analysis pool; a broken pool is replaced once."""
+        try:
+            return await run_in_pool(self.pool, fn, *args)
+        except BrokenProcessPool:
+            old = self.pool
+            self.pool = make_pool(self.settings.executor, self.settings.analysis_workers,
+                                  "snapwarn-analysis")
+            old.shutdown(wait=False, cancel_futures=True)
+            return await run_in_pool(self.pool, fn, *args)
+
+    def numerics_fresh(self, max_age: float = 30.0) -> dict[str, bool] | None:
+        if self.numerics_cache and time.monotonic() - self.numerics_cache[0] < max_age:
+            return self.numerics_cache[1]
+        return None
+
+
+def get_state(request: Request) -> AppState:
+    st = getattr(request.app.state, "snapwarn", None)
+    if st is None:
+        raise ApiProblem(503, "the service is not started (lifespan did not run)")
+    return st
+
+
+def require_api_key(request: Request) -> None:
+    """With ``SNAPWARN_API_KEY`` set, /v1 needs ``Authorization: Bearer <key>`` (or X-API-Key)."""
+    st = getattr(request.app.state, "snapwarn", None)
+    settings: Settings = st.settings if st else request.app.state.settings
+    key = settings.api_key
+    if not key:
+        return
+    auth = request.headers.get("authorization", "")
+    given = auth[7:] if auth.lower().startswith("bearer ") else request.headers.get("x-api-key")
+    if given != key:
+        raise ApiProblem(
+            401,
+            "missing or wrong API key (send 'Authorization: Bearer <key>')",
+            field="authorization",
+            value="<hidden>" if given else None,
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+
+
+def signal_meta(row: SignalRow) -> dict[str, Any]:
+    control = None
+    if row.control_name is not None or row.control_value is not None:
+        control = {"name": row.control_name or "mu", "value": row.control_value,
+                   "unit": row.control_unit}
+    return {
+        "id": row.id,
+        "name": row.name,
+        "n": row.n,
+        "dt": row.dt,
+        "t0": row.t0,
+        "duration": row.dt * (row.n - 1),
+        "unit": row.unit,
+        "value_unit": row.value_unit,
+        "control": control,
+        "metadata": row.meta or {},
+        "source": row.source,
+        "has_t": row.t is not None,
+        "sha256": row.sha256,
+        "created_at": as_utc(row.created_at),
+    }
+
+
+def job_doc(row: JobRow) -> dict[str, Any]:
+    return {
+        "id": row.id,
+        "kind": row.kind,
+        "status": row.status,
+        "progress": {"fraction": float(row.fraction or 0.0), "message": row.message or ""},
+        "result": row.result,
+        "error": row.error,
+        "attempts": row.attempts,
+        "created_at": as_utc(row.created_at),
+        "started_at": as_utc(row.started_at),
+        "finished_at": as_utc(row.finished_at),
+    }
+
+
+StateDep = Annotated[AppState, Depends(get_state)]

@@ -1,0 +1,41 @@
+"""Wire models of background jobs."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field
+
+JobStatus = Literal["queued", "running", "succeeded", "failed"]
+TERMINAL_STATUSES = ("succeeded", "failed")
+
+
+class Progress(BaseModel):
+    fraction: float = Field(ge=0.0, le=1.0)
+    message: str = ""
+
+
+class JobError(BaseModel):
+    type: str
+    title: str
+    detail: str | None = None
+
+
+class Job(BaseModel):
+    """A unit of background work: status, progress, and its result or error."""
+
+    id: str
+    kind: str = Field(description="'sweep' or 'simulation'.")
+    status: JobStatus
+    progress: Progress
+    result: dict[str, Any] | None = None
+    error: JobError | None = None
+    attempts: int = Field(description="Times the job was started (a restart resumes it).")
+    created_at: datetime
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+
+    @property
+    def done(self) -> bool:
+        return self.status in TERMINAL_STATUSES

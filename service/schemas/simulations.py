@@ -1,0 +1,48 @@
+"""Wire models of simulations (a scene run by a simulator backend)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from service.schemas.jobs import Job
+from service.schemas.signals import SignalMeta
+
+Actuation = Literal["asymmetric", "symmetric", "antisymmetric"]
+Model = Literal["normal-form", "euler-beam", "cosserat", "auto"]
+
+
+class SimulationRequest(BaseModel):
+    """A scene (see ``sim.scene.Scene``) and the backend to run it; non-dimensional units."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    model: Model = "auto"
+    actuation: Actuation = "asymmetric"
+    mu: float = 0.0
+    branch: str = "U_A"
+    damping: float = 2e-4
+    kick: float = 1e-2
+    kick_position: float = 0.25
+    probe: float = 0.25
+    duration: float | None = None
+    dt: float | None = None
+    snr_db: float | None = None
+    seed: int | None = None
+    end_shortening: float = 1e-2
+    slenderness: float = 1e-3
+    elements: int = 50
+    background: bool | None = Field(
+        default=None,
+        description="Force a job (true) or an immediate answer (false); by default cheap "
+        "models answer at once and expensive ones become a job.",
+    )
+    name: str | None = Field(default=None, max_length=500)
+
+
+class SimulationResult(BaseModel):
+    """Either the stored signal (ran at once, 201) or the job that will store it (202)."""
+
+    signal: SignalMeta | None = None
+    job: Job | None = None

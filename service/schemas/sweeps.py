@@ -1,0 +1,59 @@
+"""Wire models of sweeps: measurements at increasing control values -> type, mu*, alarm."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from service.schemas.jobs import Job
+from service.schemas.simulations import Actuation, Model
+
+
+class SweepMeasurement(BaseModel):
+    """A stored signal and the control value it was recorded at (default: its own control)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    signal_id: str
+    control_value: float | None = None
+
+
+class SimulatedSweep(BaseModel):
+    """The warn pipeline on simulated impulse responses (``snapwarn warn``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    actuation: Actuation = "asymmetric"
+    model: Model = "auto"
+    damping: float | None = None
+    snr_db: float | None = None
+    seed: int | None = None
+    max_measurements: int | None = Field(default=None, ge=2)
+
+
+class SweepRequest(BaseModel):
+    """Exactly one of ``measurements`` (recorded signals) or ``simulate``."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    measurements: list[SweepMeasurement] | None = Field(default=None, min_length=1)
+    simulate: SimulatedSweep | None = None
+    name: str | None = Field(default=None, max_length=500)
+
+
+class Sweep(BaseModel):
+    """A sweep, its job, and (once done) the pipeline's document and its main parts."""
+
+    id: str
+    name: str | None = None
+    status: str
+    request: dict[str, Any]
+    job: Job
+    result: dict[str, Any] | None = None
+    measurements: list[Any] | None = None
+    classification: dict[str, Any] | None = None
+    prediction: dict[str, Any] | None = None
+    alarm: Any = None
+    created_at: datetime
