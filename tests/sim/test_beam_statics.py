@@ -1,0 +1,178 @@
+"""Statics of the Euler beam against closed forms, the paper, and an independent implementation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq, minimize_scalar
+
+from sim.euler_beam import BeamError, bifurcation, equilibria, equilibrium, euler_eigenvalues
+
+ACTS = ("asymmetric", "symmetric", "antisymmetric")
+SLOPE = {"asymmetric": 0.0, "symmetric": -1.0, "antisymmetric": 1.0}
+
+
+# ---- an independent reference: the paper's (A, B, C, D) basis with closed-form integrals ----
+def _paper_mu(L: float, s: float) -> float:
+    """mu on the generic branch at Lambda, from M v = b in the basis sin, cos, X, 1."""
+    sL, cL = math.sin(L), math.cos(L)
+    M = np.array([[0, 1, 0, 1], [sL, cL, 1, 1], [L, 0, 1, 0], [L * cL, -L * sL, 1, 0]])
+    A, B, C, _ = np.linalg.solve(M, [0, 0, 1, s])
+    s2 = math.sin(2 * L)
+    J = (
+        A * A * L * L * (0.5 + s2 / (4 * L))
+        + B * B * L * L * (0.5 - s2 / (4 * L))
+        + C * C
+        - A * B * L * sL**2
+        + 2 * A * C * sL
+        - 2 * B * C * (1 - cL)
+    )
+    return math.sqrt(2.0 / J)
+
+
+def _paper_fold(lo: float, hi: float, s: float) -> tuple[float, float]:
+    res = minimize_scalar(lambda L: -_paper_mu(L, s), bounds=(lo, hi), method="bounded",
+                          options={"xatol": 1e-12})  # fmt: skip
+    return -res.fun, res.x
+
+
+def test_euler_eigenvalues_are_the_classical_ones() -> None:
+    vals = euler_eigenvalues(4)
+    assert vals[0] == (pytest.approx(2 * math.pi, abs=1e-14), "sym")
+    L2, kind = vals[1]
+    assert kind == "anti" and math.tan(L2 / 2) == pytest.approx(L2 / 2, rel=1e-12)
+    assert L2 == pytest.approx(8.986818916, abs=1e-9)
+    assert vals[2][0] == pytest.approx(4 * math.pi, abs=1e-13)
+
+
+@pytest.mark.parametrize("actuation", ACTS)
+def test_mu_zero_closed_form(actuation: str) -> None:
+    X = np.linspace(0, 1, 41)
+    eqs = {e.branch: e for e in equilibria(actuation, 0.0)}
+    assert set(eqs) == {"U_A", "U_B", "S_A", "S_B", "W_A", "W_B"}
+    exact = (1 - np.cos(2 * math.pi * X)) / math.pi
+    assert eqs["U_B"].lam == pytest.approx(2 * math.pi, abs=1e-13)
+    np.testing.assert_allclose(eqs["U_B"].shape(X), exact, atol=1e-13)
+    np.testing.assert_allclose(eqs["U_A"].shape(X), -exact, atol=1e-13)
+    assert eqs["U_A"].energy == pytest.approx(eqs["U_B"].energy, rel=1e-13)
+    # bending energy of (1 - cos 2 pi X)/pi: (1/2) int (4 pi cos 2 pi X)^2 = 4 pi^2
+    assert eqs["U_B"].energy == pytest.approx(4 * math.pi**2, rel=1e-12)
+
+
+@pytest.mark.parametrize("actuation", ACTS)
+@pytest.mark.parametrize("mu", [0.3, 1.0, 1.7, 1.95])
+def test_every_equilibrium_satisfies_bcs_and_constraint(actuation: str, mu: float) -> None:
+    s = SLOPE[actuation]
+    eqs = equilibria(actuation, mu)
+    assert len(eqs) >= 2
+    for e in eqs:
+        ends = np.array([0.0, 1.0])
+        np.testing.assert_allclose(e.shape(ends), 0.0, atol=1e-12)
+        np.testing.assert_allclose(e.shape(ends, 1), [mu, s * mu], atol=1e-11)
+        assert e.constraint == pytest.approx(2.0, rel=1e-12)
+        # the ODE W'''' + Lambda^2 W'' = 0 by finite differences of W'' (independent check)
+        X = np.linspace(0.1, 0.9, 9)
+        h = 1e-3
+        d4 = (e.shape(X + h, 2) - 2 * e.shape(X, 2) + e.shape(X - h, 2)) / h**2
+        np.testing.assert_allclose(d4 + e.lambda2 * e.shape(X, 2), 0.0,
+                                   atol=1e-4 * np.abs(d4).max())  # fmt: skip
+
+
+def test_generic_branch_matches_the_papers_basis() -> None:
+    """Lambda of each generic equilibrium gives back its mu in the paper's own formulation."""
+    for actuation in ACTS:
+        for mu in (0.4, 1.2, 1.75):
+            for e in equilibria(actuation, mu):
+                if e.kind == "generic" and e.lambda2 > 1.0:
+                    assert _paper_mu(e.lam, SLOPE[actuation]) == pytest.approx(mu, rel=1e-10)
+
+
+def test_asymmetric_saddle_node_against_independent_maximisation() -> None:
+    bif = bifurcation("asymmetric")
+    mu_ref, L_ref = _paper_fold(2 * math.pi + 0.1, 8.9, 0.0)
+    assert bif.transition == "saddle-node"
+    assert abs(bif.mu_star - mu_ref) < 1e-10
+    assert abs(bif.lambda_star - L_ref) < 1e-5  # the maximiser is flat: 1e-5 in Lambda is exact
+    assert set(bif.branches) == {"U_A", "S_B"}
+    # the paper: 1.782 (Table 1), 1.7812 (Stability analysis)
+    assert abs(bif.mu_star - 1.782) < 5e-4
+    # U_A exists just below mu*, not above; S_B likewise; U_B survives
+    below = {e.branch for e in equilibria("asymmetric", bif.mu_star - 1e-9)}
+    above = {e.branch for e in equilibria("asymmetric", bif.mu_star + 1e-9)}
+    assert {"U_A", "S_B", "U_B"} <= below
+    assert "U_A" not in above and "S_B" not in above and "U_B" in above
+
+
+def test_symmetric_subcritical_pitchfork_at_exactly_two_and_secondary_fold() -> None:
+    bif = bifurcation("symmetric")
+    assert bif.transition == "subcritical-pitchfork"
+    assert abs(bif.mu_star - 2.0) < 1e-12
+    assert bif.lambda_star == pytest.approx(euler_eigenvalues(2)[1][0], abs=1e-12)
+    assert set(bif.branches) == {"U_A", "S_A", "S_B"}
+    (sec,) = bif.secondary
+    mu_ref, _ = _paper_fold(9.0, 4 * math.pi - 0.1, -1.0)
+    assert sec.transition == "saddle-node" and set(sec.branches) == {"U_A", "W_B"}
+    assert abs(sec.mu_star - mu_ref) < 1e-10
+    assert abs(sec.mu_star - 2.012) < 5e-4
+    # S_A and S_B exist up to mu* and merge on U_A: their W(1/4) -> U_A's
+    e = {x.branch: x for x in equilibria("symmetric", 2.0 - 1e-8)}
+    assert abs(e["S_A"].w_quarter - e["U_A"].w_quarter) < 1e-3
+    assert abs(e["S_B"].w_quarter - e["U_A"].w_quarter) < 1e-3
+    assert "S_A" not in {x.branch for x in equilibria("symmetric", 2.0 + 1e-8)}
+
+
+def test_antisymmetric_supercritical_pitchfork() -> None:
+    bif = bifurcation("antisymmetric")
+    assert bif.transition == "supercritical-pitchfork"
+    assert abs(bif.mu_star - 2.0) < 1e-12
+    assert bif.lambda_star == pytest.approx(2 * math.pi, abs=1e-13)
+    assert set(bif.branches) == {"U_A", "U_B", "S_B"}
+    e = {x.branch: x for x in equilibria("antisymmetric", 2.0 - 1e-8)}
+    assert e["U_A"].stable and e["U_B"].stable and not e["S_B"].stable
+    after = {x.branch: x for x in equilibria("antisymmetric", 2.0 + 1e-6)}
+    assert "U_A" not in after and after["S_B"].stable
+
+
+def test_paper_pitchfork_value_in_closed_form() -> None:
+    """At a compatible Euler mode mu_c = sqrt(2/J_p) = 2: check by the paper's basis too."""
+    assert _paper_mu(2 * math.pi * (1 + 1e-9), 1.0) == pytest.approx(2.0, rel=1e-7)
+    L_s = euler_eigenvalues(2)[1][0]
+    assert _paper_mu(L_s * (1 + 1e-9), -1.0) == pytest.approx(2.0, rel=1e-7)
+
+
+def test_stability_of_the_branches() -> None:
+    for actuation in ACTS:
+        e = {x.branch: x for x in equilibria(actuation, 0.5)}
+        assert e["U_A"].stable and e["U_B"].stable
+        for b in ("S_A", "S_B", "W_A", "W_B"):
+            assert not e[b].stable
+
+
+def test_mirror_symmetry_for_negative_mu() -> None:
+    pos = {e.branch: e for e in equilibria("asymmetric", 0.8)}
+    neg = {e.branch: e for e in equilibria("asymmetric", -0.8)}
+    X = np.linspace(0, 1, 11)
+    for b, e in pos.items():
+        m = b[:2] + {"A": "B", "B": "A"}[b[2]]
+        np.testing.assert_allclose(neg[m].shape(X), -e.shape(X), atol=1e-13)
+
+
+def test_tension_branches_are_continuous_through_lambda_zero() -> None:
+    """The symmetric U_B reaches Lambda = 0 near mu = 2.45 and goes on in tension."""
+    mus = np.linspace(2.3, 2.7, 9)
+    lam2 = [equilibrium("symmetric", m, "U_B").lambda2 for m in mus]
+    assert lam2[0] > 0 > lam2[-1]
+    assert np.all(np.diff(lam2) < 0)
+    zero = brentq(lambda m: equilibrium("symmetric", m, "U_B").lambda2, 2.3, 2.7)
+    assert _paper_mu(1e-3, -1.0) == pytest.approx(zero, rel=1e-5)
+
+
+def test_errors_name_the_parameter() -> None:
+    with pytest.raises(BeamError, match="actuation"):
+        equilibria("sideways", 1.0)
+    with pytest.raises(BeamError, match="U_A"):
+        equilibrium("asymmetric", 1.9, "U_A")
+    with pytest.raises(BeamError, match="mu"):
+        equilibria("asymmetric", float("nan"))
