@@ -123,3 +123,8 @@ def export_openapi(path: str | Path) -> Path:
 
 def render_openapi(doc: dict[str, Any]) -> str:
     return json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+
+
+def app_from_env() -> FastAPI:
+    """Factory for ``uvicorn --factory service.api.app:app_from_env`` (settings from env)."""
+    return create_app(Settings())

@@ -13,6 +13,7 @@ A job that succeeded is never touched again: nothing completed is lost.
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 import traceback
@@ -84,12 +85,27 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
                 progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
             progress(0.1, f"analysing {len(items)} signals")
             result = numerics.sweep_from_signals(items)
+        elif job.kind == "diagnostic-sleep":
+            result = _diagnostic_sleep(params, progress)
         else:
             raise ApiProblem(422, f"unknown job kind {job.kind!r}", field="kind", value=job.kind)
     except Exception as exc:  # noqa: BLE001 - every failure is recorded on the job
         store.fail_job(job_id, attempt, _problem_dict(exc))
         return "failed"
     return "succeeded" if store.finish_job(job_id, attempt, result) else "superseded"
+
+
+def _diagnostic_sleep(params: dict[str, Any], progress: Any) -> dict[str, Any]:
+    """A job that only waits (no API creates it): exercises the job machinery in tests and
+    deployments (``Store.create_job("diagnostic-sleep", {"seconds": 2})``)."""
+    seconds = float(params.get("seconds", 1.0))
+    steps = max(1, int(params.get("steps", 10)))
+    if params.get("fail"):
+        raise ApiProblem(422, "asked to fail", field="fail", value=True)
+    for k in range(steps):
+        time.sleep(seconds / steps)
+        progress((k + 1) / steps, f"step {k + 1} of {steps}")
+    return {"slept": seconds, "pid": os.getpid(), "echo": params.get("echo")}
 
 
 def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, Any]) -> Any:

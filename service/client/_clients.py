@@ -1,0 +1,231 @@
+"""``Client`` (blocking) and ``AsyncClient`` (asyncio) over httpx2."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Any
+
+import httpx2
+
+from service.client import _core as core
+from service.client.errors import JobFailed, WaitTimeout
+from service.schemas import (
+    Detection,
+    Health,
+    Job,
+    SignalMeta,
+    SimulationResult,
+    Sweep,
+)
+
+
+def _headers(api_key: str | None, extra: dict[str, str] | None) -> dict[str, str]:
+    h = {"user-agent": "snapwarn-sdk/0.1", "accept": "application/json"}
+    if api_key:
+        h["authorization"] = f"Bearer {api_key}"
+    h.update(extra or {})
+    return h
+
+
+class Client:
+    """Blocking SDK client.
+
+    >>> with Client("http://127.0.0.1:8000") as c:       # doctest: +SKIP
+    ...     sig = c.upload_file("run.csv", control_value=1.2)
+    ...     doc = c.detect(sig.id)
+    """
+
+    def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 60.0, *,
+                 transport: httpx2.BaseTransport | None = None,
+                 headers: dict[str, str] | None = None) -> None:
+        self._http = httpx2.Client(base_url=base_url, timeout=timeout, transport=transport,
+                                   headers=_headers(api_key, headers))
+
+    def close(self) -> None:
+        self._http.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _run(self, call: core.Call) -> Any:
+        r = self._http.request(call.method, call.path, params=call.params, content=call.content,
+                               files=call.files, data=call.data, headers=call.headers or None)
+        core.raise_for_problem(r)
+        return call.parse(r)
+
+    # --- resources ---------------------------------------------------------------------------
+    def health(self) -> Health:
+        """``GET /healthz``."""
+        return self._run(core.health())
+
+    def upload_signal(self, w: Any, **kw: Any) -> SignalMeta:
+        """``POST /v1/signals`` (JSON): ``w`` with ``t=`` or ``dt=``; ``unit``, ``control``..."""
+        return self._run(core.upload_signal(w, **kw))
+
+    def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
+        """``POST /v1/signals`` (multipart): a path or bytes (CSV, NPY, NPZ, WAV, MAT)."""
+        return self._run(core.upload_file(file, **kw))
+
+    def get_signal(self, signal_id: str) -> SignalMeta:
+        """``GET /v1/signals/{id}``."""
+        return self._run(core.get_signal(signal_id))
+
+    def signal_data(self, signal_id: str, *, as_numpy: bool | None = None) -> tuple[Any, Any]:
+        """``(t, w)`` exactly as stored: numpy arrays where numpy is installed, else lists."""
+        return self._run(core.signal_data(signal_id, as_numpy=as_numpy))
+
+    def download_signal(self, signal_id: str, *, format: str = "csv") -> bytes:
+        """The stored samples as a CSV, NPY or JSON file's bytes."""
+        return self._run(core.download_signal(signal_id, format=format))
+
+    def delete_signal(self, signal_id: str) -> None:
+        """``DELETE /v1/signals/{id}``."""
+        return self._run(core.delete_signal(signal_id))
+
+    def signal_plot(self, signal_id: str) -> bytes:
+        """PNG chart of a signal."""
+        return self._run(core.signal_plot(signal_id))
+
+    def simulate(self, **scene: Any) -> SimulationResult:
+        """``POST /v1/simulations``: ``.signal`` at once, or ``.job`` to :meth:`wait` for."""
+        return self._run(core.simulate(**scene))
+
+    def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
+        """``POST /v1/detections``: a stored signal's id, or ``w=`` with ``t=``/``dt=``."""
+        return self._run(core.detect(signal_id, **kw))
+
+    def create_sweep(self, measurements: Any = None, **kw: Any) -> Sweep:
+        """``POST /v1/sweeps``: ``[(signal_id, control_value), ...]`` or ``simulate={...}``."""
+        return self._run(core.create_sweep(measurements, **kw))
+
+    def get_sweep(self, sweep_id: str) -> Sweep:
+        """``GET /v1/sweeps/{id}``."""
+        return self._run(core.get_sweep(sweep_id))
+
+    def sweep_plot(self, sweep_id: str, *, format: str = "png") -> bytes:
+        """The T(mu) chart of a finished sweep (PNG or SVG bytes)."""
+        return self._run(core.sweep_plot(sweep_id, format=format))
+
+    def get_job(self, job_id: str) -> Job:
+        """``GET /v1/jobs/{id}``."""
+        return self._run(core.get_job(job_id))
+
+    def wait(self, job: Any, *, progress: bool = True, timeout: float | None = None,
+             poll: float = 0.25, raise_on_failure: bool = True) -> Any:
+        """Poll a job (or a Sweep / SimulationResult / id) until it ends, drawing a bar.
+
+        Returns the finished Job, or the refreshed Sweep when given a Sweep. Raises
+        :class:`JobFailed` if it failed (unless ``raise_on_failure=False``) and
+        :class:`WaitTimeout` after ``timeout`` seconds.
+        """
+        jid = core.job_id_of(job)
+        bar = core.Bar(progress, f"job {jid[:8]}")
+        deadline = None if timeout is None else time.monotonic() + timeout
+        try:
+            while True:
+                j = self.get_job(jid)
+                bar.update(j)
+                if j.done:
+                    break
+                if deadline is not None and time.monotonic() > deadline:
+                    raise WaitTimeout(f"job {jid} still {j.status} after {timeout} s")
+                time.sleep(poll)
+        finally:
+            bar.close()
+        if j.status == "failed" and raise_on_failure:
+            raise JobFailed(j)
+        return self.get_sweep(job.id) if isinstance(job, Sweep) else j
+
+
+class AsyncClient:
+    """asyncio SDK client; the same methods as :class:`Client`, awaitable."""
+
+    def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 60.0, *,
+                 transport: httpx2.AsyncBaseTransport | None = None,
+                 headers: dict[str, str] | None = None) -> None:
+        self._http = httpx2.AsyncClient(base_url=base_url, timeout=timeout, transport=transport,
+                                        headers=_headers(api_key, headers))
+
+    async def aclose(self) -> None:
+        await self._http.aclose()
+
+    async def __aenter__(self) -> AsyncClient:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.aclose()
+
+    async def _run(self, call: core.Call) -> Any:
+        r = await self._http.request(call.method, call.path, params=call.params,
+                                     content=call.content, files=call.files, data=call.data,
+                                     headers=call.headers or None)
+        core.raise_for_problem(r)
+        return call.parse(r)
+
+    async def health(self) -> Health:
+        return await self._run(core.health())
+
+    async def upload_signal(self, w: Any, **kw: Any) -> SignalMeta:
+        return await self._run(core.upload_signal(w, **kw))
+
+    async def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
+        return await self._run(core.upload_file(file, **kw))
+
+    async def get_signal(self, signal_id: str) -> SignalMeta:
+        return await self._run(core.get_signal(signal_id))
+
+    async def signal_data(self, signal_id: str, *,
+                          as_numpy: bool | None = None) -> tuple[Any, Any]:
+        return await self._run(core.signal_data(signal_id, as_numpy=as_numpy))
+
+    async def download_signal(self, signal_id: str, *, format: str = "csv") -> bytes:
+        return await self._run(core.download_signal(signal_id, format=format))
+
+    async def delete_signal(self, signal_id: str) -> None:
+        return await self._run(core.delete_signal(signal_id))
+
+    async def signal_plot(self, signal_id: str) -> bytes:
+        return await self._run(core.signal_plot(signal_id))
+
+    async def simulate(self, **scene: Any) -> SimulationResult:
+        return await self._run(core.simulate(**scene))
+
+    async def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
+        return await self._run(core.detect(signal_id, **kw))
+
+    async def create_sweep(self, measurements: Any = None, **kw: Any) -> Sweep:
+        return await self._run(core.create_sweep(measurements, **kw))
+
+    async def get_sweep(self, sweep_id: str) -> Sweep:
+        return await self._run(core.get_sweep(sweep_id))
+
+    async def sweep_plot(self, sweep_id: str, *, format: str = "png") -> bytes:
+        return await self._run(core.sweep_plot(sweep_id, format=format))
+
+    async def get_job(self, job_id: str) -> Job:
+        return await self._run(core.get_job(job_id))
+
+    async def wait(self, job: Any, *, progress: bool = True, timeout: float | None = None,
+                   poll: float = 0.25, raise_on_failure: bool = True) -> Any:
+        """See :meth:`Client.wait`."""
+        jid = core.job_id_of(job)
+        bar = core.Bar(progress, f"job {jid[:8]}")
+        deadline = None if timeout is None else time.monotonic() + timeout
+        try:
+            while True:
+                j = await self.get_job(jid)
+                bar.update(j)
+                if j.done:
+                    break
+                if deadline is not None and time.monotonic() > deadline:
+                    raise WaitTimeout(f"job {jid} still {j.status} after {timeout} s")
+                await asyncio.sleep(poll)
+        finally:
+            bar.close()
+        if j.status == "failed" and raise_on_failure:
+            raise JobFailed(j)
+        return await self.get_sweep(job.id) if isinstance(job, Sweep) else j

@@ -1,0 +1,267 @@
+"""Requests as data: each SDK method builds a :class:`Call` and a parser of its response.
+
+The sync and async clients only differ in how they send a call, so both share this module.
+Nothing heavy is imported: numpy is used only if the caller already has it installed, and
+only when a method is called.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import io
+import json
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from service.client.errors import error_for
+from service.schemas import (
+    Detection,
+    Health,
+    Job,
+    Problem,
+    SignalMeta,
+    SimulationResult,
+    Sweep,
+)
+
+JSON_HEADERS = {"content-type": "application/json"}
+
+
+@dataclass
+class Call:
+    method: str
+    path: str
+    params: dict[str, Any] | None = None
+    content: bytes | None = None
+    files: dict[str, Any] | None = None
+    data: dict[str, Any] | None = None
+    headers: dict[str, str] = field(default_factory=dict)
+    parse: Callable[[Any], Any] = lambda r: r
+
+
+def has_numpy() -> bool:
+    return importlib.util.find_spec("numpy") is not None
+
+
+def as_list(values: Any, name: str) -> list[float] | None:
+    """A list of floats from a numpy array or any sequence (NaN kept: the server judges)."""
+    if values is None:
+        return None
+    if hasattr(values, "tolist"):
+        out = values.tolist()
+    else:
+        out = list(values)
+    if out and isinstance(out[0], (list, tuple)):
+        return out  # let the server answer 422 naming the element
+    return out
+
+
+def dumps(doc: Any) -> bytes:
+    """JSON with NaN/inf written as literals, so the server can name them in its 422."""
+    return json.dumps(doc, allow_nan=True, separators=(",", ":")).encode()
+
+
+def raise_for_problem(response: Any) -> None:
+    if response.status_code < 400:
+        return
+    try:
+        doc = response.json()
+        problem = Problem.model_validate(doc)
+    except Exception:  # noqa: BLE001 - not a problem document (a proxy, a crash)
+        problem = Problem(title=response.reason_phrase or "Error", status=response.status_code,
+                          detail=response.text[:500] or None)
+    raise error_for(problem, method=response.request.method, url=str(response.request.url))
+
+
+def _model(cls: Any) -> Callable[[Any], Any]:
+    return lambda r: cls.model_validate(r.json())
+
+
+def _to_arrays(t: Any, w: Any, as_numpy: bool | None) -> tuple[Any, Any]:
+    use = has_numpy() if as_numpy is None else as_numpy
+    if use:
+        np = importlib.import_module("numpy")
+        return np.asarray(t, dtype=np.float64), np.asarray(w, dtype=np.float64)
+    return list(t), list(w)
+
+
+def _npy_or_json(as_numpy: bool | None) -> tuple[dict[str, str], Callable[[Any], Any]]:
+    use = has_numpy() if as_numpy is None else as_numpy
+    if use:
+        def parse_npy(r: Any) -> tuple[Any, Any]:
+            np = importlib.import_module("numpy")
+            a = np.load(io.BytesIO(r.content), allow_pickle=False)
+            return a[:, 0].copy(), a[:, 1].copy()
+
+        return {"format": "npy"}, parse_npy
+
+    def parse_json(r: Any) -> tuple[Any, Any]:
+        d = r.json()
+        return d["t"], d["w"]
+
+    return {"format": "json"}, parse_json
+
+
+# --- calls -----------------------------------------------------------------------------------
+def health() -> Call:
+    return Call("GET", "/healthz", parse=_model(Health))
+
+
+def upload_signal(w: Any, *, t: Any = None, dt: float | None = None, t0: float | None = None,
+                  unit: str | None = None, value_unit: str | None = None,
+                  control: Mapping[str, Any] | None = None,
+                  metadata: Mapping[str, Any] | None = None, name: str | None = None) -> Call:
+    doc: dict[str, Any] = {"w": as_list(w, "w")}
+    for k, v in (("t", as_list(t, "t")), ("dt", dt), ("t0", t0), ("unit", unit),
+                 ("value_unit", value_unit), ("name", name)):
+        if v is not None:
+            doc[k] = v
+    if control is not None:
+        doc["control"] = dict(control)
+    if metadata is not None:
+        doc["metadata"] = dict(metadata)
+    return Call("POST", "/v1/signals", content=dumps(doc), headers=dict(JSON_HEADERS),
+                parse=_model(SignalMeta))
+
+
+def upload_file(file: str | os.PathLike | bytes, *, filename: str | None = None,
+                format: str | None = None, **fields: Any) -> Call:
+    if isinstance(file, (bytes, bytearray)):
+        data = bytes(file)
+        fname = filename or f"signal.{format or 'csv'}"
+    else:
+        with open(file, "rb") as fh:
+            data = fh.read()
+        fname = filename or os.path.basename(os.fspath(file))
+    form: dict[str, Any] = {}
+    if format is not None:
+        form["format"] = format
+    for k, v in fields.items():
+        if v is None:
+            continue
+        form[k] = json.dumps(v) if k == "metadata" else str(v)
+    return Call("POST", "/v1/signals", files={"file": (fname, data)}, data=form,
+                parse=_model(SignalMeta))
+
+
+def get_signal(signal_id: str) -> Call:
+    return Call("GET", f"/v1/signals/{signal_id}", parse=_model(SignalMeta))
+
+
+def signal_data(signal_id: str, *, as_numpy: bool | None = None) -> Call:
+    params, parse = _npy_or_json(as_numpy)
+    return Call("GET", f"/v1/signals/{signal_id}/data", params=params, parse=parse)
+
+
+def download_signal(signal_id: str, *, format: str = "csv") -> Call:
+    return Call("GET", f"/v1/signals/{signal_id}/data", params={"format": format},
+                parse=lambda r: r.content)
+
+
+def delete_signal(signal_id: str) -> Call:
+    return Call("DELETE", f"/v1/signals/{signal_id}", parse=lambda r: None)
+
+
+def signal_plot(signal_id: str) -> Call:
+    return Call("GET", f"/v1/signals/{signal_id}/plot.png", parse=lambda r: r.content)
+
+
+def simulate(**scene: Any) -> Call:
+    doc = {k: v for k, v in scene.items() if v is not None}
+    return Call("POST", "/v1/simulations", content=dumps(doc), headers=dict(JSON_HEADERS),
+                parse=_model(SimulationResult))
+
+
+def detect(signal_id: str | None = None, *, w: Any = None, t: Any = None,
+           dt: float | None = None, method: str = "auto") -> Call:
+    doc: dict[str, Any] = {"method": method}
+    if signal_id is not None:
+        doc["signal_id"] = signal_id
+    for k, v in (("w", as_list(w, "w")), ("t", as_list(t, "t")), ("dt", dt)):
+        if v is not None:
+            doc[k] = v
+    return Call("POST", "/v1/detections", content=dumps(doc), headers=dict(JSON_HEADERS),
+                parse=_model(Detection))
+
+
+def _measurement(m: Any) -> dict[str, Any]:
+    if isinstance(m, str):
+        return {"signal_id": m}
+    if isinstance(m, Mapping):
+        return dict(m)
+    if hasattr(m, "id") and not isinstance(m, Sequence):  # a SignalMeta
+        return {"signal_id": m.id}
+    sid, value = m
+    sid = getattr(sid, "id", sid)
+    return {"signal_id": sid, "control_value": value}
+
+
+def create_sweep(measurements: Iterable[Any] | None = None, *,
+                 simulate: Mapping[str, Any] | None = None, name: str | None = None) -> Call:
+    doc: dict[str, Any] = {}
+    if measurements is not None:
+        doc["measurements"] = [_measurement(m) for m in measurements]
+    if simulate is not None:
+        doc["simulate"] = {k: v for k, v in simulate.items() if v is not None}
+    if name is not None:
+        doc["name"] = name
+    return Call("POST", "/v1/sweeps", content=dumps(doc), headers=dict(JSON_HEADERS),
+                parse=_model(Sweep))
+
+
+def get_sweep(sweep_id: str) -> Call:
+    return Call("GET", f"/v1/sweeps/{sweep_id}", parse=_model(Sweep))
+
+
+def sweep_plot(sweep_id: str, *, format: str = "png") -> Call:
+    if format not in ("png", "svg"):
+        raise ValueError(f"format must be 'png' or 'svg', got {format!r}")
+    return Call("GET", f"/v1/sweeps/{sweep_id}/plot.{format}", parse=lambda r: r.content)
+
+
+def get_job(job_id: str) -> Call:
+    return Call("GET", f"/v1/jobs/{job_id}", parse=_model(Job))
+
+
+def job_id_of(obj: Any) -> str:
+    """The job id behind a Job, Sweep, SimulationResult or an id string."""
+    if isinstance(obj, str):
+        return obj
+    if isinstance(obj, Job):
+        return obj.id
+    if isinstance(obj, Sweep):
+        return obj.job.id
+    if isinstance(obj, SimulationResult):
+        if obj.job is None:
+            raise ValueError("this simulation ran at once; there is no job to wait for")
+        return obj.job.id
+    raise TypeError(f"cannot wait for {type(obj).__name__}")
+
+
+class Bar:
+    """A tqdm progress bar on stderr (or nothing), fed with job progress."""
+
+    def __init__(self, enabled: bool, desc: str) -> None:
+        self._bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=1000, desc=desc, unit="‰", leave=True,
+                             bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+        self._n = 0
+
+    def update(self, job: Job) -> None:
+        if self._bar is None:
+            return
+        n = int(round(job.progress.fraction * 1000))
+        if n > self._n:
+            self._bar.update(n - self._n)
+            self._n = n
+        self._bar.set_postfix_str(f"{job.status}: {job.progress.message}"[:60], refresh=True)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
