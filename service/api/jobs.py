@@ -49,6 +49,10 @@ def _problem_dict(exc: BaseException) -> dict[str, Any]:
     }
 
 
+class _Superseded(Exception):  # noqa: N818
+    """This attempt no longer owns its job: stop working on it."""
+
+
 def run_job(db_url: str, job_id: str, attempt: int) -> str:
     """Run one claimed job to its end (called in a worker process); returns its status."""
     from service.api import numerics
@@ -63,7 +67,8 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
         now = time.monotonic()
         if now - last[0] >= 0.2 or fraction >= 1.0:
             last[0] = now
-            store.job_progress(job_id, attempt, fraction, message)
+            if not store.job_progress(job_id, attempt, fraction, message):
+                raise _Superseded  # failed/cancelled meanwhile, or resumed elsewhere
 
     try:
         params = job.params
@@ -89,6 +94,8 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
             result = _diagnostic_sleep(params, progress)
         else:
             raise ApiProblem(422, f"unknown job kind {job.kind!r}", field="kind", value=job.kind)
+    except _Superseded:
+        return "superseded"
     except Exception as exc:  # noqa: BLE001 - every failure is recorded on the job
         store.fail_job(job_id, attempt, _problem_dict(exc))
         return "failed"
