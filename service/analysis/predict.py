@@ -1,0 +1,530 @@
+"""Predict the transition point mu* ahead of an upward sweep, with a 95 % interval and an alarm.
+
+Two estimators:
+
+* :func:`paper_rule` -- the paper's baseline (Discussion, Fig. "Anticipate shape transitions" and
+  Table 2), kept as is: measure ``T = 1/sqrt|sigma^2|`` at increasing ``mu``; at the first point
+  where ``T > 10 T(0)`` extrapolate ``T^(-1/a)`` linearly to zero through that point and the
+  previous one.
+* :func:`predict` -- a weighted least-squares fit of ``|sigma^2| = x^(2a) sum_k c_k x^(k h)``,
+  ``x = mu* - mu`` (``h = 1/2`` near a fold, ``1`` near a pitchfork; see
+  :mod:`service.analysis.classify`), over the informative window of nearest points, the number of
+  correction terms chosen by a chi-square test, ``mu*`` profiled (variable projection) and the
+  interval read from the profile likelihood. When neither ``a`` nor ``transition`` is given the
+  candidates are averaged with their model probabilities.
+
+The predictor is unit-agnostic: ``mu`` may be an angle, a load, a voltage; ``sigma2`` is in
+1/time^2 of the recording.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize, stats
+
+from service.analysis.classify import (
+    CANDIDATES,
+    Classification,
+    ModelFit,
+    Sweep,
+    _analyse,
+    _clean,
+    _estimate_noise,
+    _fit_candidate,
+    _select_window,
+    _with_damping,
+    classify,
+    prepare_sweep,
+)
+from service.analysis.common import Flag
+
+__all__ = ["PaperRule", "Prediction", "paper_rule", "predict"]
+
+_PAPER_FACTOR = 10.0
+
+
+# --------------------------------------------------------------------------------------------
+# the paper's rule
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PaperRule:
+    """Result of :func:`paper_rule`.
+
+    Attributes
+    ----------
+    mu_star : float
+        Extrapolated mu* (unit of ``mu``).
+    stop_index : int
+        Index of the first point with ``T > 10 T(0)`` (the red dot of the paper's figure); the
+        last index when the threshold was never reached (flag ``threshold_not_reached``).
+    t_ratio : float
+        ``T / T(0)`` at ``stop_index``.
+    a : float
+        Exponent used.
+    flags : tuple of Flag
+    """
+
+    mu_star: float
+    stop_index: int
+    t_ratio: float
+    a: float
+    flags: tuple[Flag, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        return {
+            "mu_star": _clean(self.mu_star),
+            "stop_index": self.stop_index,
+            "t_ratio": _clean(self.t_ratio),
+            "a": self.a,
+            "flags": [f.to_dict() for f in self.flags],
+        }
+
+
+def _check_a(a: Any) -> float:
+    try:
+        af = float(a)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"a must be a positive number, got a={a!r}") from exc
+    if not math.isfinite(af) or af <= 0:
+        raise ValueError(f"a must be a positive number, got a={a!r}")
+    return af
+
+
+def paper_rule(
+    mu: Sequence[float] | np.ndarray,
+    sigma2: Sequence[float] | np.ndarray,
+    a: float,
+    *,
+    factor: float = _PAPER_FACTOR,
+) -> PaperRule:
+    """The paper's early-warning rule (Discussion; Table 2), as published.
+
+    Parameters
+    ----------
+    mu : array_like, shape (n,)
+        Control parameter, strictly increasing (the first point plays ``mu = 0``).
+    sigma2 : array_like, shape (n,)
+        Eigenvalue of the fundamental (1/time^2), negative.
+    a : float
+        Time exponent (1/4 saddle-node, 1/2 pitchfork; doubled when over-damped).
+    factor : float
+        Threshold on ``T / T(0)`` (10 in the paper).
+
+    Returns
+    -------
+    PaperRule
+        ``mu* = mu_i + f_i (mu_i - mu_{i-1}) / (f_{i-1} - f_i)`` with ``f = T^(-1/a)
+        = |sigma^2|^(1/(2a))`` and ``i`` the first index with ``T_i > factor T_0``.
+    """
+    af = _check_a(a)
+    if not (math.isfinite(factor) and factor > 1):
+        raise ValueError(f"factor must be > 1, got factor={factor!r}")
+    sw = prepare_sweep(mu, sigma2)
+    T = 1.0 / np.sqrt(sw.y)
+    ratio = T / T[0]
+    hit = np.flatnonzero(ratio > factor)
+    flags: list[Flag] = []
+    if hit.size:
+        i = int(hit[0])
+    else:
+        i = sw.mu.size - 1
+        flags.append(
+            Flag(
+                "threshold_not_reached",
+                f"T never exceeded {factor:g} T(0) (max {ratio.max():.3g} T(0)): extrapolated "
+                "through the last two points",
+            )
+        )
+    f = sw.y ** (1.0 / (2.0 * af))  # T^(-1/a)
+    df = f[i - 1] - f[i]
+    if df <= 0:
+        flags.append(
+            Flag("not_decreasing", f"T^(-1/a) does not decrease between points {i - 1} and {i}")
+        )
+        m = math.nan
+    else:
+        m = float(sw.mu[i] + f[i] * (sw.mu[i] - sw.mu[i - 1]) / df)
+    return PaperRule(m, i, float(ratio[i]), af, tuple(flags))
+
+
+# --------------------------------------------------------------------------------------------
+# our estimator
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Result of :func:`predict`.
+
+    Attributes
+    ----------
+    mu_star : float
+        Predicted transition point (unit of ``mu``).
+    mu_star_interval : tuple of float
+        ``(lo, hi)`` interval at ``level`` (95 % by default); ``lo >= mu[-1]`` since every
+        measured point was stable.
+    mu_star_std : float
+        Standard error (half-width of the 68 % profile interval; mixture spread when averaged).
+    a : float
+        Time exponent used (probability-weighted when averaged).
+    method : str
+        ``"profile-likelihood"`` (one law) or ``"model-average"`` (candidates weighted by their
+        probabilities).
+    alarm : dict
+        ``t_ratio``: ``T / T0`` at the last point (``T = 1/sqrt|sigma^2|``, ``T0`` at the first);
+        ``distance``: ``(mu* - mu[-1])`` in units of the interval half-width;
+        ``level``: ``"none"``, ``"watch"`` (T > 3 T0), ``"warning"`` (T > 10 T0) or
+        ``"critical"`` (the interval's lower end within one half-width of the last point).
+    next_safe_mu : float
+        Suggested next measurement: ``mu[-1] + step_fraction * (lo - margin - mu[-1])``; NaN with
+        flag ``no_safe_step`` when the interval's lower end (minus the margin) is not beyond the
+        last point.
+    flags : tuple of Flag
+    transition : str
+        Transition assumed or classified.
+    probabilities : dict of str to float
+        Candidate probabilities used for the average (one entry when the law was given).
+    window : int
+        Number of informative (nearest) points used.
+    n_terms : int
+        Terms of the fitted law (leading + corrections) of the most probable candidate.
+    baseline : PaperRule or None
+        The paper's rule on the same measurements (``sigma2`` data only).
+    classification : Classification or None
+        The classification used when the law was not given.
+    """
+
+    mu_star: float
+    mu_star_interval: tuple[float, float]
+    mu_star_std: float
+    a: float
+    method: str
+    alarm: dict[str, Any]
+    next_safe_mu: float
+    flags: tuple[Flag, ...]
+    transition: str = "undetermined"
+    probabilities: dict[str, float] = field(default_factory=dict)
+    window: int = 0
+    n_terms: int = 0
+    baseline: PaperRule | None = None
+    classification: Classification | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (non-finite numbers become ``None``)."""
+        return {
+            "mu_star": _clean(self.mu_star),
+            "mu_star_interval": _clean(list(self.mu_star_interval)),
+            "mu_star_std": _clean(self.mu_star_std),
+            "a": _clean(self.a),
+            "method": self.method,
+            "alarm": _clean(dict(self.alarm)),
+            "next_safe_mu": _clean(self.next_safe_mu),
+            "transition": self.transition,
+            "probabilities": _clean(dict(self.probabilities)),
+            "window": self.window,
+            "n_terms": self.n_terms,
+            "baseline": self.baseline.to_dict() if self.baseline is not None else None,
+            "classification": (
+                self.classification.to_dict() if self.classification is not None else None
+            ),
+            "flags": [f.to_dict() for f in self.flags],
+        }
+
+
+def _mixture(
+    fits: Sequence[ModelFit], probs: Sequence[float], level: float
+) -> tuple[float, float, float, float]:
+    """Mean, std and ``level`` quantile interval of a mixture of two-piece normals (one per
+    candidate: centre mu*, left/right widths from its profile interval)."""
+    z = float(stats.norm.ppf(0.5 + level / 2))
+    cs = np.array([f.profile.mu_star for f in fits])
+    sl = np.array([max(f.profile.mu_star - f.profile.lo, 1e-300) / z for f in fits])
+    sr = np.array([max(f.profile.hi - f.profile.mu_star, 1e-300) / z for f in fits])
+    p = np.asarray(probs, dtype=float)
+    p = p / p.sum()
+
+    def cdf(v: float) -> float:
+        left = 2 * sl / (sl + sr) * stats.norm.cdf((v - cs) / sl)
+        right = 2 * sl / (sl + sr) * 0.5 + 2 * sr / (sl + sr) * (
+            stats.norm.cdf((v - cs) / sr) - 0.5
+        )
+        return float(np.sum(p * np.where(v < cs, left, right)))
+
+    lo_b = float(np.min(cs - 10 * sl))
+    hi_b = float(np.max(cs + 10 * sr))
+    q_lo = optimize.brentq(lambda v: cdf(v) - (0.5 - level / 2), lo_b, hi_b, xtol=1e-14)
+    q_hi = optimize.brentq(lambda v: cdf(v) - (0.5 + level / 2), lo_b, hi_b, xtol=1e-14)
+    s68 = np.array([0.5 * (f.profile.hi68 - f.profile.lo68) for f in fits])
+    mean = float(np.sum(p * cs))
+    std = float(math.sqrt(np.sum(p * (s68**2 + (cs - mean) ** 2))))
+    return mean, std, q_lo, q_hi
+
+
+def _law_for(transition: str | None, a: float | None) -> tuple[str, float, float | None, float]:
+    """(name, a, b, h) of the law to fit when the caller fixed it."""
+    if transition is not None:
+        if transition in CANDIDATES:
+            aa, bb, h = CANDIDATES[transition]
+            if a is not None and abs(a - aa) > 1e-12 and abs(a - 2 * aa) > 1e-12:
+                raise ValueError(
+                    f"a={a!r} contradicts transition={transition!r} (a={aa:g}, or {2 * aa:g} "
+                    "over-damped)"
+                )
+            return transition, (aa if a is None else a), bb, h
+        if transition == "pitchfork":
+            return "pitchfork", (0.5 if a is None else a), None, 1.0
+        raise ValueError(
+            f"transition must be one of {sorted([*CANDIDATES, 'pitchfork'])}, got "
+            f"transition={transition!r}"
+        )
+    assert a is not None
+    name = "saddle-node" if abs(a - 0.25) < 1e-12 else ("pitchfork" if a == 0.5 else "custom")
+    h = 0.5 if name == "saddle-node" else 1.0
+    return name, a, None, h
+
+
+def predict(
+    mu: Sequence[float] | np.ndarray,
+    sigma2: Sequence[float] | np.ndarray | None = None,
+    *,
+    sigma2_std: Sequence[float] | np.ndarray | None = None,
+    omega: Sequence[float] | np.ndarray | None = None,
+    omega_std: Sequence[float] | np.ndarray | None = None,
+    w_static: Sequence[float] | np.ndarray | None = None,
+    w_static_std: Sequence[float] | np.ndarray | float | None = None,
+    transition: str | None = None,
+    a: float | None = None,
+    damping: float | None = None,
+    level: float = 0.95,
+    step_fraction: float = 0.5,
+    margin: float = 0.0,
+) -> Prediction:
+    """Predict mu* from measurements along an upward sweep.
+
+    Parameters
+    ----------
+    mu : array_like, shape (n,)
+        Control parameter, strictly increasing, n >= 3, any unit.
+    sigma2 : array_like, shape (n,), optional
+        Undamped eigenvalue of the fundamental (1/time^2), negative. Give this or ``omega``.
+    sigma2_std : array_like, shape (n,), optional
+        Its standard deviation (weights of the fit); estimated from the scatter when absent.
+    omega, omega_std : array_like, shape (n,), optional
+        Observed rate (rad/time) instead of ``sigma2`` (see :func:`classify`).
+    w_static, w_static_std : array_like, optional
+        Static deflection at the probe (used by the classification and the joint fit).
+    transition : str, optional
+        ``"saddle-node"``, ``"subcritical-pitchfork"``, ``"supercritical-pitchfork"`` or
+        ``"pitchfork"``: fit that law only.
+    a : float, optional
+        Time exponent of the law to fit (``|sigma^2| ~ x^(2a)``); with neither ``a`` nor
+        ``transition`` the candidates are classified and averaged.
+    damping : float, optional
+        Damping ``xi`` (1/time) when known.
+    level : float
+        Confidence level of ``mu_star_interval`` (0.95).
+    step_fraction : float
+        Fraction of the distance to the interval's lower end that ``next_safe_mu`` advances.
+    margin : float
+        Extra distance (unit of ``mu``) kept below the interval's lower end.
+
+    Returns
+    -------
+    Prediction
+
+    Raises
+    ------
+    ValueError
+        Invalid measurements (see :func:`classify`), ``a <= 0``, unknown ``transition``,
+        ``level`` or ``step_fraction`` outside (0, 1), ``margin < 0``.
+    """
+    if not 0 < level < 1:
+        raise ValueError(f"level must be in (0, 1), got level={level!r}")
+    if not 0 < step_fraction < 1:
+        raise ValueError(f"step_fraction must be in (0, 1), got step_fraction={step_fraction!r}")
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin must be finite and >= 0, got margin={margin!r}")
+    if a is not None:
+        a = _check_a(a)
+    sw0 = prepare_sweep(
+        mu,
+        sigma2,
+        sigma2_std=sigma2_std,
+        omega=omega,
+        omega_std=omega_std,
+        w_static=w_static,
+        w_static_std=w_static_std,
+        damping=damping,
+    )
+    flags: list[Flag] = []
+    cls: Classification | None = None
+    if a is None and transition is None:
+        cls = classify(
+            mu,
+            sigma2,
+            sigma2_std=sigma2_std,
+            omega=omega,
+            omega_std=omega_std,
+            w_static=w_static,
+            w_static_std=w_static_std,
+            damping=damping,
+        )
+        fits = list(cls.fits)
+        probs = [cls.probabilities[f.name] for f in fits]
+        keep = [i for i, p in enumerate(probs) if p > 1e-4]
+        fits = [fits[i] for i in keep]
+        probs = [probs[i] for i in keep]
+        if level != 0.95:
+            fits = [_refit_level(cls, f, sw0, level) for f in fits]
+        flags.extend(f for f in cls.flags if f.code not in {"no_static_data"})
+        name = cls.transition
+        window = cls.window
+        method = "model-average" if len(fits) > 1 else "profile-likelihood"
+        sw_used: Sweep | None = None
+    else:
+        name, aa, bb, h = _law_for(transition, a)
+        if sw0.kind == "omega":
+            sw_used, _, _, fl = _analyse(sw0)
+        else:
+            sw_used = _estimate_noise(sw0)
+            fl = []
+            if not sw_used.noise_given:
+                rel = float(np.median(sw_used.sd / sw_used.y))
+                fl.append(
+                    Flag(
+                        "noise_estimated",
+                        f"no sigma2_std given: relative noise of |sigma2| estimated as {rel:.2g}",
+                    )
+                )
+        flags.extend(fl)
+        if sw_used.w is None:
+            bb = None
+        scale = float(sw_used.mu[-1] - sw_used.mu[0])
+        sel = _select_window(sw_used, 2 * aa, h, scale)
+        if not sel.accepted:
+            flags.append(
+                Flag(
+                    "poor_fit",
+                    f"the {name} law (a={aa:g}, up to 3 corrections) does not fit the nearest "
+                    f"points within their noise (best p-value {sel.pvalue:.2g})",
+                )
+            )
+        fit = _fit_candidate(sw_used, name, aa, bb, h, max(sel.n, min(3, sw_used.mu.size)),
+                             scale, 1.0)
+        if level != 0.95:
+            fit = _refit_level_sweep(sw_used, fit, level)
+        flags.extend(fit.profile.flags)
+        fits, probs = [fit], [1.0]
+        window = fit.n
+        method = "profile-likelihood"
+        if window < 5:
+            flags.append(
+                Flag("few_points_near", f"only {window} informative points near mu* (want >= 5)")
+            )
+    if len(fits) == 1:
+        f0 = fits[0].profile
+        m, lo, hi = f0.mu_star, f0.lo, f0.hi
+        std = 0.5 * (f0.hi68 - f0.lo68)
+    else:
+        m, std, lo, hi = _mixture(fits, probs, level)
+    last = float(sw0.mu[-1])
+    lo = max(lo, last)
+    a_used = float(np.sum(np.array(probs) * np.array([f.a for f in fits])) / np.sum(probs))
+    half = 0.5 * (hi - lo)
+    if not (math.isfinite(half) and half > 0):
+        half = math.nan
+    if half > 0.5 * max(m - last, 0) or any(f.code == "interval_unbounded" for f in flags):
+        flags.append(
+            Flag(
+                "interval_huge",
+                f"the {100 * level:.0f}% interval [{lo:.6g}, {hi:.6g}] is wider than the "
+                f"distance to mu* ({m - last:.3g})",
+            )
+        )
+    t_ratio = float(math.sqrt(sw0.y[0] / sw0.y[-1]))
+    dist = (m - last) / half if half > 0 else math.nan
+    if lo - last <= half:
+        lvl = "critical"
+    elif t_ratio > 10:
+        lvl = "warning"
+    elif t_ratio > 3:
+        lvl = "watch"
+    else:
+        lvl = "none"
+    alarm = {"t_ratio": t_ratio, "distance": float(dist), "level": lvl}
+    room = lo - margin - last
+    if room > 0:
+        nxt = last + step_fraction * room
+    else:
+        nxt = math.nan
+        flags.append(
+            Flag(
+                "no_safe_step",
+                f"the interval's lower end {lo:.6g} (minus margin {margin:g}) is not beyond the "
+                f"last measured mu={last:.6g}",
+            )
+        )
+    baseline = None
+    if sw0.kind == "sigma2" and a_used > 0:
+        try:
+            baseline = paper_rule(sw0.mu, -sw0.y, a_used)
+        except ValueError:  # pragma: no cover - same validation as above
+            baseline = None
+    n_terms = fits[int(np.argmax(probs))].K + 1
+    if not math.isfinite(m):
+        flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
+    return Prediction(
+        mu_star=float(m),
+        mu_star_interval=(float(lo), float(hi)),
+        mu_star_std=float(std),
+        a=a_used,
+        method=method,
+        alarm=alarm,
+        next_safe_mu=float(nxt),
+        flags=tuple(_dedupe(flags)),
+        transition=name,
+        probabilities={f.name: float(p) for f, p in zip(fits, probs, strict=True)},
+        window=int(window),
+        n_terms=int(n_terms),
+        baseline=baseline,
+        classification=cls,
+    )
+
+
+def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
+    seen: set[str] = set()
+    out = []
+    for f in flags:
+        if f.code not in seen:
+            seen.add(f.code)
+            out.append(f)
+    return out
+
+
+def _refit_level_sweep(sw: Sweep, fit: ModelFit, level: float) -> ModelFit:
+    from service.analysis.classify import _profile, _sigma_comp, _w_comp
+
+    N = sw.mu.size
+    idx = slice(N - fit.n, N)
+    comps = [_sigma_comp(sw, idx, 2 * fit.a, fit.h, fit.K)]
+    if fit.Kw:
+        wc = _w_comp(sw, idx, fit.b, fit.Kw)
+        if wc is not None:
+            comps.append(wc)
+    prof = _profile(sw.mu[idx], comps, float(sw.mu[-1] - sw.mu[0]), level=level)
+    return ModelFit(fit.name, fit.a, fit.b, fit.h, fit.n, fit.K, fit.Kw, fit.bic, prof)
+
+
+def _refit_level(cls: Classification, fit: ModelFit, sw0: Sweep, level: float) -> ModelFit:
+    sw = _estimate_noise(sw0)
+    if sw.kind == "omega" and math.isfinite(cls.damping):
+        sw = _with_damping(sw, cls.damping)
+    return _refit_level_sweep(sw, fit, level)
