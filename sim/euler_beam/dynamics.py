@@ -188,14 +188,14 @@ def modal_response(
         if idx.size == 0:
             idx = np.arange(1)
     B = galerkin.basis(n)
+    modes_c = sp.coeffs[:, idx]
     if kick_width > 0:
         prof = np.exp(-0.5 * ((B.X - kick_position) / kick_width) ** 2)
         prof /= np.sum(B.w * prof)
-        v0 = np.array([np.sum(B.w * prof * sp.shape(B.X, k)) for k in idx])
+        v0 = (B.phi.T @ (B.w * prof)) @ modes_c
     else:
-        v0 = sp.shape(np.array([kick_position]), 0)  # placeholder shape (1,)
-        v0 = (B.eval(np.array([kick_position]))[0] @ sp.coeffs[:, idx]).ravel()
-    at_probe = B.eval(np.array([probe]))[0] @ sp.coeffs[:, idx]
+        v0 = B.eval(np.array([kick_position]))[0] @ modes_c
+    at_probe = B.eval(np.array([probe]))[0] @ modes_c
     amp = kick * v0 * at_probe
     out = np.empty_like(t, dtype=float)
     _kernels.modal_sum(
