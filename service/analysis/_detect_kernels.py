@@ -208,7 +208,6 @@ def hankel_gram(x: np.ndarray, L: int, stride: int, out: np.ndarray) -> int:
     return M
 
 
-
 _BLOCK = 256
 
 

@@ -82,9 +82,7 @@ class Overdamped:
 ModeSpec = Underdamped | Overdamped
 
 
-def synthesize(
-    t: np.ndarray, modes: Sequence[ModeSpec], static_level: float = 0.0
-) -> np.ndarray:
+def synthesize(t: np.ndarray, modes: Sequence[ModeSpec], static_level: float = 0.0) -> np.ndarray:
     """Noise-free record ``w(t)`` of ``modes`` on top of ``static_level``.
 
     Parameters

@@ -43,12 +43,19 @@ model's damping; it lowers the variance when the model holds.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy.signal import find_peaks
 
-from service.analysis._detect_kernels import hankel_gram, model_gram, model_values, psd_pinv
+from service.analysis._detect_kernels import (
+    _ch_sh,
+    hankel_gram,
+    model_gram,
+    model_values,
+    psd_pinv,
+)
 from service.analysis.common import Flag
 
 __all__ = ["METHODS", "KINDS", "Mode", "Fundamental", "Detection", "detect"]
@@ -138,9 +145,7 @@ class Mode:
             "sigma2_std": _num(self.sigma2_std),
             "amplitude_std": _num(self.amplitude_std),
             "regime": self.regime,
-            "real_poles": None
-            if self.real_poles is None
-            else [_num(v) for v in self.real_poles],
+            "real_poles": None if self.real_poles is None else [_num(v) for v in self.real_poles],
             "real_amplitudes": None
             if self.real_amplitudes is None
             else [_num(v) for v in self.real_amplitudes],
@@ -311,9 +316,7 @@ def _evaluate(y: np.ndarray, p: np.ndarray, q: np.ndarray) -> _Eval | None:
     return _Eval(p, q, G, c, max(rss, 0.0))
 
 
-def _jacobian_system(
-    y: np.ndarray, ev: _Eval, common: bool
-) -> tuple[np.ndarray, np.ndarray, int]:
+def _jacobian_system(y: np.ndarray, ev: _Eval, common: bool) -> tuple[np.ndarray, np.ndarray, int]:
     """Normal matrix ``J^T J`` of the full Jacobian ``[dmodel/dtheta | Phi]`` and ``J^T r``.
 
     ``theta = (p_0, q_0, p_1, q_1, ...)`` or, with ``common``, ``(p, q_0, q_1, ...)``.
@@ -500,6 +503,39 @@ def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
     return p[keep], q[keep]
 
 
+def _peak_candidates(
+    spec: _Spectrum, N: int, p: np.ndarray, q: np.ndarray, max_modes: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Add the significant periodogram peaks that no candidate explains (low per-sample SNR:
+    the Hankel covariance of a short window may bury a mode the whole-record FFT sees)."""
+    P = spec.power
+    nb = P.size
+    if nb < 3:
+        return p, q
+    k = np.arange(1, nb - 1)
+    is_max = (P[k] >= P[k - 1]) & (P[k] > P[k + 1]) & spec.significant[k]
+    peaks = k[is_max]
+    if peaks.size == 0:
+        return p, q
+    peaks = peaks[np.argsort(-P[peaks])][:max_modes]
+    bin_w = 2 * math.pi / N
+    om_have = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
+    add_p, add_q = [], []
+    for j in peaks:
+        a, b, c = math.sqrt(P[j - 1]), math.sqrt(P[j]), math.sqrt(P[j + 1])
+        den = a - 2 * b + c
+        delta = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
+        om = (j + delta) * bin_w
+        if om_have.size and np.min(np.abs(om_have - om)) < 2 * bin_w:
+            continue
+        pj = 0.5 * bin_w
+        add_p.append(pj)
+        add_q.append(om * om + 0.25 * pj * pj)
+    if not add_p:
+        return p, q
+    return np.concatenate((p, add_p)), np.concatenate((q, add_q))
+
+
 def _prune(
     y: np.ndarray,
     p: np.ndarray,
@@ -666,6 +702,76 @@ def _modes_from_fit(
     return modes, float(ev.c[0]), static_std
 
 
+def _model_at_lag0(fit: _Fit) -> float:
+    """Fitted autocorrelation extrapolated one step back (to lag 0), normalised units."""
+    ev = fit.ev
+    v = float(ev.c[0])
+    for k in range(ev.p.size):
+        D = 0.25 * ev.p[k] ** 2 - ev.q[k]
+        ch, sh, _ = _ch_sh(float(D))
+        e = math.exp(0.5 * ev.p[k])
+        v += ev.c[1 + 2 * k] * e * ch - ev.c[2 + 2 * k] * e * sh
+    return v
+
+
+def _ambient_errors(
+    x: np.ndarray,
+    fit: _Fit,
+    n_lags: int,
+    scale: float,
+    dt: float,
+    modes: list[Mode],
+    max_iter: int,
+) -> list[Mode]:
+    """Standard errors of an autocorrelation fit from the scatter over record segments.
+
+    The autocorrelation's estimation errors are strongly correlated across lags, so the
+    Gauss-Newton covariance (white residuals) is far too optimistic. The record is cut into
+    ``B`` segments (each at least 4 fitted lag ranges long), the fit is repeated on each
+    segment's autocorrelation from the full-record poles, and the standard error of the full
+    estimate is ``std(segment estimates) / sqrt(B)``.
+    """
+    N0 = x.size
+    B = int(min(8, N0 // (4 * n_lags)))
+    if B < 2:
+        return [
+            replace(m, omega_std=math.inf, damping_std=math.inf, sigma2_std=math.inf) for m in modes
+        ]
+    seg = N0 // B
+    ests = []
+    for b in range(B):
+        xs = x[b * seg : (b + 1) * seg]
+        xs = xs - xs.mean()
+        nfft = 1 << int(math.ceil(math.log2(2 * seg)))
+        F = np.fft.rfft(xs, nfft)
+        acf = np.fft.irfft(F * np.conj(F), nfft)[1 : n_lags + 1] / seg
+        f = _levenberg_marquardt(
+            acf / scale, fit.ev.p, fit.ev.q, common=fit.common, max_iter=max_iter
+        )
+        if f is None:
+            continue
+        ests.append((f.ev.p.copy(), f.ev.q.copy()))
+    if len(ests) < 2:
+        return [
+            replace(m, omega_std=math.inf, damping_std=math.inf, sigma2_std=math.inf) for m in modes
+        ]
+    P = np.array([e[0] for e in ests])
+    Q = np.array([e[1] for e in ests])
+    root = math.sqrt(len(ests))
+    out = []
+    for k, m in enumerate(modes):
+        om = np.sqrt(np.maximum(Q[:, k] - 0.25 * P[:, k] ** 2, 0.0)) / dt
+        out.append(
+            replace(
+                m,
+                omega_std=float(np.std(om, ddof=1) / root),
+                damping_std=float(np.std(0.5 * P[:, k] / dt, ddof=1) / root),
+                sigma2_std=float(np.std(-Q[:, k] / dt**2, ddof=1) / root),
+            )
+        )
+    return out
+
+
 def _fundamental(modes: list[Mode]) -> Fundamental | None:
     if not modes:
         return None
@@ -780,6 +886,22 @@ def _fft_modes(
     return [first] + sorted(others, key=lambda m: -m.sigma2), flags
 
 
+def _welch_peaks(x: np.ndarray) -> int:
+    """Number of peaks of the averaged (Welch) log-spectrum with a prominence above 10x."""
+    n = x.size
+    seg = max(min(n // 8, 4096), 16)
+    nseg = n // seg
+    if nseg < 2:
+        return 1
+    win = np.hanning(seg)
+    P = np.zeros(seg // 2 + 1)
+    for i in range(nseg):
+        P += np.abs(np.fft.rfft(win * x[i * seg : (i + 1) * seg])) ** 2
+    logp = np.log10(np.maximum(P, 1e-300 + P.max() * 1e-30))
+    peaks, _ = find_peaks(np.convolve(logp, np.ones(3) / 3, mode="same"), prominence=1.0)
+    return int(peaks.size)
+
+
 def _fit_parametric(
     y: np.ndarray,
     spec: _Spectrum,
@@ -794,6 +916,7 @@ def _fit_parametric(
     N = y.shape[0]
     s = _esprit(y, spec, 2 * max_modes + 1)
     p, q = _candidates(s, N)
+    p, q = _peak_candidates(spec, N, p, q, max_modes)
     fit: _Fit | None = None
     energy = np.zeros(0)
     for round_ in range(3):
@@ -877,28 +1000,58 @@ def _one_step(y: np.ndarray, fit: _Fit) -> tuple[float, float] | None:
     return float(ev.q[0] + step[jq]), float(Ainv[jq, jq] * s2)
 
 
-def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float) -> Flag | None:
-    """Compare the fundamental's sigma^2 fitted on the two halves of the record."""
+def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag | None:
+    """Compare the fundamental's sigma^2 fitted on the two halves of the record.
+
+    A chirp (frequency drifting with the decaying amplitude) is often absorbed by the full
+    record's fit into a cluster of modes at nearly the fundamental's frequency; the halves are
+    then fitted with the cluster reduced to its strongest member (Levenberg-Marquardt), else by
+    one Gauss-Newton step from the full fit.
+    """
     N = y.shape[0]
     h = N // 2
     if h < MIN_SAMPLES:
         return None
-    per = math.sqrt(abs(float(fit.ev.q[0]))) * h / (2 * math.pi)
+    p, q = fit.ev.p, fit.ev.q
+    per = math.sqrt(abs(float(q[0]))) * h / (2 * math.pi)
     if per < 1.0:
         return None  # a half record too short to tell
-    a = _one_step(y[:h], fit)
-    b = _one_step(y[h:], fit)
-    if a is None or b is None:
-        return None
+    om = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
+    cluster = np.flatnonzero(np.abs(om - om[0]) < 2.0 * (2 * math.pi / N))
+    if cluster.size > 1 and om[0] > 0:
+        e = _mode_energy(fit.ev)
+        keep_k = int(cluster[np.argmax(e[cluster])])
+        drop = set(cluster.tolist()) - {keep_k}
+        idx = [k for k in range(p.size) if k not in drop]
+        # the kept member first, so that index 0 is the fundamental
+        idx.remove(keep_k)
+        idx = [keep_k] + idx
+        res = []
+        for part in (y[:h], y[h:]):
+            f = _levenberg_marquardt(part, p[idx], q[idx], common=fit.common, max_iter=max_iter)
+            if f is None:
+                return None
+            res.append((float(f.ev.q[0]), float(f.cov[1, 1])))
+        a, b = res
+    else:
+        a = _one_step(y[:h], fit)
+        b = _one_step(y[h:], fit)
+        if a is None or b is None:
+            return None
     (q1, v1), (q2, v2) = a, b
     zval = abs(q1 - q2) / math.sqrt(max(v1 + v2, 1e-300))
     if zval > NONLINEAR_Z:
         s1, s2 = -q1 / dt**2, -q2 / dt**2
+        extra = (
+            f"; the full record needs {cluster.size} modes within 2 frequency bins of it"
+            if cluster.size > 1
+            else ""
+        )
         return Flag(
             "nonlinear",
             f"the fundamental's sigma^2 drifts from {s1:.6g} (first half) to {s2:.6g} "
             f"(second half), {zval:.1f} standard errors: the response is not linear "
-            f"(frequency depends on amplitude)",
+            f"(frequency depends on amplitude){extra}",
         )
     return None
 
@@ -953,20 +1106,32 @@ def detect(
     x = arr - mean
     flags: list[Flag] = []
     static_std_override: float | None = None
+    ambient_var = 0.0
     if kind == "ambient":
         n_l = N0 // 2
         nfft = 1 << int(math.ceil(math.log2(2 * N0)))
         F = np.fft.rfft(x, nfft)
         acf = np.fft.irfft(F * np.conj(F), nfft)[: n_l + 1] / N0
-        y_raw = acf[1 : n_l + 1]
+        # keep the informative lags: up to 1.5x the last one above 5x the tail's rms
+        tail = acf[n_l // 2 :]
+        tail_rms = float(np.sqrt(np.mean(tail * tail))) if tail.size else 0.0
+        loud = np.flatnonzero(np.abs(acf[1:]) > 5.0 * tail_rms)
+        n_cut = int(1.5 * (loud[-1] + 1)) if loud.size else MIN_SAMPLES
+        n_cut = int(min(max(n_cut, 4 * MIN_SAMPLES), n_l))
+        y_raw = acf[1 : n_cut + 1]
+        # the estimation errors of an autocorrelation are correlated: cap the model order at
+        # the number of resolved peaks of the record's averaged (Welch) spectrum
+        max_modes = min(max_modes, max(_welch_peaks(x), 1))
         nb = 16
         bm = x[: (N0 // nb) * nb].reshape(nb, -1).mean(axis=1)
         static_std_override = float(np.std(bm, ddof=1) / math.sqrt(nb))
+        n_seg = int(min(8, N0 // (4 * n_cut)))
         flags.append(
             Flag(
                 "ambient",
-                "modes fitted to the autocorrelation (lags 1 to N/2); amplitudes are in "
-                "variance units and standard errors assume white fit residuals (approximate)",
+                f"modes fitted to the autocorrelation (lags 1 to {n_cut}); amplitudes are in "
+                f"variance units; standard errors from the scatter over {max(n_seg, 0)} "
+                "segments of the record" + (" (too few: rough)" if n_seg < 4 else ""),
             )
         )
     else:
@@ -1021,13 +1186,14 @@ def detect(
             modes, c0, static_std = _modes_from_fit(fit, energy, dt, scale)
             static = mean + c0 * scale
             noise_std = math.sqrt(fit.s2) * scale
-            if (
-                check_linearity
-                and resolved == "varpro"
-                and kind == "impulse"
-                and fit.ev.p.size > 0
-            ):
-                fl = _linearity_flag(y, fit, dt)
+            if kind == "ambient":
+                modes = _ambient_errors(x, fit, y_raw.size, scale, dt, modes, max_iter)
+                # white measurement noise is the spike of the autocorrelation at lag 0
+                m0 = _model_at_lag0(fit) * scale
+                noise_std = math.sqrt(max(float(acf[0]) - m0, 0.0))
+                ambient_var = max(m0, 0.0)
+            if check_linearity and resolved == "varpro" and kind == "impulse" and fit.ev.p.size > 0:
+                fl = _linearity_flag(y, fit, dt, max_iter)
                 if fl is not None:
                     flags.append(fl)
     if static_std_override is not None:
@@ -1056,10 +1222,15 @@ def detect(
                 )
             )
         amp = m0.amplitude
+        if kind == "ambient":
+            # ratio of the structure's response variance to the measurement-noise variance
+            power, npow = ambient_var, noise_std * noise_std
+        else:
+            power, npow = 0.5 * amp * amp, noise_std * noise_std
         snr_db = (
-            10 * math.log10(amp * amp / (2 * noise_std * noise_std))
-            if noise_std > 0 and amp > 0
-            else (300.0 if amp > 0 else -300.0)
+            10 * math.log10(power / npow)
+            if npow > 0 and power > 0
+            else (300.0 if power > 0 else -300.0)
         )
         snr_db = float(np.clip(snr_db, -300.0, 300.0))
         if math.isfinite(m0.snr_db) and m0.snr_db < LOW_SNR_DB:

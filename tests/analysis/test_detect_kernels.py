@@ -1,0 +1,178 @@
+"""Numba kernels of the detector against slow pure-numpy references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from service.analysis._detect_kernels import (
+    _ch_sh,
+    hankel_gram,
+    model_gram,
+    model_values,
+    pair_basis,
+    psd_pinv,
+    sym_eig,
+)
+
+
+def ref_basis(n: int, p: float, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """u1 = exp(-p t/2) cosh(lam t), u2 = exp(-p t/2) sinh(lam t)/lam, lam = sqrt(p^2/4 - q)."""
+    t = np.arange(n, dtype=float)
+    lam = np.sqrt(complex(0.25 * p * p - q))
+    e = np.exp(-0.5 * p * t)
+    u1 = (e * np.cosh(lam * t)).real
+    if abs(lam) == 0:
+        u2 = e * t
+    else:
+        u2 = (e * np.sinh(lam * t) / lam).real
+    return u1, u2
+
+
+def ref_derivs(n: int, p: float, q: float, h: float = 1e-8) -> np.ndarray:
+    """Central finite differences of the reference basis in p and q: (n, 4)."""
+    cols = []
+    for which in (0, 1):
+        for dp, dq in ((h, 0.0), (0.0, h)):
+            plus = ref_basis(n, p + dp, q + dq)[which]
+            minus = ref_basis(n, p - dp, q - dq)[which]
+            cols.append((plus - minus) / (2 * h))
+    # order: du1/dp, du1/dq, du2/dp, du2/dq
+    return np.column_stack(cols)
+
+
+CASES = [
+    (2e-3, 4e-2),  # underdamped, light
+    (0.05, 0.3),  # underdamped, heavier
+    (0.02, 1e-4 + 0.25 * 0.02**2),  # just underdamped, D tiny (series branch)
+    (0.02, 0.25 * 0.02**2 - 5e-5),  # just overdamped, D tiny (series branch)
+    (0.01, 1e-5),  # overdamped
+    (0.03, -1e-4),  # unstable (one growing real pole)
+]
+
+
+@pytest.mark.parametrize(("p", "q"), CASES)
+def test_pair_basis_matches_closed_form(p: float, q: float) -> None:
+    n = 400
+    out = np.empty((n, 6))
+    pair_basis(n, np.array([p]), np.array([q]), out, 0)
+    u1, u2 = ref_basis(n, p, q)
+    scale1 = np.max(np.abs(u1))
+    scale2 = np.max(np.abs(u2))
+    np.testing.assert_allclose(out[:, 0], u1, rtol=0, atol=1e-11 * scale1)
+    np.testing.assert_allclose(out[:, 1], u2, rtol=0, atol=1e-11 * scale2)
+    d = ref_derivs(n, p, q)
+    got = out[:, [2, 3, 4, 5]]
+    for j in range(4):
+        s = np.max(np.abs(d[:, j]))
+        np.testing.assert_allclose(got[:, j], d[:, j], rtol=0, atol=2e-5 * s)
+
+
+def test_series_branch_is_continuous() -> None:
+    for D in (-1e-2, 1e-2):
+        a = np.array(_ch_sh(D * (1 - 1e-12)))
+        b = np.array(_ch_sh(D * (1 + 1e-12)))
+        np.testing.assert_allclose(a, b, rtol=1e-12)
+    # exact values at D = -x^2: cos x, sin x / x, derivative (cos x - sin x/x)/(2D)
+    x = 0.09
+    ch, sh, dsh = _ch_sh(-(x**2))
+    assert ch == pytest.approx(np.cos(x), rel=1e-15)
+    assert sh == pytest.approx(np.sin(x) / x, rel=1e-15)
+    assert dsh == pytest.approx((np.cos(x) - np.sin(x) / x) / (-2 * x**2), rel=1e-9)
+
+
+def _ref_columns(y, p, q, c, common, jacobian):
+    n = y.size
+    K = len(p)
+    phi = [np.ones(n)]
+    der = []
+    for k in range(K):
+        u1, u2 = ref_basis(n, p[k], q[k])
+        phi += [u1, u2]
+        d = ref_derivs(n, p[k], q[k])
+        der.append(
+            (
+                c[1 + 2 * k] * d[:, 0] + c[2 + 2 * k] * d[:, 2],
+                c[1 + 2 * k] * d[:, 1] + c[2 + 2 * k] * d[:, 3],
+            )
+        )
+    cols = []
+    if jacobian:
+        if common:
+            cols.append(sum(dp for dp, _ in der))
+            cols += [dq for _, dq in der]
+        else:
+            for dp, dq in der:
+                cols += [dp, dq]
+    return np.column_stack(cols + phi + [y])
+
+
+@pytest.mark.parametrize("common", [False, True])
+@pytest.mark.parametrize("jacobian", [False, True])
+@pytest.mark.parametrize("n", [1, 2, 3, 255, 256, 257, 700])
+def test_model_gram_matches_numpy(common: bool, jacobian: bool, n: int) -> None:
+    rng = np.random.default_rng(n)
+    y = rng.standard_normal(n)
+    p = np.array([2e-3, 0.05, 0.01])
+    q = np.array([4e-2, 0.3, 1e-5])
+    c = rng.standard_normal(7)
+    Z = _ref_columns(y, p, q, c, common, jacobian)
+    ref = Z.T @ Z
+    G = np.empty_like(ref)
+    model_gram(y, p, q, c, common, jacobian, G)
+    tol = 1e-4 if jacobian else 1e-10  # finite-difference reference for the Jacobian
+    np.testing.assert_allclose(G, ref, rtol=0, atol=tol * np.max(np.abs(ref)))
+
+
+def test_model_values_matches_reference() -> None:
+    n = 600
+    p = np.array([2e-3, 0.01])
+    q = np.array([4e-2, 1e-5])
+    c = np.array([0.3, 1.0, -2.0, 0.5, 4.0])
+    ref = c[0] + sum(
+        c[1 + 2 * k] * ref_basis(n, p[k], q[k])[0] + c[2 + 2 * k] * ref_basis(n, p[k], q[k])[1]
+        for k in range(2)
+    )
+    out = np.empty(n)
+    model_values(p, q, c, out)
+    # forward error of a two-term recurrence: ~ n eps / |z1 - z2| (close roots amplify it)
+    dz = min(abs(np.diff(np.exp(np.roots([1.0, pk, qk])))[0]) for pk, qk in zip(p, q, strict=True))
+    tol = 10 * n * np.finfo(float).eps / dz
+    np.testing.assert_allclose(out, ref, rtol=0, atol=tol * np.max(np.abs(ref)))
+
+
+@pytest.mark.parametrize(("L", "stride"), [(2, 1), (8, 1), (12, 3), (5, 40)])
+def test_hankel_gram_matches_explicit_product(L: int, stride: int) -> None:
+    x = np.random.default_rng(L).standard_normal(1000)
+    M = x.size - (L - 1) * stride
+    H = np.stack([x[i * stride : i * stride + M] for i in range(L)])
+    out = np.empty((L, L))
+    assert hankel_gram(x, L, stride, out) == M
+    np.testing.assert_allclose(out, H @ H.T, rtol=1e-11, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 14, 30])
+def test_sym_eig_and_pinv_match_numpy(n: int) -> None:
+    rng = np.random.default_rng(n)
+    B = rng.standard_normal((n, n))
+    A = B @ B.T + 1e-3 * np.eye(n)
+    w = np.empty(n)
+    V = np.empty((n, n))
+    sym_eig(A, w, V)
+    np.testing.assert_allclose(w, np.linalg.eigvalsh(A), rtol=1e-10, atol=1e-12 * np.abs(w).max())
+    np.testing.assert_allclose(V @ np.diag(w) @ V.T, A, atol=1e-11 * np.abs(A).max())
+    out = np.empty((n, n))
+    psd_pinv(A, 1e-14, out)
+    inv = np.linalg.inv(A)
+    np.testing.assert_allclose(out, inv, rtol=0, atol=1e-8 * np.abs(inv).max())
+
+
+def test_psd_pinv_handles_rank_deficiency() -> None:
+    v = np.array([1.0, 2.0, 3.0])
+    A = np.outer(v, v)
+    out = np.empty((3, 3))
+    psd_pinv(A, 1e-12, out)
+    # a symmetric generalised inverse (Jacobi-scaled, so not Moore-Penrose): A X A = A
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, out.T, atol=1e-12)
+    np.testing.assert_allclose(A @ out @ A, A, atol=1e-10)
