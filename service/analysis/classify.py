@@ -183,10 +183,8 @@ def prepare_sweep(
             f"then mu[{i + 1}]={m[i + 1]!r}"
         )
     if (sigma2 is None) == (omega is None):
-        raise ValueError(
-            f"give exactly one of sigma2 and omega, got sigma2={'None' if sigma2 is None else '...'}"
-            f" and omega={'None' if omega is None else '...'}"
-        )
+        given = "neither" if sigma2 is None else "both"
+        raise ValueError(f"give exactly one of sigma2 and omega, got {given}")
     if sigma2_std is not None and omega is not None:
         raise ValueError("sigma2_std=... goes with sigma2, not with omega (use omega_std)")
     if omega_std is not None and sigma2 is not None:
@@ -259,6 +257,8 @@ class _Comp:
     exps: np.ndarray
     known: bool
     lead: bool = False  # constrain the corrections to stay below _RHO of the leading term
+    lead_col: int = 0  # column of the leading term (the columns after it are corrections)
+    signed: bool = True  # the leading term must have the sign of y (|sigma^2| > 0)
 
 
 def _comp_nll(x: np.ndarray, c: _Comp) -> np.ndarray:
@@ -281,12 +281,14 @@ def _comp_nll(x: np.ndarray, c: _Comp) -> np.ndarray:
         # (n - k) instead of n: the profiled variance is then the unbiased one, so that profile
         # differences behave like F statistics for small windows
         out = max(n - c.exps.size, 1) * np.log(np.maximum(rss, floor) / n)
-    if c.lead and c.exps.size > 1:
-        out = out + _lead_penalty(A, R, qb, c.y.size)
+    if c.lead and c.exps.size > c.lead_col + 1:
+        out = out + _lead_penalty(A, R, qb, c.lead_col, c.signed)
     return out
 
 
-def _lead_penalty(A: np.ndarray, R: np.ndarray, qb: np.ndarray, n: int) -> np.ndarray:
+def _lead_penalty(
+    A: np.ndarray, R: np.ndarray, qb: np.ndarray, col: int, signed: bool
+) -> np.ndarray:
     """Penalty when the regular corrections exceed _RHO of the leading term (or the leading
     coefficient has the wrong sign) at some window point: the law no longer "holds" there."""
     try:
@@ -294,10 +296,13 @@ def _lead_penalty(A: np.ndarray, R: np.ndarray, qb: np.ndarray, n: int) -> np.nd
     except np.linalg.LinAlgError:
         return np.zeros(R.shape[0])
     terms = A * coef[:, None, :]  # weighted term values, same sign convention as y * wt
-    lead = terms[:, :, 0]
-    corr = terms[:, :, 1:].sum(axis=2)
+    lead = terms[:, :, col]
+    corr = terms[:, :, col + 1 :].sum(axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(lead > 0, np.abs(corr) / lead, np.inf)
+        if signed:
+            ratio = np.where(lead > 0, np.abs(corr) / lead, np.inf)
+        else:
+            ratio = np.where(lead != 0, np.abs(corr / lead), np.inf)
     worst = np.max(ratio, axis=1)
     excess = np.clip(worst - _RHO, 0.0, 1e3)
     return 1e4 * excess**2
@@ -335,23 +340,32 @@ def _profile(
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals."""
     last = float(mu_w[-1])
     t = np.linspace(math.log(scale * 1e-9), math.log(scale * 30.0), _GRID)
+    seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
+    if seeds:
+        extra = [
+            np.log(d0) + np.concatenate([np.linspace(-1, 1, 41), np.linspace(-0.01, 0.01, 41)])
+            for d0 in seeds
+        ]
+        t = np.unique(np.concatenate([t, *extra]))
+        t = t[(t >= math.log(scale * 1e-12)) & (t <= math.log(scale * 30.0))]
     f = _nll(mu_w, comps, last + np.exp(t))
     f = np.where(np.isfinite(f), f, np.inf)
     i = int(np.argmin(f))
+    G = t.size
     flags: list[Flag] = []
 
     def g(tt: float) -> float:
         v = float(_nll(mu_w, comps, np.array([last + math.exp(tt)]))[0])
         return v if math.isfinite(v) else 1e300
 
-    a_, b_ = t[max(i - 1, 0)], t[min(i + 1, _GRID - 1)]
-    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": 1e-9})
+    a_, b_ = t[max(i - 1, 0)], t[min(i + 1, G - 1)]
+    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": 1e-11})
     th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
     if i == 0:
         flags.append(
             Flag("mu_star_at_last_point", f"the fit puts mu* at the last measured mu={last:.6g}")
         )
-    if i == _GRID - 1:
+    if i == G - 1:
         flags.append(Flag("mu_star_far", "the fit puts mu* far beyond the measured range"))
     if not with_interval:
         mh = last + math.exp(th)
@@ -368,9 +382,9 @@ def _profile(
             tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-12)
             lo, lo_open = last + math.exp(tl), False
         j = int(np.searchsorted(t, th))
-        while j < _GRID and f[j] - fh < delta:
+        while j < G and f[j] - fh < delta:
             j += 1
-        if j >= _GRID:
+        if j >= G:
             hi, hi_open = last + math.exp(t[-1]), True
         else:
             tu = optimize.brentq(lambda s: g(s) - fh - delta, th, t[j], xtol=1e-12)
@@ -392,6 +406,22 @@ def _profile(
             )
         )
     return _Profile(last + math.exp(th), fh, lo, hi, lo68, hi68, tuple(flags))
+
+
+def _seeds(mu_w: np.ndarray, c: _Comp) -> list[float]:
+    """Distances mu* - mu[-1] from the paper's two-point extrapolation of |sigma^2|^(1/p) through
+    the last pairs of points: starting points that bracket the (possibly very narrow) valley of
+    the profile likelihood of precise data."""
+    p = float(c.exps[0])
+    z = c.y ** (1.0 / p)
+    out = []
+    for k in range(1, min(4, mu_w.size)):
+        dz = z[-k - 1] - z[-k]
+        if dz > 0:
+            d = z[-k] * (mu_w[-k] - mu_w[-k - 1]) / dz + (mu_w[-k] - mu_w[-1])
+            if d > 0 and math.isfinite(d):
+                out.append(float(d))
+    return out
 
 
 def _sigma_exps(p: float, h: float, K: int) -> np.ndarray:
@@ -611,8 +641,9 @@ def _free_exponent(
             j += sign
         if not 0 <= j < grid.size:
             return math.inf
-        return abs(optimize.brentq(lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j]))
-                   - eh)
+        return abs(
+            optimize.brentq(lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j])) - eh
+        )
 
     up, dn = cross(+1), cross(-1)
     se = 0.5 * (up + dn) if math.isfinite(up) and math.isfinite(dn) else min(up, dn)
@@ -728,10 +759,7 @@ def _compare(sw: Sweep, scale: float) -> tuple[list[ModelFit], int, list[Flag]]:
                 f"{_KMAX} corrections) fits the nearest points within their noise",
             )
         )
-    # over-dispersion: inflate intervals when the best accepted fit is worse than the noise
-    fits = [
-        _fit_candidate(sw, name, a, b, h, n_c, scale, 1.0) for name, a, b, h in _candidates(sw)
-    ]
+    fits = [_fit_candidate(sw, name, a, b, h, n_c, scale, 1.0) for name, a, b, h in _candidates(sw)]
     fits.sort(key=lambda f: f.bic)
     return fits, n_c, flags
 
@@ -763,6 +791,7 @@ def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
             sw = _with_damping(sw, sw.damping)
             fits, n_c, fl = _compare(sw, scale)
             return sw, fits, n_c, flags + fl
+
         # damping unknown: profile it. xi = 0 is the plain law; a point with omega < xi/2 is in
         # the over-damped layer where the observed rate is the slow pole.
         def score(s: Sweep) -> tuple[tuple[bool, int, float], tuple[float, float, _Sel]]:
@@ -920,9 +949,9 @@ def classify(
 
         def make_b(b: float) -> list[_Comp]:
             e = _w_exps(b, max(top.Kw, 2))
-            if wsd is not None:
-                return [_Comp(sw.w[idx], 1.0 / wsd[idx], e, True)]  # type: ignore[index]
-            return [_Comp(sw.w[idx], np.ones(n_c), e, False)]  # type: ignore[index]
+            wt = 1.0 / wsd[idx] if wsd is not None else np.ones(n_c)
+            # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
+            return [_Comp(sw.w[idx], wt, e, wsd is not None, True, 1, False)]  # type: ignore[index]
 
         if n_c >= 5:
             b_hat, b_se = _free_exponent(
@@ -963,9 +992,7 @@ def classify(
     elif not math.isfinite(a_se):
         flags.append(Flag("a_unbounded", "the exponent a is not bounded by the data"))
     if n_c < 5:
-        flags.append(
-            Flag("few_points_near", f"only {n_c} informative points near mu* (want >= 5)")
-        )
+        flags.append(Flag("few_points_near", f"only {n_c} informative points near mu* (want >= 5)"))
     prof = top.profile
     flags.extend(prof.flags)
     mu_std = 0.5 * (prof.hi68 - prof.lo68)

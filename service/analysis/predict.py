@@ -417,8 +417,9 @@ def predict(
                     f"points within their noise (best p-value {sel.pvalue:.2g})",
                 )
             )
-        fit = _fit_candidate(sw_used, name, aa, bb, h, max(sel.n, min(3, sw_used.mu.size)),
-                             scale, 1.0)
+        fit = _fit_candidate(
+            sw_used, name, aa, bb, h, max(sel.n, min(3, sw_used.mu.size)), scale, 1.0
+        )
         if level != 0.95:
             fit = _refit_level_sweep(sw_used, fit, level)
         flags.extend(fit.profile.flags)
