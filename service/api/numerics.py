@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import importlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -68,6 +69,20 @@ def available() -> dict[str, bool]:
     return out
 
 
+@contextmanager
+def _calling(what: str) -> Iterator[None]:
+    """Map a numerics module missing *during* a call (work in progress) to 501."""
+    try:
+        yield
+    except ModuleNotFoundError as exc:
+        name = exc.name or ""
+        if name.split(".")[0] == "sim" or name.startswith("service.analysis"):
+            raise ApiProblem(501, f"{what} needs {name}, which is not available in this "
+                             "installation yet", title="Numerics not available",
+                             slug="numerics-unavailable", field="numerics", value=name) from None
+        raise
+
+
 def _field_of(message: str, default: str) -> str:
     head = message.split(" ", 1)[0].strip(":,")
     return head if head.isidentifier() else default
@@ -91,7 +106,8 @@ def detect_doc(w: np.ndarray, dt: float, method: str = "auto") -> dict[str, Any]
     """``detect(w, dt=dt, method=method).to_dict()`` as strict JSON."""
     detect = load("detect")
     try:
-        res = detect(np.asarray(w, dtype=np.float64), dt=float(dt), method=method)
+        with _calling("detection"):
+            res = detect(np.asarray(w, dtype=np.float64), dt=float(dt), method=method)
     except ValueError as exc:
         raise _as_problem(exc, "w") from None
     return sanitize(res.to_dict())
@@ -116,7 +132,8 @@ def simulate(params: dict[str, Any], model: str) -> dict[str, Any]:
     simulate_fn = load("simulate")
     try:
         scene = Scene(**params)
-        sig = simulate_fn(scene, model=model)
+        with _calling(f"simulation with model={model!r}"):
+            sig = simulate_fn(scene, model=model)
     except (SceneError, ValueError) as exc:
         raise _as_problem(exc, "scene") from None
     t = np.asarray(sig.t, dtype=np.float64)
@@ -136,7 +153,8 @@ def warn(params: dict[str, Any], progress: Callable[[float, str], None]) -> dict
     fn = load("warn")
     kwargs = {k: v for k, v in params.items() if v is not None}
     try:
-        res = fn(**kwargs, progress=progress)
+        with _calling("the warn pipeline"):
+            res = fn(**kwargs, progress=progress)
     except ValueError as exc:
         raise _as_problem(exc, "simulate") from None
     return sanitize(res.to_dict())
@@ -146,7 +164,8 @@ def sweep_from_signals(items: list[tuple[np.ndarray, float, float]]) -> dict[str
     """The pipeline on recorded signals: ``[(w, dt, control_value), ...]`` -> document."""
     fn = load("sweep_from_signals")
     try:
-        res = fn(items)
+        with _calling("the sweep pipeline"):
+            res = fn(items)
     except ValueError as exc:
         raise _as_problem(exc, "measurements") from None
     return sanitize(res.to_dict())
