@@ -19,6 +19,7 @@ import time
 import traceback
 from concurrent.futures import Executor, Future
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any
 
 from service.api.problems import ApiProblem
@@ -184,6 +185,8 @@ class JobRunner:
                         ids = list(self._running)
                     self.store.heartbeat_jobs(ids, self.owner)
                     self.store.worker_heartbeat(self.owner)
+                    if s.heartbeat_file:
+                        Path(s.heartbeat_file).touch()
                 if now - last_recover >= min(s.job_lease_s / 2, 5.0):
                     last_recover = now
                     self._recover()
