@@ -354,6 +354,30 @@ class _Fit:
     common: bool
 
 
+def _solve_gram(G: np.ndarray) -> tuple[np.ndarray, float]:
+    """Linear least squares from the Gram matrix of ``[Phi, y]``: coefficients and RSS."""
+    Gpp = G[:-1, :-1]
+    gy = G[:-1, -1]
+    c = _pinv_psd(Gpp) @ gy
+    rss = float(G[-1, -1] - 2.0 * c @ gy + c @ Gpp @ c)
+    return c, max(rss, 0.0)
+
+
+def _heavy_pass(
+    y: np.ndarray, p: np.ndarray, q: np.ndarray, c: np.ndarray, common: bool
+) -> np.ndarray | None:
+    """Gram of ``[J_theta(c), Phi, y]`` at ``(p, q)`` (one fused pass over the record)."""
+    if not _growth_ok(p, q, y.shape[0]):
+        return None
+    K = p.shape[0]
+    nth = K + 1 if common else 2 * K
+    B = np.empty((nth + 2 * K + 2, nth + 2 * K + 2))
+    model_gram(y, p, q, c, common, True, B)
+    if not np.all(np.isfinite(B)):
+        return None
+    return B
+
+
 def _levenberg_marquardt(
     y: np.ndarray,
     p0: np.ndarray,
@@ -361,48 +385,78 @@ def _levenberg_marquardt(
     *,
     common: bool,
     max_iter: int,
+    c0: np.ndarray | None = None,
 ) -> _Fit | None:
+    """Variable-projection Levenberg-Marquardt on ``theta``, one record pass per trial step.
+
+    Each pass returns the Gram of ``[J_theta, Phi, y]``: its ``[Phi, y]`` block gives the
+    projected coefficients ``c(theta)`` and the RSS exactly; ``J_theta`` is built with the
+    previous iterate's ``c`` (a lagged Kaufman Jacobian, consistent at convergence). A last
+    pass with the final ``c`` gives the Gauss-Newton covariance.
+    """
     N = y.shape[0]
     K = p0.shape[0]
-    if common:
-        p0 = np.full(K, float(np.mean(p0)))
-    ev = _evaluate(y, p0, q0)
-    if ev is None:
+    p = np.full(K, float(np.mean(p0))) if common else p0.astype(float).copy()
+    q = q0.astype(float).copy()
+    nth = K + 1 if common else 2 * K
+    if c0 is None:
+        ev0 = _evaluate(y, p, q)
+        if ev0 is None:
+            return None
+        c0 = ev0.c
+    c = c0
+    B = _heavy_pass(y, p, q, c, common)
+    if B is None:
         return None
-    theta = _theta(ev.p, ev.q, common)
+    c, rss = _solve_gram(B[nth:, nth:])
+    theta = _theta(p, q, common)
     lam = 1e-4
     it = 0
+    small = False
     for it in range(1, max_iter + 1):  # noqa: B007
-        A, g, ntheta = _jacobian_system(y, ev, common)
+        A = B[:-1, :-1]
+        # gradient J^T r with r = y - Phi c (c exact at theta; J built with c_lag)
+        g = B[:-1, -1] - B[:-1, nth:-1] @ c
         dA = np.diag(A).copy()
         dA[dA == 0] = 1.0
         accepted = False
         while lam < 1e12:
-            step = _pinv_psd(A + lam * np.diag(dA)) @ g
-            dth = step[:ntheta]
-            p, q = _unpack(theta + dth, K, common)
-            ev_new = _evaluate(y, p, q)
-            if ev_new is not None and ev_new.rss <= ev.rss * (1.0 + 1e-13):
-                accepted = True
-                break
+            Ainv = _pinv_psd(A + lam * np.diag(dA))
+            dth = (Ainv @ g)[:nth]
+            p_new, q_new = _unpack(theta + dth, K, common)
+            B_new = _heavy_pass(y, p_new, q_new, c, common)
+            if B_new is not None:
+                c_new, rss_new = _solve_gram(B_new[nth:, nth:])
+                if rss_new <= rss * (1.0 + 1e-13):
+                    accepted = True
+                    break
             lam *= 8.0
         if not accepted:
             break
+        gain = rss - rss_new
         theta = theta + dth
-        gain = ev.rss - ev_new.rss
-        ev = ev_new
+        p, q, B, c, rss = p_new, q_new, B_new, c_new, rss_new
         lam = max(lam / 10.0, 1e-9)
-        # converged: step far below the statistical resolution
-        s2 = max(ev.rss, 1e-300) / max(N - ntheta - 1 - 2 * K, 1)
-        cov_th = np.diag(_pinv_psd(A))[:ntheta] * s2
-        small = np.all(np.abs(dth) <= 1e-3 * np.sqrt(np.maximum(cov_th, 1e-300)))
-        if small or gain <= 1e-12 * ev.rss:
+        # converged: step far below the statistical resolution, or no gain left
+        s2 = max(rss, 1e-300) / max(N - nth - 1 - 2 * K, 1)
+        cov_th = np.diag(Ainv)[:nth] * s2
+        small = bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(cov_th, 1e-300))))
+        if small or gain <= 1e-12 * rss:
             break
-    A, g, ntheta = _jacobian_system(y, ev, common)
-    npar = ntheta + 1 + 2 * K
-    s2 = ev.rss / max(N - npar, 1)
+    else:
+        small = False
+    # a last pass with the final c, unless the last step was negligible (then the lagged
+    # Jacobian differs from the exact one by O(step) and the covariance is already accurate)
+    if max_iter == 0 or not small:
+        B_fin = _heavy_pass(y, p, q, c, common)
+        if B_fin is not None:
+            B = B_fin
+    A = B[:-1, :-1]
+    npar = nth + 1 + 2 * K
+    s2 = rss / max(N - npar, 1)
     cov = _pinv_psd(A) * s2
-    return _Fit(ev, cov, ntheta, s2, it, common)
+    ev = _Eval(p, q, np.ascontiguousarray(B[nth:, nth:]), c, rss)
+    return _Fit(ev, cov, nth, s2, it, common)
 
 
 def _mode_energy(ev: _Eval) -> np.ndarray:
@@ -542,28 +596,47 @@ def _prune(
     q: np.ndarray,
     noise_var: float,
     max_modes: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """MDL backward elimination of modes; returns the kept ``p, q`` and their energies."""
+    G: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """MDL backward elimination of modes at fixed poles (one record pass: the Gram matrix of
+    all candidates is computed once, a removal deletes its columns).
+
+    Returns the kept ``p, q``, their energies over the noise variance, and the coefficients.
+    """
     N = y.shape[0]
     thr = 4.0 * math.log(N)
-    while p.size:
+    ev = None
+    while p.size and G is None:
         ev = _evaluate(y, p, q)
+        if ev is not None:
+            break
+        # drop the fastest-growing candidate and retry
+        D = 0.25 * p * p - q
+        k = int(np.argmax(-0.5 * p + np.sqrt(np.maximum(D, 0.0))))
+        p, q = np.delete(p, k), np.delete(q, k)
+    if G is None:
         if ev is None:
-            # drop the fastest-growing candidate and retry
-            D = 0.25 * p * p - q
-            k = int(np.argmax(-0.5 * p + np.sqrt(np.maximum(D, 0.0))))
-            p, q = np.delete(p, k), np.delete(q, k)
+            return p, q, np.zeros(0), None
+        G = ev.G
+    active = list(range(p.size))
+    while active:
+        idx = [0] + [j for k in active for j in (1 + 2 * k, 2 + 2 * k)] + [G.shape[0] - 1]
+        Gs = G[np.ix_(idx, idx)]
+        c, rss = _solve_gram(Gs)
+        Ginv = _pinv_psd(Gs[:-1, :-1])
+        e = np.empty(len(active))
+        for i in range(len(active)):
+            j = [1 + 2 * i, 2 + 2 * i]
+            e[i] = float(c[j] @ _pinv_psd(Ginv[np.ix_(j, j)]) @ c[j])
+        npar = 1 + 4 * len(active)
+        s2 = rss / max(N - npar, 1)
+        s2 = max(s2, min(noise_var, s2), 1e-300)
+        i = int(np.argmin(e))
+        if e[i] / s2 < thr or len(active) > max_modes:
+            del active[i]
             continue
-        e = _mode_energy(ev)
-        npar = 1 + 4 * p.size
-        s2 = max(ev.rss / max(N - npar, 1), noise_var * 1e-6, 1e-300)
-        s2 = max(s2, min(noise_var, ev.rss / max(N - npar, 1)))
-        k = int(np.argmin(e))
-        if e[k] / s2 < thr or p.size > max_modes:
-            p, q = np.delete(p, k), np.delete(q, k)
-            continue
-        return p, q, e / s2
-    return p, q, np.zeros(0)
+        return p[active], q[active], e / s2, c
+    return p[:0], q[:0], np.zeros(0), None
 
 
 # --------------------------------------------------------------------------------------------
@@ -853,19 +926,21 @@ def _fft_modes(
         gamma = 0.5 * width
         if width < 1.5 * d_om:
             unresolved.append(om)
+        # resolution-limited errors: uniform over a bin (plain peak), amplitude from the bin
         q_std = d_om / math.sqrt(12.0)
-        amp = 2.0 * mag[j] / N * scale
+        amp = 2.0 * float(mag[j]) / N * scale
         modes.append(
             Mode(
-                omega=om,
-                frequency=om / (2 * math.pi),
-                damping=gamma,
-                sigma2=-(om * om + gamma * gamma),
+                omega=float(om),
+                frequency=float(om / (2 * math.pi)),
+                damping=float(gamma),
+                sigma2=float(-(om * om + gamma * gamma)),
                 amplitude=amp,
                 phase=0.0,
                 omega_std=q_std,
                 damping_std=0.5 * q_std,
-                sigma2_std=2.0 * om * q_std,
+                sigma2_std=float(2.0 * om * q_std),
+                amplitude_std=math.sqrt(2.0 * spec.noise_var / N) * scale,
                 regime="underdamped",
                 snr_db=10 * math.log10(max(P[j] / max(spec.noise_var, 1e-300), 1e-300)),
             )
@@ -920,7 +995,7 @@ def _fit_parametric(
     fit: _Fit | None = None
     energy = np.zeros(0)
     for round_ in range(3):
-        p, q, energy = _prune(y, p, q, spec.noise_var, max_modes)
+        p, q, energy, c_init = _prune(y, p, q, spec.noise_var, max_modes)
         if p.size == 0 and fit is None:
             if round_ > 0:
                 return None, energy
@@ -928,11 +1003,18 @@ def _fit_parametric(
             new = None
             for _ in range(3):
                 new = _levenberg_marquardt(
-                    y, p, q, common=common and refine, max_iter=max_iter if refine else 0
+                    y,
+                    p,
+                    q,
+                    common=common and refine,
+                    max_iter=max_iter if refine else 0,
+                    c0=None if common else c_init,
                 )
                 if new is None:
                     break
-                p2, q2, energy = _prune(y, new.ev.p, new.ev.q, new.s2, max_modes)
+                p2, q2, energy, c_init = _prune(
+                    y, new.ev.p, new.ev.q, new.s2, max_modes, G=new.ev.G
+                )
                 if p2.size == new.ev.p.size or p2.size == 0:
                     break
                 p, q = p2, q2
@@ -985,19 +1067,40 @@ def _order(fit: _Fit, energy: np.ndarray) -> tuple[_Fit, np.ndarray]:
     return _Fit(ev2, cov, fit.ntheta, fit.s2, fit.iterations, fit.common), energy[order]
 
 
-def _one_step(y: np.ndarray, fit: _Fit) -> tuple[float, float] | None:
-    """One Gauss-Newton step from the full-record fit on a part ``y`` of the record; returns
-    the fundamental's ``q`` and its variance (one-step estimator, efficient to first order)."""
-    ev = _evaluate(y, fit.ev.p, fit.ev.q)
-    if ev is None:
+def _shifted_coefficients(p: np.ndarray, q: np.ndarray, c: np.ndarray, h: int) -> np.ndarray:
+    """Linear coefficients of the same modes with the time origin moved to sample ``h``."""
+    out = c.copy()
+    for k in range(p.size):
+        pk, qk = float(p[k]), float(q[k])
+        D = 0.25 * pk * pk - qk
+        vals = []
+        for n in (h, h + 1):
+            ch, sh, _ = _ch_sh(D * n * n)
+            e = math.exp(-0.5 * pk * n)
+            vals.append(c[1 + 2 * k] * e * ch + c[2 + 2 * k] * e * n * sh)
+        ch1, sh1, _ = _ch_sh(D)
+        e1 = math.exp(-0.5 * pk)
+        c1 = vals[0]
+        c2 = (vals[1] - c1 * e1 * ch1) / (e1 * sh1)
+        out[1 + 2 * k], out[2 + 2 * k] = c1, c2
+    return out
+
+
+def _one_step(y: np.ndarray, fit: _Fit, c: np.ndarray) -> tuple[float, float] | None:
+    """One Gauss-Newton step from the full-record poles on a part ``y`` of the record (one
+    pass); returns the fundamental's ``q`` and its variance (one-step estimator)."""
+    nth = fit.ntheta
+    B = _heavy_pass(y, fit.ev.p, fit.ev.q, c, fit.common)
+    if B is None:
         return None
-    A, g, nth = _jacobian_system(y, ev, fit.common)
+    c_part, rss = _solve_gram(B[nth:, nth:])
+    A = B[:-1, :-1]
+    g = B[:-1, -1] - B[:-1, nth:-1] @ c_part
     Ainv = _pinv_psd(A)
     step = Ainv @ g
-    npar = A.shape[0]
-    s2 = max(ev.rss - float(g @ step), 0.0) / max(y.size - npar, 1)
+    s2 = max(rss - float(g @ step), 0.0) / max(y.size - A.shape[0], 1)
     jq = 1
-    return float(ev.q[0] + step[jq]), float(Ainv[jq, jq] * s2)
+    return float(fit.ev.q[0] + step[jq]), float(Ainv[jq, jq] * s2)
 
 
 def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag | None:
@@ -1034,8 +1137,8 @@ def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag 
             res.append((float(f.ev.q[0]), float(f.cov[1, 1])))
         a, b = res
     else:
-        a = _one_step(y[:h], fit)
-        b = _one_step(y[h:], fit)
+        a = _one_step(y[:h], fit, fit.ev.c)
+        b = _one_step(y[h:], fit, _shifted_coefficients(fit.ev.p, fit.ev.q, fit.ev.c, h))
         if a is None or b is None:
             return None
     (q1, v1), (q2, v2) = a, b
