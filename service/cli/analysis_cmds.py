@@ -1,9 +1,312 @@
-"""CLI commands of this area (see service/cli/__init__.py)."""
+"""Analysis commands: detect, predict, warn, sweep, and the demo (the main job)."""
 
 from __future__ import annotations
 
 import argparse
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from service.cli._common import CliError, add_json_flag, bad, emit
+
+
+# ------------------------------------------------------------------------------- file readers
+def read_signal(path: str, option: str = "FILE") -> tuple[np.ndarray, float]:
+    """Read a record (CSV with a header such as t,w; NPY/NPZ; WAV; .mat) -> (w, dt).
+
+    The same parsers and validation as the REST API's uploads (``service.api.codec``): one
+    definition of what a valid recorded signal is.
+    """
+    from service.api.codec import clean_signal, guess_format, parse_upload
+    from service.api.problems import ApiProblem
+
+    p = Path(path)
+    if not p.is_file():
+        raise bad(option, path, "is not a readable file")
+    try:
+        parsed = parse_upload(p.read_bytes(), guess_format(p.name, None, None))
+        given = parsed.t is None and math.isfinite(parsed.dt)
+        w, _, dt, _ = clean_signal(
+            w=parsed.w, t=parsed.t, dt=parsed.dt if given else None,
+            t0=parsed.t0 if given and math.isfinite(parsed.t0) else None,
+            max_samples=10_000_000, uniform_rtol=1e-6,
+        )  # fmt: skip
+    except ApiProblem as exc:
+        raise bad(option, path, exc.detail) from None
+    return w, dt
+
+
+def _read_table(path: str, option: str) -> dict[str, np.ndarray]:
+    p = Path(path)
+    if not p.is_file():
+        raise bad(option, path, "is not a readable file")
+    with p.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    if len(rows) < 2:
+        raise bad(option, path, "has no data rows")
+    header = [h.strip() for h in rows[0]]
+    cols: dict[str, list] = {h: [] for h in header}
+    for i, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise bad(option, path, f"line {i} has {len(row)} fields, header has {len(header)}")
+        for h, c in zip(header, row):
+            cols[h].append(c.strip())
+    return {h: np.array(v, dtype=object) for h, v in cols.items()}
+
+
+def _floats(table: dict, name: str, option: str, path: str) -> np.ndarray:
+    try:
+        arr = table[name].astype(float)
+    except ValueError:
+        raise bad(option, path, f"column {name!r} holds a value that is not a number") from None
+    if not np.all(np.isfinite(arr)):
+        raise bad(option, path, f"column {name!r} holds NaN or inf")
+    return arr
+
+
+# ------------------------------------------------------------------------------- commands
+def _detect(args: argparse.Namespace) -> int:
+    from service.analysis.detect import detect
+
+    w, dt = read_signal(args.file)
+    if args.dt is not None:
+        dt = args.dt
+    try:
+        det = detect(w, dt=dt, method=args.method, kind=args.kind)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    doc = det.to_dict()
+    f = doc.get("fundamental") or {}
+    text = (
+        f"fundamental: omega = {f.get('omega')}, sigma2 = {f.get('sigma2')} "
+        f"+- {f.get('sigma2_std')} ({f.get('regime')}); {len(doc['modes'])} modes; "
+        f"flags: {[x['code'] for x in doc['flags']] or 'none'}"
+    )
+    emit(doc, json_mode=args.json, text=text)
+    return 0
+
+
+def _predict(args: argparse.Namespace) -> int:
+    from service.analysis.predict import predict
+
+    table = _read_table(args.file, "SWEEP")
+    if "mu" not in table:
+        raise bad("SWEEP", args.file, "needs a column 'mu'")
+    mu = _floats(table, "mu", "SWEEP", args.file)
+    kw: dict[str, Any] = {}
+    if "sigma2" in table:
+        kw["sigma2"] = _floats(table, "sigma2", "SWEEP", args.file)
+        if "sigma2_std" in table:
+            kw["sigma2_std"] = _floats(table, "sigma2_std", "SWEEP", args.file)
+    elif "omega" in table:
+        kw["omega"] = _floats(table, "omega", "SWEEP", args.file)
+        if "omega_std" in table:
+            kw["omega_std"] = _floats(table, "omega_std", "SWEEP", args.file)
+    else:
+        raise bad("SWEEP", args.file, "needs a column 'sigma2' or 'omega'")
+    if "w_static" in table:
+        kw["w_static"] = _floats(table, "w_static", "SWEEP", args.file)
+    if args.transition:
+        kw["transition"] = args.transition
+    try:
+        pred = predict(mu, **kw)
+    except ValueError as exc:
+        raise CliError(f"SWEEP {args.file!r}: {exc}") from None
+    doc = pred.to_dict()
+    lo, hi = doc["mu_star_interval"]
+    emit(doc, json_mode=args.json,
+         text=f"{doc['transition']}: mu* = {doc['mu_star']} (95%: [{lo}, {hi}])")  # fmt: skip
+    return 0
+
+
+def _progress_printer(enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    bar = tqdm(total=100, file=sys.stderr, unit="%", leave=False, dynamic_ncols=True)
+
+    def cb(fraction: float, message: str) -> None:
+        bar.n = int(round(100 * fraction))
+        bar.set_postfix_str(message[:70])
+        bar.refresh()
+
+    cb.close = bar.close  # type: ignore[attr-defined]
+    return cb
+
+
+def _warn(args: argparse.Namespace) -> int:
+    from service.analysis.pipeline import warn
+
+    opts: dict[str, Any] = {}
+    for name in ("end_shortening", "slenderness", "elements"):
+        if getattr(args, name, None) is not None:
+            opts[name] = getattr(args, name)
+    if args.max_measurements < 5:
+        raise bad("--max-measurements", args.max_measurements, "must be >= 5")
+    cb = _progress_printer(not args.no_progress)
+    try:
+        res = warn(args.actuation, model=args.model, damping=args.damping, snr_db=args.snr,
+                   seed=args.seed, max_measurements=args.max_measurements,
+                   scene_options=opts or None, progress=cb)  # fmt: skip
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        if cb is not None:
+            cb.close()
+    doc = res.to_dict()
+    emit(doc, json_mode=args.json, text=_warn_text(doc))
+    return 0
+
+
+def _warn_text(doc: dict) -> str:
+    lo, hi = doc["mu_star_interval"] or (math.nan, math.nan)
+    lines = [
+        f"{doc['actuation']} ({doc['model']}): {doc['transition']}, a = {doc['a']}",
+        f"  mu* = {doc['mu_star']:.9f}  95%: [{lo:.9f}, {hi:.9f}]  "
+        f"from {doc['n_measurements']} impulse responses ({doc['stopped']})",
+    ]
+    if doc.get("baseline"):
+        lines.append(f"  paper's rule on the same data: mu* = {doc['baseline']['mu_star']:.9f}")
+    if doc.get("truth"):
+        t = doc["truth"]
+        lines.append(
+            f"  model's own mu* = {t['mu_star']:.9f}: error {t.get('error', math.nan):.2e}"
+        )
+    return "\n".join(lines)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from service.analysis.pipeline import sweep_from_signals
+
+    table = _read_table(args.manifest, "MANIFEST")
+    if "path" not in table or "control" not in table:
+        raise bad("MANIFEST", args.manifest, "needs the header 'path,control'")
+    control = _floats(table, "control", "MANIFEST", args.manifest)
+    base = Path(args.manifest).resolve().parent
+    records, names = [], []
+    for rel, c in zip(table["path"], control):
+        p = Path(rel)
+        p = p if p.is_absolute() else base / p
+        w, dt = read_signal(str(p), option="MANIFEST entry")
+        records.append((w, dt, float(c)))
+        names.append(str(rel))
+    cb = _progress_printer(not args.no_progress)
+    try:
+        res = sweep_from_signals(records, names=names, progress=cb)
+    except ValueError as exc:
+        raise CliError(f"MANIFEST {args.manifest!r}: {exc}") from None
+    finally:
+        if cb is not None:
+            cb.close()
+    doc = res.prediction.to_dict() if res.prediction is not None else {}
+    doc["detections"] = list(res.detections)
+    doc["measurements"] = [m.to_dict() for m in res.measurements]
+    doc["flags"] = doc.get("flags", []) + [f.to_dict() for f in res.flags]
+    text = f"{doc.get('transition')}: mu* = {doc.get('mu_star')} {doc.get('mu_star_interval')}"
+    emit(doc, json_mode=args.json, text=text)
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    """The main job: early warning for the three actuations of the Euler beam."""
+    from service.analysis.pipeline import warn
+    from service.cli.sim_cmds import beam_summary, beam_summary_text
+
+    t0 = time.perf_counter()
+    summary = beam_summary()
+    if not args.json:
+        sys.stdout.write(beam_summary_text(summary) + "\n\n")
+        sys.stdout.flush()
+    runs = []
+    for k, act in enumerate(("asymmetric", "symmetric", "antisymmetric")):
+        cb = _progress_printer(not args.no_progress)
+        try:
+            res = warn(act, seed=args.seed + k, max_measurements=30, progress=cb)
+        finally:
+            if cb is not None:
+                cb.close()
+        runs.append(res.to_dict())
+    doc = {"beam": summary, "warn": runs, "seconds": time.perf_counter() - t0}
+    rows = [
+        "Early warning (Euler beam, xi = 2e-4, 40 dB): true mu*, the paper's rule, ours",
+        f"{'actuation':14} {'type found':24} {'true mu*':>12} {'paper rule':>12} {'ours':>14} "
+        f"{'95% interval':>29} {'error':>9} {'N':>3}",
+    ]
+    for r in runs:
+        t = r.get("truth") or {}
+        lo, hi = r["mu_star_interval"]
+        base = (r.get("baseline") or {}).get("mu_star", math.nan)
+        rows.append(
+            f"{r['actuation']:14} {r['transition']:24} {t.get('mu_star', math.nan):12.8f} "
+            f"{base:12.8f} {r['mu_star']:14.10f} [{lo:.10f}, {hi:.10f}] "
+            f"{t.get('error', math.nan):9.1e} {r['n_measurements']:3d}"
+        )
+    rows.append(f"({doc['seconds']:.1f} s)")
+    emit(doc, json_mode=args.json, text="\n".join(rows))
+    return 0
+
+
+def _finite(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+    return v
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    """Add this area's sub-commands to ``sub``."""
+    """Add the analysis sub-commands to ``sub``."""
+    p = sub.add_parser("detect", help="poles of a recorded signal")
+    p.add_argument("file", help="CSV (header t,w), NPY/NPZ, WAV or .mat record")
+    p.add_argument("--method", default="auto",
+                   choices=("auto", "varpro", "esprit", "fft", "fft-parabolic"))  # fmt: skip
+    p.add_argument("--kind", default="impulse", choices=("impulse", "ambient"))
+    p.add_argument("--dt", type=_finite, default=None, help="sample step if the file has none")
+    add_json_flag(p)
+    p.set_defaults(func=_detect)
+
+    p = sub.add_parser("predict", help="mu* from a sweep table (mu,sigma2[,sigma2_std][,w_static])")
+    p.add_argument("file", metavar="SWEEP")
+    p.add_argument("--transition", default=None,
+                   choices=("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork",
+                            "pitchfork"))  # fmt: skip
+    add_json_flag(p)
+    p.set_defaults(func=_predict)
+
+    p = sub.add_parser("warn", help="simulated early-warning sweep")
+    p.add_argument("--model", default="euler-beam",
+                   choices=("euler-beam", "normal-form", "cosserat", "auto"))  # fmt: skip
+    p.add_argument("--actuation", required=True,
+                   choices=("asymmetric", "symmetric", "antisymmetric"))  # fmt: skip
+    p.add_argument("--damping", type=_finite, default=2e-4)
+    p.add_argument("--snr", type=_finite, default=40.0)
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--max-measurements", type=int, default=30)
+    p.add_argument("--end-shortening", type=_finite, default=None)
+    p.add_argument("--slenderness", type=_finite, default=None)
+    p.add_argument("--elements", type=int, default=None)
+    p.add_argument("--no-progress", action="store_true")
+    add_json_flag(p)
+    p.set_defaults(func=_warn)
+
+    p = sub.add_parser("sweep", help="detect recorded files then predict (header path,control)")
+    p.add_argument("manifest", metavar="MANIFEST")
+    p.add_argument("--no-progress", action="store_true")
+    add_json_flag(p)
+    p.set_defaults(func=_sweep)
+
+    p = sub.add_parser("demo", help="the main job on embedded defaults")
+    p.add_argument("--seed", type=int, default=2026)
+    p.add_argument("--no-progress", action="store_true")
+    add_json_flag(p)
+    p.set_defaults(func=_demo)

@@ -1,0 +1,436 @@
+"""The early-warning pipeline: sweep the control upward, measure, classify, predict mu*.
+
+``warn`` runs the paper's protocol (Discussion) on a simulator, as an experimenter would on a
+strip: measure the impulse response at mu = 0, then at increasing mu, each record analysed by
+the pole detector (sigma^2 = -s1 s2 of the fundamental, its error, the static level). As soon
+as four points exist the predictor gives mu* with a 95 % interval; the next mu goes a fraction
+of the way to the interval's lower end (never at or beyond it), so the steps shrink
+geometrically as the alarm rises. It stops when the interval is narrow enough, the budget of
+measurements is spent, or no safe step is left. The paper's rule is evaluated on the same
+measurements for comparison.
+
+The pipeline only sees what a sensor records: the record length and sampling of each
+measurement are chosen from the previous detection (40 periods, 50 samples per period of the
+expected fundamental), never from the simulator's knowledge. ``sweep_from_signals`` is the same
+analysis for records a lab uploads (any time unit, any control unit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from service.analysis.common import Flag
+from service.analysis.detect import Detection, detect
+from service.analysis.predict import Prediction, paper_rule, predict
+
+Progress = Callable[[float, str], None]
+
+PERIODS = 40
+SAMPLES_PER_PERIOD = 50
+MAX_SAMPLES = 20_000
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One analysed record of the sweep.
+
+    Attributes
+    ----------
+    mu : float
+        Control value (user unit).
+    omega, sigma2, sigma2_std : float
+        sqrt|sigma^2| (rad/time), the fundamental's undamped eigenvalue (1/time^2) and its error.
+    w_static, w_static_std : float
+        Static level of the record (the equilibrium's deflection at the probe).
+    regime : str
+        "underdamped" or "overdamped".
+    duration, dt : float
+        Record length and step used.
+    flags : tuple of Flag
+        The detector's flags for this record.
+    """
+
+    mu: float
+    omega: float
+    sigma2: float
+    sigma2_std: float
+    w_static: float
+    w_static_std: float
+    regime: str
+    duration: float
+    dt: float
+    flags: tuple[Flag, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "mu": self.mu,
+            "omega": self.omega,
+            "sigma2": self.sigma2,
+            "sigma2_std": self.sigma2_std,
+            "w_static": self.w_static,
+            "w_static_std": self.w_static_std,
+            "regime": self.regime,
+            "duration": self.duration,
+            "dt": self.dt,
+            "flags": [f.to_dict() for f in self.flags],
+        }
+
+
+def measurement_from_detection(
+    mu: float, det: Detection, duration: float, dt: float
+) -> Measurement:
+    """Reduce a detection to the sweep's measurement (fundamental, static level, flags)."""
+    f = det.fundamental
+    if f is None or not math.isfinite(f.sigma2):
+        raise ValueError(f"no fundamental mode found in the record at mu={mu!r}")
+    return Measurement(
+        mu=float(mu),
+        omega=math.sqrt(abs(f.sigma2)),
+        sigma2=float(f.sigma2),
+        sigma2_std=float(f.sigma2_std) if f.sigma2_std is not None else math.nan,
+        w_static=float(det.static_level),
+        w_static_std=float(det.static_level_std),
+        regime=f.regime,
+        duration=float(duration),
+        dt=float(dt),
+        flags=tuple(det.flags),
+    )
+
+
+@dataclass(frozen=True)
+class WarnResult:
+    """Outcome of an early-warning sweep.
+
+    Attributes
+    ----------
+    measurements : tuple of Measurement
+    prediction : Prediction
+        The final prediction (with its classification and the paper's rule).
+    alarm : tuple of dict
+        After each measurement: mu, T/T0, and (once predicted) mu*, the interval, and the
+        distance to mu* in units of the interval half-width.
+    stopped : str
+        "converged" (interval narrow enough), "budget" (max measurements), "no-safe-step",
+        or "snapped" (a measurement found no equilibrium: the sweep crossed mu*).
+    truth : dict or None
+        For simulated sweeps: the model's own mu* and transition, and the errors.
+    flags : tuple of Flag
+    """
+
+    actuation: str | None
+    model: str | None
+    measurements: tuple[Measurement, ...]
+    prediction: Prediction | None
+    alarm: tuple[dict, ...]
+    stopped: str
+    truth: dict | None = None
+    flags: tuple[Flag, ...] = ()
+    detections: tuple[dict, ...] = field(default=(), repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        p = self.prediction
+        doc: dict[str, Any] = {
+            "actuation": self.actuation,
+            "model": self.model,
+            "transition": p.transition if p else "undetermined",
+            "a": p.a if p else None,
+            "mu_star": p.mu_star if p else None,
+            "mu_star_interval": list(p.mu_star_interval) if p else None,
+            "mu_star_std": p.mu_star_std if p else None,
+            "probabilities": dict(p.probabilities) if p else {},
+            "n_measurements": len(self.measurements),
+            "stopped": self.stopped,
+            "measurements": [m.to_dict() for m in self.measurements],
+            "alarm": list(self.alarm),
+            "baseline": p.baseline.to_dict() if p and p.baseline else None,
+            "flags": [f.to_dict() for f in self.flags]
+            + ([f.to_dict() for f in p.flags] if p else []),
+        }
+        if p is not None and p.classification is not None:
+            c = p.classification
+            doc["classification"] = {"transition": c.transition, "a": c.a, "a_std": c.a_std,
+                                     "b": c.b, "b_std": c.b_std, "regime": c.regime}  # fmt: skip
+        if self.truth is not None:
+            doc["truth"] = self.truth
+        if self.detections:
+            doc["detections"] = list(self.detections)
+        return doc
+
+
+def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | None:
+    if len(ms) < 4:
+        return None
+    arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
+    s2_std = arr("sigma2_std")
+    try:
+        return predict(
+            arr("mu"),
+            arr("sigma2"),
+            sigma2_std=s2_std if np.all(np.isfinite(s2_std) & (s2_std > 0)) else None,
+            w_static=arr("w_static"),
+            w_static_std=np.maximum(arr("w_static_std"), 1e-15),
+            damping=damping,
+        )
+    except ValueError:
+        return None
+
+
+def _alarm(ms: Sequence[Measurement], pred: Prediction | None) -> dict:
+    t_ratio = ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
+    out = {"mu": ms[-1].mu, "t_ratio": t_ratio}
+    if pred is not None and math.isfinite(pred.mu_star):
+        lo, hi = pred.mu_star_interval
+        half = max(0.5 * (hi - lo), 1e-300)
+        out.update({"mu_star": pred.mu_star, "mu_star_interval": [lo, hi],
+                    "distance_in_half_widths": (pred.mu_star - ms[-1].mu) / half})  # fmt: skip
+    return out
+
+
+def _extrapolate_sigma4(ms: Sequence[Measurement]) -> float | None:
+    """Two-point linear extrapolation of sigma^4 to zero through the last two points.
+
+    Exact near a fold (sigma^4 ~ mu* - mu); near a pitchfork (sigma^2 ~ mu* - mu) it lands
+    short of mu*: a model-free, conservative bound on where the transition can be (checked on
+    the beam for all three actuations from the second pair of points on).
+    """
+    if len(ms) < 3:
+        return None
+    (m1, m2) = ms[-2], ms[-1]
+    f1, f2 = m1.sigma2**2, m2.sigma2**2
+    if not f1 > f2:
+        return None  # no slowing down yet: no bound
+    return m2.mu + f2 * (m2.mu - m1.mu) / (f1 - f2)
+
+
+def _safe_bound(
+    ms: Sequence[Measurement], pred: Prediction | None, prev: Prediction | None
+) -> tuple[float | None, bool]:
+    """(bound below which the next measurement must stay, whether the predictor is trusted).
+
+    The predictor is trusted once the alarm has risen (T/T0 >= 2) and two consecutive 95 %
+    intervals overlap; before that, the conservative sigma^4 extrapolation bounds the step.
+    """
+    e4 = _extrapolate_sigma4(ms)
+    t_ratio = ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
+    trusted = False
+    if (pred is not None and prev is not None and t_ratio >= 2.0
+            and math.isfinite(pred.mu_star) and math.isfinite(prev.mu_star)):  # fmt: skip
+        lo, hi = pred.mu_star_interval
+        plo, phi = prev.mu_star_interval
+        trusted = lo <= phi and plo <= hi and lo > ms[-1].mu
+    if trusted:
+        return pred.mu_star_interval[0], True
+    return e4, False
+
+
+def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tuple[float, float]:
+    """Record length and step for the next measurement, from the previous detection."""
+    if prev.regime == "overdamped":
+        # the slow pole sets the time scale; sigma^2 = -s1 s2 -> slow rate ~ |sigma^2| / xi
+        t_prev = prev.duration / 5.0
+        return 2.0 * prev.duration, prev.dt
+    omega_next = prev.omega
+    if pred is not None and math.isfinite(pred.mu_star) and pred.mu_star > mu_next:
+        ratio = (pred.mu_star - mu_next) / max(pred.mu_star - prev.mu, 1e-300)
+        omega_next = prev.omega * min(ratio, 1.0) ** pred.a
+    t_prev = 2 * math.pi / prev.omega
+    t_next = 2 * math.pi / max(omega_next, 1e-12)
+    duration = PERIODS * t_next
+    dt = t_prev / SAMPLES_PER_PERIOD
+    if duration / dt > MAX_SAMPLES:
+        dt = duration / MAX_SAMPLES
+    return duration, dt
+
+
+def warn(
+    actuation: str,
+    *,
+    model: str = "euler-beam",
+    damping: float = 2e-4,
+    snr_db: float | None = 40.0,
+    seed: int | None = None,
+    max_measurements: int = 30,
+    kick: float = 1e-2,
+    first_step: float = 0.2,
+    first_dt: float = 1e-3,
+    first_duration: float = 2.0,
+    rel_width: float = 2e-6,
+    scene_options: dict | None = None,
+    progress: Progress | None = None,
+) -> WarnResult:
+    """Run the early-warning sweep on a simulated strip.
+
+    Parameters
+    ----------
+    actuation : {"asymmetric", "symmetric", "antisymmetric"}
+    model : str
+        Simulator backend (``sim.simulate``).
+    damping : float
+        xi of the simulated strip (the pipeline does not use it: it measures).
+    snr_db : float or None
+        Noise of every record (dB relative to the response power).
+    seed : int or None
+        Base seed; measurement k uses seed + k.
+    max_measurements : int
+        Budget of impulse responses (>= 5).
+    kick : float
+        Impulse at mu = 0; later kicks scale with the expected frequency so that the response
+        amplitude stays about constant (a lab keeps its sensor in range the same way).
+    first_step : float
+        Control step while no prediction exists (control units).
+    first_dt, first_duration : float
+        Sampling of the first record (the calibration measurement at mu = 0).
+    rel_width : float
+        Stop when the 95 % interval is narrower than this (control units).
+    scene_options : dict, optional
+        Extra ``Scene`` fields (e.g. end_shortening for the Cosserat rod).
+    progress : callable(fraction, message), optional
+        Called after each measurement.
+    """
+    from sim import simulate
+    from sim.scene import Scene
+
+    if max_measurements < 5:
+        raise ValueError(
+            f"max_measurements must be >= 5, got max_measurements={max_measurements!r}"
+        )
+    if not (math.isfinite(first_step) and first_step > 0):
+        raise ValueError(f"first_step must be > 0, got first_step={first_step!r}")
+    base = Scene(actuation=actuation, mu=0.0, damping=damping, kick=kick, snr_db=snr_db,
+                 **(scene_options or {}))  # fmt: skip
+    ms: list[Measurement] = []
+    alarm: list[dict] = []
+    flags: list[Flag] = []
+    pred: Prediction | None = None
+    prev_pred: Prediction | None = None
+    stopped = "budget"
+    mu_next, duration, dt, kick_k = 0.0, first_duration, first_dt, kick
+    for k in range(max_measurements):
+        scene = base.with_(mu=mu_next, duration=duration, dt=dt, kick=kick_k,
+                           seed=None if seed is None else seed + k)  # fmt: skip
+        try:
+            sig = simulate(scene, model)
+        except ValueError as exc:  # no equilibrium: the strip snapped
+            flags.append(Flag("snapped", f"no U_A equilibrium at mu={mu_next!r}: {exc}"))
+            stopped = "snapped"
+            break
+        det = detect(sig.w, dt=sig.dt)
+        try:
+            m = measurement_from_detection(mu_next, det, sig.t[-1], sig.dt)
+        except ValueError as exc:
+            flags.append(Flag("no_mode", str(exc)))
+            stopped = "no-mode"
+            break
+        ms.append(m)
+        pred = _predict(ms, None)
+        alarm.append(_alarm(ms, pred))
+        if progress is not None:
+            msg = f"mu={m.mu:.6g} T/T0={alarm[-1]['t_ratio']:.3g}"
+            if "mu_star" in alarm[-1]:
+                lo, hi = alarm[-1]["mu_star_interval"]
+                msg += f" mu*={alarm[-1]['mu_star']:.8g} [{lo:.8g}, {hi:.8g}]"
+            progress((k + 1) / max_measurements, msg)
+        # next control value: a fraction of the way to a safe bound on mu*
+        lo_bound, trusted = _safe_bound(ms, pred, prev_pred)
+        prev_pred = pred
+        if trusted and pred is not None:
+            lo, hi = pred.mu_star_interval
+            if hi - lo < rel_width:
+                stopped = "converged"
+                break
+        if lo_bound is None:
+            cand = m.mu + first_step
+        else:
+            cand = m.mu + min(first_step, 0.5 * (lo_bound - m.mu))
+        if not cand > m.mu or cand - m.mu < 1e-12 * max(1.0, abs(m.mu)):
+            stopped = "no-safe-step"
+            break
+        duration, dt = _sampling(m, cand, pred)
+        kick_k = kick * min(1.0, (2 * math.pi / duration * PERIODS) / ms[0].omega)
+        mu_next = cand
+    truth = None
+    try:
+        from sim.euler_beam import bifurcation
+
+        if model in ("euler-beam", "normal-form"):
+            b = bifurcation(actuation)
+            truth = {"mu_star": b.mu_star, "transition": b.transition}
+        elif model == "cosserat":
+            from sim import cosserat
+
+            opts = {k: v for k, v in (scene_options or {}).items()
+                    if k in ("end_shortening", "slenderness", "elements")}  # fmt: skip
+            b = cosserat.bifurcation(actuation, **opts)
+            truth = {"mu_star": b.mu_star, "transition": b.transition}
+    except Exception:  # noqa: BLE001 - the truth is a comparison, never a failure
+        truth = None
+    if truth is not None and pred is not None:
+        truth["error"] = pred.mu_star - truth["mu_star"]
+        lo, hi = pred.mu_star_interval
+        truth["covered"] = bool(lo <= truth["mu_star"] <= hi)
+        truth["transition_correct"] = pred.transition == truth["transition"]
+        truth["max_mu_measured"] = max(m.mu for m in ms)
+        if pred.baseline is not None:
+            truth["baseline_error"] = pred.baseline.mu_star - truth["mu_star"]
+    return WarnResult(actuation, model, tuple(ms), pred, tuple(alarm), stopped, truth,
+                      tuple(flags))  # fmt: skip
+
+
+def sweep_from_signals(
+    records: Sequence[tuple[np.ndarray, float, float]],
+    *,
+    names: Sequence[str] | None = None,
+    method: str = "auto",
+    progress: Progress | None = None,
+) -> WarnResult:
+    """Detect every recorded signal, then classify and predict (the lab-data path).
+
+    Parameters
+    ----------
+    records : sequence of (w, dt, control)
+        Each record's samples (any length unit), its sample step (its own time unit) and its
+        control value (any unit: degrees, newtons, volts...). Sorted by control here.
+    names : sequence of str, optional
+        Labels for the per-record detections (e.g. file names).
+    method : str
+        Detector method.
+    """
+    if len(records) < 3:
+        raise ValueError(f"records must hold at least 3 signals, got {len(records)}")
+    order = np.argsort([float(r[2]) for r in records], kind="stable")
+    ms: list[Measurement] = []
+    dets: list[dict] = []
+    flags: list[Flag] = []
+    for i, j in enumerate(order):
+        w, dt, control = records[j]
+        w = np.asarray(w, dtype=float)
+        det = detect(w, dt=float(dt), method=method)
+        d = det.to_dict()
+        d["control"] = float(control)
+        if names is not None:
+            d["name"] = names[j]
+        dets.append(d)
+        try:
+            ms.append(measurement_from_detection(float(control), det, (w.size - 1) * dt, dt))
+        except ValueError as exc:
+            flags.append(Flag("no_mode", str(exc)))
+        if progress is not None:
+            progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
+    mus = [m.mu for m in ms]
+    if len(set(mus)) != len(mus):
+        raise ValueError("control values must be distinct, got duplicates")
+    pred = _predict(ms, None) if len(ms) >= 4 else None
+    if pred is None and len(ms) >= 3:
+        arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
+        pred = predict(arr("mu"), arr("sigma2"), w_static=arr("w_static"))
+    alarm = tuple(_alarm(ms[: k + 1], None) for k in range(len(ms)))
+    return WarnResult(None, None, tuple(ms), pred, alarm, "done", None, tuple(flags), tuple(dets))
+
+
+__all__ = ["Measurement", "WarnResult", "measurement_from_detection", "paper_rule",
+           "sweep_from_signals", "warn"]  # fmt: skip
