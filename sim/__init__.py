@@ -20,7 +20,8 @@ def simulate(scene: Scene, model: str = "euler-beam", **options) -> Signal:
     model : {"normal-form", "euler-beam", "cosserat", "auto"}
         "auto" picks the cheapest backend accurate enough for the scene (``sim.select``).
     **options
-        Backend options (e.g. ``method="nonlinear"`` for the Euler beam).
+        Backend options (e.g. ``method="nonlinear"`` for the Euler beam; ``accuracy`` for
+        "auto").
     """
     if model not in MODELS:
         raise SceneError(f"model must be one of {MODELS}, got {model!r}")
@@ -28,7 +29,8 @@ def simulate(scene: Scene, model: str = "euler-beam", **options) -> Signal:
         from sim.select import choose_model
 
         choice = choose_model(scene, **options)
-        sig = simulate(scene, choice.model)
+        extra = {"method": choice.method} if choice.model == "euler-beam" else {}
+        sig = simulate(scene, choice.model, **extra)
         info = dict(sig.info)
         info["auto"] = choice.to_dict()
         return Signal(sig.t, sig.w, sig.w_static, sig.model, sig.scene, info)
