@@ -1,0 +1,278 @@
+"""The planar discrete Cosserat rod: parameters, degrees of freedom, validated kernel wrappers.
+
+Non-dimensional units (paper eq. nonDimensionnalization): length by L, bending stiffness
+B = E b h^3 / 12 = 1, mass per unit length rho b h = 1, so time is in units of
+sqrt(rho b h L^4 / B). For a rectangular strip of thickness h:
+
+- stretch stiffness  EA = E b h = 12 B / h^2                      -> ``12 / slenderness**2``
+- shear stiffness    GA = alpha_c G b h, G = E / 3 (Poisson 1/2), alpha_c = 27/28
+                      (PyElastica 1.0's defaults, so that the benchmark compares like with like)
+- rotary inertia     rho I = rho b h^3 / 12                      -> ``slenderness**2 / 12``
+- damping            force -xi * rho A * velocity and torque -xi * rho I * angular velocity,
+                      xi = nu L^2 / sqrt(rho b h B) (paper eq. beam_equation_damping)
+
+Clamp conventions (``clamp``):
+
+- ``"node"`` (default): the end node is fixed and the prescribed angle acts at the end node
+  itself, s = 0 and s = L, through a half-Voronoi bending spring of stiffness 2 B / ds to the
+  first element. Second-order accurate (shown in the tests and bench/cosserat.py).
+- ``"element"``: the end node and the end element's director are fixed (PyElastica's
+  ``OneEndFixedBC`` / ``FixedConstraint``): the prescribed angle acts half an element inside the
+  rod, a first-order clamp (its frequency bias is about +2/n).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _kernels as K
+
+ACTUATION_SIGNS = {"asymmetric": (1.0, 0.0), "symmetric": (1.0, -1.0), "antisymmetric": (1.0, 1.0)}
+CLAMPS = ("node", "element")
+SHEAR_RATIO = (27.0 / 28.0) / 3.0  # GA / EA with G = E / 3 and alpha_c = 27/28 (PyElastica)
+
+
+class CosseratWarning(UserWarning):
+    """A result that is usable but doubtful (e.g. a Newton solve that converged slowly)."""
+
+
+def _check_actuation(actuation: str) -> str:
+    if actuation not in ACTUATION_SIGNS:
+        raise ValueError(f"actuation must be one of {tuple(ACTUATION_SIGNS)}, got {actuation!r}")
+    return actuation
+
+
+@dataclass(frozen=True)
+class Rod:
+    """A clamped-clamped planar Cosserat rod of unit length, compressed by ``end_shortening``.
+
+    Parameters
+    ----------
+    elements : int
+        Number of elements n (even, >= 4): nodes at s_i = i / n, element angles at centres.
+    end_shortening : float
+        dL / L in (0, 0.5): the right end node sits at x = 1 - dL, y = 0.
+    slenderness : float
+        h / L > 0 (sets EA = 12 / h^2, GA = SHEAR_RATIO EA, rotary inertia h^2 / 12).
+    actuation : {"asymmetric", "symmetric", "antisymmetric"}
+        End angles (alphaL, alphaR) = mu sqrt(dL) (1, 0), (1, -1) or (1, 1) (paper eq. BC).
+    clamp : {"node", "element"}
+        Clamp convention, see the module docstring.
+    """
+
+    elements: int = 50
+    end_shortening: float = 1e-2
+    slenderness: float = 1e-3
+    actuation: str = "asymmetric"
+    clamp: str = "node"
+
+    def __post_init__(self) -> None:
+        n = self.elements
+        if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
+            raise ValueError(f"elements must be an even integer >= 4, got {n!r}")
+        object.__setattr__(self, "elements", int(n))
+        d = float(self.end_shortening)
+        if not (math.isfinite(d) and 0.0 < d < 0.5):
+            raise ValueError(f"end_shortening must lie in (0, 0.5), got {self.end_shortening!r}")
+        h = float(self.slenderness)
+        if not (math.isfinite(h) and 0.0 < h < 0.5):
+            raise ValueError(f"slenderness must lie in (0, 0.5), got {self.slenderness!r}")
+        _check_actuation(self.actuation)
+        if self.clamp not in CLAMPS:
+            raise ValueError(f"clamp must be one of {CLAMPS}, got {self.clamp!r}")
+
+    # ---- derived constants ---------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        return self.elements
+
+    @property
+    def N(self) -> int:
+        """Number of degrees of freedom, 3 n + 2."""
+        return 3 * self.elements + 2
+
+    @property
+    def ds(self) -> float:
+        return 1.0 / self.elements
+
+    @property
+    def EA(self) -> float:
+        return 12.0 / self.slenderness**2
+
+    @property
+    def GA(self) -> float:
+        return SHEAR_RATIO * self.EA
+
+    @property
+    def rotary_inertia(self) -> float:
+        return self.slenderness**2 / 12.0
+
+    @property
+    def k_clamp(self) -> float:
+        return 2.0 / self.ds if self.clamp == "node" else 0.0
+
+    def end_angles(self, mu: float) -> tuple[float, float]:
+        """(alphaL, alphaR) in radians for control parameter mu (alpha = mu sqrt(dL / L))."""
+        sl, sr = ACTUATION_SIGNS[self.actuation]
+        a = float(mu) * math.sqrt(self.end_shortening)
+        return sl * a, sr * a
+
+    # ---- layout ------------------------------------------------------------------------------
+    def fixed_mask(self) -> np.ndarray:
+        """Boolean (N,): end-node positions, and end-element angles for the element clamp."""
+        m = np.zeros(self.N, dtype=bool)
+        m[[0, 1, 3 * self.n, 3 * self.n + 1]] = True
+        if self.clamp == "element":
+            m[[2, 3 * (self.n - 1) + 2]] = True
+        return m
+
+    def mass(self) -> np.ndarray:
+        """Lumped masses (N,): ds on node coordinates, (h^2 / 12) ds on element angles."""
+        m = np.full(self.N, self.ds)
+        m[2::3] = self.rotary_inertia * self.ds
+        return m
+
+    def apply_bc(self, z: np.ndarray, mu: float) -> np.ndarray:
+        """Write the prescribed values (end nodes, clamp angles for "element") into ``z``."""
+        z[0] = z[1] = 0.0
+        z[3 * self.n] = 1.0 - self.end_shortening
+        z[3 * self.n + 1] = 0.0
+        if self.clamp == "element":
+            aL, aR = self.end_angles(mu)
+            z[2] = aL
+            z[3 * (self.n - 1) + 2] = aR
+        return z
+
+    def dbc_dmu(self) -> np.ndarray:
+        """d(prescribed values)/dmu (N,), zero on free dofs."""
+        d = np.zeros(self.N)
+        if self.clamp == "element":
+            sl, sr = ACTUATION_SIGNS[self.actuation]
+            d[2] = sl * math.sqrt(self.end_shortening)
+            d[3 * (self.n - 1) + 2] = sr * math.sqrt(self.end_shortening)
+        return d
+
+    def pack(self, x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        z = np.empty(self.N)
+        z[0::3] = x
+        z[1::3] = y
+        z[2::3] = theta
+        return z
+
+    @staticmethod
+    def unpack(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, theta) views of ``z``: shapes (n+1,), (n+1,), (n,)."""
+        return z[0::3], z[1::3], z[2::3]
+
+    def _z(self, z: np.ndarray) -> np.ndarray:
+        z = np.ascontiguousarray(z, dtype=np.float64)
+        if z.shape != (self.N,):
+            raise ValueError(f"z must have shape ({self.N},), got {z.shape}")
+        return z
+
+    # ---- validated kernel wrappers -----------------------------------------------------------
+    def _args(self):
+        return (self.n, self.ds, self.EA, self.GA, 1.0, self.k_clamp, self.k_clamp)
+
+    def energy(self, z: np.ndarray, mu: float) -> float:
+        """Elastic energy (stretch + shear + bending), units of B / L."""
+        aL, aR = self.end_angles(mu)
+        return float(K.energy(self._z(z), *self._args(), aL, aR))
+
+    def gradient(self, z: np.ndarray, mu: float) -> np.ndarray:
+        """Gradient of the energy with respect to ``z`` (N,)."""
+        aL, aR = self.end_angles(mu)
+        out = np.empty(self.N)
+        K.gradient(self._z(z), *self._args(), aL, aR, out)
+        return out
+
+    def hessian_band(self, z: np.ndarray) -> np.ndarray:
+        """Hessian in LAPACK band storage, shape (2 KU + 1, N), ``H[i, j] = ab[KU+i-j, j]``."""
+        ab = np.empty((2 * K.KU + 1, self.N))
+        K.hessian_band(self._z(z), *self._args(), ab)
+        return ab
+
+    def hessian(self, z: np.ndarray) -> np.ndarray:
+        """Dense Hessian (N, N)."""
+        return band_to_dense(self.hessian_band(z))
+
+    def dgrad_dmu(self, z: np.ndarray) -> np.ndarray:
+        """Partial derivative of the gradient with respect to mu at fixed free dofs (N,)."""
+        d = np.zeros(self.N)
+        sl, sr = ACTUATION_SIGNS[self.actuation]
+        r = math.sqrt(self.end_shortening)
+        d[2] -= self.k_clamp * sl * r
+        d[3 * (self.n - 1) + 2] -= self.k_clamp * sr * r
+        db = self.dbc_dmu()
+        if np.any(db):
+            d += self.hessian(z) @ db
+        return d
+
+    # ---- observables ---------------------------------------------------------------------------
+    def interp_weights(self, X: float) -> tuple[tuple[int, int], tuple[float, float]]:
+        """Indices into ``z`` of the y of the two nodes around reference arclength X, weights."""
+        if not 0.0 <= X <= 1.0:
+            raise ValueError(f"X must lie in [0, 1], got {X!r}")
+        u = X * self.n
+        i = min(int(math.floor(u)), self.n - 1)
+        f = u - i
+        if abs(f - 1.0) < 1e-12:
+            i, f = i + 1, 0.0
+        j = min(i + 1, self.n)
+        return (3 * i + 1, 3 * j + 1), (1.0 - f, f)
+
+    def w_at(self, z: np.ndarray, X: float) -> float:
+        """Transverse position y at reference arclength X in units of sqrt(L dL)."""
+        (i, j), (a, b) = self.interp_weights(X)
+        return float((a * z[i] + b * z[j]) / math.sqrt(self.end_shortening))
+
+    def axial_force(self, z: np.ndarray) -> float:
+        """x-component of the internal force (tension > 0), units of B / L^2, from element 0."""
+        j = 0
+        dx = (z[3] - z[0]) / self.ds
+        dy = (z[4] - z[1]) / self.ds
+        c, s = math.cos(z[j + 2]), math.sin(z[j + 2])
+        a = dx * c + dy * s - 1.0
+        b = -dx * s + dy * c
+        return float(self.EA * a * c - self.GA * b * s)
+
+    def mirror(self, z: np.ndarray) -> np.ndarray:
+        """The symmetry image of ``z`` for this actuation (symmetric: mirror x -> 1-dL-x;
+        antisymmetric: half-turn about the centre). Asymmetric has no symmetry (ValueError)."""
+        if self.actuation == "asymmetric":
+            raise ValueError("the asymmetric actuation has no symmetry")
+        x, y, th = self.unpack(z)
+        xr = (1.0 - self.end_shortening) - x[::-1]
+        if self.actuation == "symmetric":
+            return self.pack(xr, y[::-1], -th[::-1])
+        return self.pack(xr, -y[::-1], th[::-1])
+
+    def guess(self, branch: str, mu: float = 0.0) -> np.ndarray:
+        """First-Euler-mode initial guess: U_A buckled to negative w, U_B to positive w."""
+        s = np.linspace(0.0, 1.0, self.n + 1)
+        sign = -1.0 if branch == "U_A" else 1.0
+        amp = sign * math.sqrt(self.end_shortening) / math.pi
+        y = amp * (1.0 - np.cos(2.0 * np.pi * s))
+        sc = (np.arange(self.n) + 0.5) * self.ds
+        th = np.arctan(amp * 2.0 * np.pi * np.sin(2.0 * np.pi * sc))
+        x = np.concatenate([[0.0], np.cumsum(np.cos(th)) * self.ds])
+        x *= (1.0 - self.end_shortening) / x[-1]
+        return self.apply_bc(self.pack(x, y, th), mu)
+
+
+def band_to_dense(ab: np.ndarray) -> np.ndarray:
+    """Dense (N, N) matrix from LAPACK general band storage with KU = KL = 4."""
+    N = ab.shape[1]
+    H = np.zeros((N, N))
+    for d in range(ab.shape[0]):
+        off = K.KU - d  # j - i
+        if off >= 0:
+            idx = np.arange(0, N - off)
+            H[idx, idx + off] = ab[d, idx + off]
+        else:
+            idx = np.arange(-off, N)
+            H[idx, idx + off] = ab[d, idx + off]
+    return H
