@@ -196,10 +196,11 @@ def _extrapolate_sigma4(ms: Sequence[Measurement]) -> float | None:
 
     Exact near a fold (sigma^4 ~ mu* - mu); near a pitchfork (sigma^2 ~ mu* - mu) it lands
     short of mu*: a model-free, conservative bound on where the transition can be (checked on
-    the beam for all three actuations from the second pair of points on).
+    the beam for all three actuations once T/T0 >= 1.05 and four points exist; the first pairs,
+    before the slowdown shows, can overshoot).
     """
-    if len(ms) < 3:
-        return None
+    if len(ms) < 4 or ms[0].omega < 1.05 * ms[-1].omega:
+        return None  # the slowdown has not begun: the first pairs can overshoot
     (m1, m2) = ms[-2], ms[-1]
     f1, f2 = m1.sigma2**2, m2.sigma2**2
     if not f1 > f2:
