@@ -6,7 +6,9 @@
 Signals: the beam-like impulse response of the detector's tests -- fundamental omega = 40
 (rad per time unit), harmonics at 2.5x and 5x (amplitudes 1e-3, 4e-4, 2e-4, random phases),
 every mode with gamma = xi/2, xi = 1e-2, static level 0.3, N = 10 000 samples -- over a grid of
-record lengths (3 to 1000 fundamental cycles: dt = cycles * 2 pi / (40 N)) and per-sample SNR
+record lengths (3 to 1000 fundamental cycles: dt = cycles * 2 pi / (40 N); each trial moves the
+fundamental by a random fraction of an FFT bin, so that it does not sit on the FFT grid) and
+per-sample SNR
 of the fundamental, ``a1^2 / (2 noise^2)``, from 0 to 40 dB. Harmonics above 0.8 x Nyquist are
 left out of the signal. Plus an overdamped case: a kicked overdamped fundamental
 (sigma^2 = -0.5, xi = 2, two real poles) under two underdamped modes, where the FFT has no peak.
@@ -61,11 +63,11 @@ METHODS = {
 }
 
 
-def beam_modes(dt: float, rng: np.random.Generator) -> list[Underdamped]:
+def beam_modes(dt: float, om1: float, rng: np.random.Generator) -> list[Underdamped]:
     nyq = math.pi / dt
     out = []
     for r, a in zip(RATIOS, AMPS, strict=True):
-        om = r * OMEGA1
+        om = r * om1
         if om < 0.8 * nyq:
             out.append(Underdamped(om, XI / 2, a, float(rng.uniform(-math.pi, math.pi))))
     return out
@@ -97,7 +99,10 @@ def run_cell(
     crbc_sq_list: list[tuple[float, float, float]] = []
     for _ in range(trials):
         if case == "beam":
-            modes = beam_modes(dt, rng)
+            # a random fraction of an FFT bin off the grid (whole cycles would favour the FFT)
+            true_om = OMEGA1 * (1.0 + rng.uniform(-0.5, 0.5) / cycles)
+            true_s2 = -(true_om**2 + true_g**2)
+            modes = beam_modes(dt, true_om, rng)
         else:
             modes = [
                 od,

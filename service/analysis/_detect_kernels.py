@@ -453,7 +453,8 @@ def sym_eig(A: np.ndarray, w: np.ndarray, V: np.ndarray) -> None:
             diag += M[i, i] * M[i, i]
             for j in range(i + 1, n):
                 off += M[i, j] * M[i, j]
-        if off <= 1e-30 * diag or off == 0.0:
+        # off-diagonal elements below ~1e-14 of the diagonal: eigenvalues exact to ~1e-28
+        if off <= 1e-28 * diag or off == 0.0:
             break
         for pi in range(n - 1):
             for qi in range(pi + 1, n):
@@ -462,7 +463,7 @@ def sym_eig(A: np.ndarray, w: np.ndarray, V: np.ndarray) -> None:
                     continue
                 app = M[pi, pi]
                 aqq = M[qi, qi]
-                if abs(apq) < 1e-300:
+                if abs(apq) < 1e-300 or apq * apq <= 1e-34 * abs(app * aqq):
                     M[pi, qi] = 0.0
                     M[qi, pi] = 0.0
                     continue
@@ -562,3 +563,82 @@ def model_values(p: np.ndarray, q: np.ndarray, c: np.ndarray, out: np.ndarray) -
             a1 = a2
             b0 = b1
             b1 = b2
+
+
+@njit(cache=True)
+def _orthonormalize(Q: np.ndarray) -> None:
+    """Modified Gram-Schmidt on the columns of ``Q`` (twice, for stability), in place."""
+    L, r = Q.shape
+    for _rep in range(2):
+        for j in range(r):
+            for i in range(j):
+                d = 0.0
+                for k in range(L):
+                    d += Q[k, i] * Q[k, j]
+                for k in range(L):
+                    Q[k, j] -= d * Q[k, i]
+            nrm = 0.0
+            for k in range(L):
+                nrm += Q[k, j] * Q[k, j]
+            nrm = math.sqrt(nrm)
+            if nrm > 0.0:
+                for k in range(L):
+                    Q[k, j] /= nrm
+
+
+@njit(cache=True)
+def _matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Plain triple loop (small matrices; keeps BLAS thread pools out of the way)."""
+    n, m = A.shape
+    k = B.shape[1]
+    C = np.zeros((n, k))
+    for i in range(n):
+        for t in range(m):
+            a = A[i, t]
+            for j in range(k):
+                C[i, j] += a * B[t, j]
+    return C
+
+
+@njit(cache=True)
+def top_eigenpairs(R: np.ndarray, r: int, iters: int, w: np.ndarray, V: np.ndarray) -> None:
+    """Leading ``r`` eigenpairs of a symmetric PSD matrix by block subspace iteration.
+
+    Starts from the first ``r`` columns of ``R`` (its range), iterates ``Q <- orth(R Q)`` and
+    finishes with a Rayleigh-Ritz step (Jacobi on ``Q^T R Q``).
+
+    Parameters
+    ----------
+    R : ndarray, shape (L, L)
+    r : int
+        Number of eigenpairs (``r <= L``).
+    iters : int
+        Subspace iterations.
+    w : ndarray, shape (r,)
+        Eigenvalues, descending (written in place).
+    V : ndarray, shape (L, r)
+        Matching orthonormal eigenvectors (written in place).
+    """
+    L = R.shape[0]
+    Q = np.empty((L, r))
+    for i in range(L):
+        for j in range(r):
+            Q[i, j] = R[i, j] + (1e-3 if i == j else 0.0) * R[i, i]
+    _orthonormalize(Q)
+    for _ in range(iters):
+        Q = _matmul(R, Q)
+        _orthonormalize(Q)
+    T = _matmul(Q.T.copy(), _matmul(R, Q))
+    for i in range(r):
+        for j in range(i):
+            s = 0.5 * (T[i, j] + T[j, i])
+            T[i, j] = s
+            T[j, i] = s
+    ws = np.empty(r)
+    U = np.empty((r, r))
+    sym_eig(T, ws, U)
+    Vr = _matmul(Q, U)
+    for j in range(r):
+        w[j] = ws[r - 1 - j]
+        for i in range(L):
+            V[i, j] = Vr[i, r - 1 - j]

@@ -55,6 +55,7 @@ from service.analysis._detect_kernels import (
     model_gram,
     model_values,
     psd_pinv,
+    top_eigenpairs,
 )
 from service.analysis.common import Flag
 
@@ -509,16 +510,18 @@ def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
     R = np.empty((L, L))
     M = hankel_gram(y, L, stride, R)
     R /= M
-    w, V = np.linalg.eigh(R)
-    w = w[::-1]
-    V = V[:, ::-1]
+    r = min(L - 2, max_poles + 4)
+    w = np.empty(r)
+    V = np.empty((L, r))
+    top_eigenpairs(R, r, 4, w, V)
     edge = spec.noise_var * (1.0 + math.sqrt(L / M)) ** 2
     nsig = int(np.sum(w > 2.0 * edge))
     nsig = min(max(nsig, 0), max_poles, L - 2)
     if nsig == 0:
         return np.zeros(0, dtype=complex)
     U = V[:, :nsig]
-    Phi, *_ = np.linalg.lstsq(U[:-1], U[1:], rcond=None)
+    U1, U2 = U[:-1], U[1:]
+    Phi = _pinv_psd(U1.T @ U1, 1e-14) @ (U1.T @ U2)
     z = np.linalg.eigvals(Phi)
     z = z[np.abs(z) > 1e-12]
     return np.log(z.astype(complex)) / stride
@@ -1043,9 +1046,48 @@ def _fit_parametric(
         base_q = fit.ev.q if fit is not None else np.zeros(0)
         p = np.concatenate((base_p, p_new))
         q = np.concatenate((base_q, q_new))
+    if fit is not None and refine:
+        fit = _merge_close_modes(y, fit, max_iter)
     if fit is not None:
         energy = _mode_energy(fit.ev) / max(fit.s2, 1e-300)
     return fit, energy
+
+
+def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
+    """Refit-based order check for suspicious modes: pairs closer than two FFT bins, and
+    growing oscillations (``p < 0``). The weaker mode of each is removed and the model refitted;
+    the smaller model wins unless the bigger one lowers the RSS by more than the MDL penalty
+    (``4 ln N`` noise variances per mode). Guards against local minima where two modes share
+    one spectral line."""
+    N = y.shape[0]
+    thr = 4.0 * math.log(N)
+    for _ in range(4):
+        p, q = fit.ev.p, fit.ev.q
+        K = p.size
+        if K < 2:
+            return fit
+        om = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
+        e = _mode_energy(fit.ev)
+        suspects = set()
+        for i in range(K):
+            if p[i] < 0 and om[i] > 0:
+                suspects.add(i)
+            for j in range(i + 1, K):
+                if abs(om[i] - om[j]) < 2.0 * (2 * math.pi / N):
+                    suspects.add(i if e[i] < e[j] else j)
+        if not suspects:
+            return fit
+        best = None
+        for k in sorted(suspects, key=lambda k: e[k]):
+            keep = [i for i in range(K) if i != k]
+            f = _levenberg_marquardt(y, p[keep], q[keep], common=fit.common, max_iter=max_iter)
+            if f is not None and (f.ev.rss - fit.ev.rss) < thr * fit.s2:
+                if best is None or f.ev.rss < best.ev.rss:
+                    best = f
+        if best is None:
+            return fit
+        fit = best
+    return fit
 
 
 def _order(fit: _Fit, energy: np.ndarray) -> tuple[_Fit, np.ndarray]:
