@@ -1,0 +1,310 @@
+"""snapwarn's planar Cosserat rod vs PyElastica 1.0 on the same scene, side by side.
+
+Scene (the paper's impulse response): U_A at mu = 0, dL/L = 1e-2, h/L = 1e-2, xi = 2e-4,
+kick 1e-2 at X = 1/4, probe X = 1/4, duration 1.5 time units (about 10 fundamental periods).
+Both codes use the same rod: B = 1, rho A = 1, EA = 12 / h^2, GA = (27/28) (E/3) A,
+rho I = h^2 / 12 (PyElastica gets a circular section of radius h / sqrt(3), which has these
+ratios), damping xi on translational and rotational velocities (PyElastica's
+``AnalyticalLinearDamper(uniform_damping_constant=xi)``), fixed end nodes and directors.
+
+Measured for each configuration: CPU time (process time of the stepping loop) per unit of
+simulated time, and the error of the fundamental frequency (least-squares fit of damped
+sinusoids to the probe record) against a converged reference (the rod's linear eigenvalue
+with n = 768 and n = 1536, Richardson-extrapolated, node clamp).
+
+PyElastica runs in its own virtual environment, never a dependency of the project::
+
+    python3 -m venv bench/.venv-elastica
+    bench/.venv-elastica/bin/pip install pyelastica==1.0.0
+
+(or ``python bench/cosserat.py --setup``). Run: ``.venv/bin/python bench/cosserat.py``
+(``--quick`` for a short run). Writes bench/results/cosserat.csv and cosserat.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+VENV = HERE / ".venv-elastica"
+RESULTS = HERE / "results"
+
+
+# --------------------------------------------------------------------------------------------
+# PyElastica worker (runs inside bench/.venv-elastica; imports numpy + elastica only)
+# --------------------------------------------------------------------------------------------
+def elastica_worker(path_in: str, path_out: str) -> None:
+    import elastica as ea
+
+    p = json.loads(Path(path_in).read_text())
+    n, h, xi, dt, T = p["n"], p["h"], p["xi"], p["dt"], p["duration"]
+    r = h / math.sqrt(3.0)  # circular section with EA / B = 12 / h^2
+    A = math.pi * r**2
+    I = math.pi * r**4 / 4.0
+    E = 1.0 / I  # B = E I = 1
+    rho = 1.0 / A  # rho A = 1
+
+    class Sim(ea.BaseSystemCollection, ea.Constraints, ea.Damping):
+        pass
+
+    sim = Sim()
+    rod = ea.CosseratRod.straight_rod(
+        n, np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 1.0, r, rho,
+        youngs_modulus=E, shear_modulus=E / 3.0)
+    x = np.array(p["x"])
+    y = np.array(p["y"])
+    th = np.array(p["theta"])
+    rod.position_collection[0, :] = x
+    rod.position_collection[1, :] = y
+    rod.position_collection[2, :] = 0.0
+    Q = np.zeros((3, 3, n))
+    Q[0, 0], Q[0, 1] = -np.sin(th), np.cos(th)  # d1 (normal)
+    Q[1, 2] = 1.0  # d2 = z
+    Q[2, 0], Q[2, 1] = np.cos(th), np.sin(th)  # d3 (tangent)
+    rod.director_collection[:] = Q
+    sim.append(rod)
+    sim.constrain(rod).using(ea.FixedConstraint, constrained_position_idx=(0, -1),
+                             constrained_director_idx=(0, -1))
+    sim.dampen(rod).using(ea.AnalyticalLinearDamper, uniform_damping_constant=xi, time_step=dt)
+    sim.finalize()
+    rod.velocity_collection[1, :] += np.array(p["v_kick"])
+    stepper = ea.PositionVerlet()
+    nsteps = int(round(T / dt))
+    every = int(p["every"])
+    ip = int(p["probe_node"])
+    rec = [float(rod.position_collection[1, ip])]
+    t = 0.0
+    ok = True
+    t = stepper.step(sim, t, dt)  # first step compiles PyElastica's kernels: not timed
+    if every == 1:
+        rec.append(float(rod.position_collection[1, ip]))
+    c0 = time.process_time()
+    for k in range(1, nsteps):
+        t = stepper.step(sim, t, dt)
+        if (k + 1) % every == 0:
+            v = float(rod.position_collection[1, ip])
+            if not math.isfinite(v):
+                ok = False
+                break
+            rec.append(v)
+    cpu = (time.process_time() - c0) * nsteps / max(1, nsteps - 1)
+    Path(path_out).write_text(json.dumps({"y": rec, "cpu_s": cpu, "steps": k + 1, "ok": ok,
+                                          "sample_dt": dt * every}))
+
+
+# --------------------------------------------------------------------------------------------
+# Driver (project venv)
+# --------------------------------------------------------------------------------------------
+def fit_omega(t: np.ndarray, w: np.ndarray, guesses: list[float]) -> float:
+    """Fundamental angular frequency by a least-squares fit of damped sinusoids + constant."""
+    from scipy.optimize import least_squares
+
+    w = w - np.mean(w)
+    K = len(guesses)
+
+    def model(q):
+        out = np.full_like(t, q[-1])
+        for k in range(K):
+            a, b, om, d = q[4 * k: 4 * k + 4]
+            out += np.exp(-d * t) * (a * np.cos(om * t) + b * np.sin(om * t))
+        return out
+
+    q0 = []
+    for om in guesses:  # linear amplitudes from a first linear solve
+        q0 += [0.0, 0.0, om, 0.0]
+    q0 += [0.0]
+    q0 = np.array(q0)
+    cols = []
+    for om in guesses:
+        cols += [np.cos(om * t), np.sin(om * t)]
+    cols.append(np.ones_like(t))
+    amp = np.linalg.lstsq(np.array(cols).T, w, rcond=None)[0]
+    for k in range(K):
+        q0[4 * k], q0[4 * k + 1] = amp[2 * k], amp[2 * k + 1]
+    res = least_squares(lambda q: model(q) - w, q0, x_scale="jac", xtol=1e-14, ftol=1e-14)
+    return float(res.x[2])
+
+
+def reference_omega(h: float, d: float) -> tuple[float, float]:
+    """Converged fundamental of the rod (node clamp, n = 768, 1536, Richardson), and the
+    n = 1536 value."""
+    from sim.cosserat import statics as S
+    from sim.cosserat.rod import Rod
+
+    om = []
+    for n in (768, 1536):
+        rod = Rod(elements=n, slenderness=h, end_shortening=d)
+        z = S.branch_state(rod, 0.0)
+        om.append(math.sqrt(-S.sigma2(rod, z, 1)[0][0]))
+    return om[1] + (om[1] - om[0]) / 3.0, om[1]
+
+
+def run_snapwarn(n: int, spp: int, h: float, d: float, xi: float, kick: float, T: float,
+                 clamp: str = "node") -> dict:
+    from sim.cosserat import simulate
+    from sim.scene import Scene
+
+    sc = Scene(elements=n, slenderness=h, end_shortening=d, damping=xi, kick=kick,
+               duration=T, dt=None)
+    sim_ = simulate(sc, steps_per_period=spp, samples_per_period=min(50, spp), clamp=clamp)
+    s2 = sim_.info["sigma2"]
+    om = fit_omega(sim_.t, sim_.w, [math.sqrt(-x) for x in s2[:3]])
+    return {"code": "snapwarn", "clamp": clamp, "n": n, "dt": sim_.info["internal_dt"],
+            "cpu_per_unit": sim_.info["cpu_s"] / T, "omega": om,
+            "steps": sim_.info["steps"], "newton_per_step":
+            sim_.info["newton_iterations"] / max(1, sim_.info["steps"])}
+
+
+def run_elastica(n: int, dt: float, h: float, d: float, xi: float, kick: float,
+                 T: float) -> dict:
+    from sim.cosserat import statics as S
+    from sim.cosserat.dynamics import kick_velocity
+    from sim.cosserat.rod import Rod
+
+    rod = Rod(elements=n, slenderness=h, end_shortening=d, clamp="element")
+    z = S.branch_state(rod, 0.0)
+    x, y, th = rod.unpack(z)
+    v = kick_velocity(rod, 0.25, kick)[1::3]
+    s2, _ = S.sigma2(rod, z, 3)
+    every = max(1, int(round((2 * math.pi / math.sqrt(-s2[0]) / 50) / dt)))
+    with tempfile.TemporaryDirectory() as tmp:
+        fin, fout = Path(tmp) / "in.json", Path(tmp) / "out.json"
+        fin.write_text(json.dumps({"n": n, "h": h, "xi": xi, "dt": dt, "duration": T,
+                                   "x": x.tolist(), "y": y.tolist(), "theta": th.tolist(),
+                                   "v_kick": v.tolist(), "every": every,
+                                   "probe_node": n // 4}))
+        env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+        subprocess.run([str(VENV / "bin" / "python"), str(Path(__file__).resolve()),
+                        "--worker", str(fin), str(fout)], check=True, env=env)
+        out = json.loads(fout.read_text())
+    if not out["ok"]:
+        return {"code": "pyelastica", "clamp": "element", "n": n, "dt": dt,
+                "cpu_per_unit": out["cpu_s"] / T, "omega": math.nan, "steps": out["steps"],
+                "newton_per_step": 0.0}
+    yy = np.array(out["y"]) / math.sqrt(d)
+    t = np.arange(yy.size) * out["sample_dt"]
+    om = fit_omega(t, yy, [math.sqrt(-x) for x in s2[:3]])
+    return {"code": "pyelastica", "clamp": "element", "n": n, "dt": dt,
+            "cpu_per_unit": out["cpu_s"] / T, "omega": om, "steps": out["steps"],
+            "newton_per_step": 0.0}
+
+
+def setup_venv() -> None:
+    if not (VENV / "bin" / "python").exists():
+        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
+    subprocess.run([str(VENV / "bin" / "pip"), "install", "-q", "pyelastica==1.0.0"],
+                   check=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--worker", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--setup", action="store_true", help="create bench/.venv-elastica")
+    ap.add_argument("--quick", action="store_true", help="fewer configurations")
+    ap.add_argument("--slenderness", type=float, default=1e-2)
+    ap.add_argument("--end-shortening", type=float, default=1e-2)
+    ap.add_argument("--damping", type=float, default=2e-4)
+    ap.add_argument("--kick", type=float, default=1e-2)
+    ap.add_argument("--duration", type=float, default=1.5)
+    a = ap.parse_args()
+    if a.worker:
+        elastica_worker(*a.worker)
+        return
+    if a.setup:
+        setup_venv()
+    if not (VENV / "bin" / "python").exists():
+        sys.exit("bench/.venv-elastica is missing: run `python bench/cosserat.py --setup`")
+    sys.path.insert(0, str(ROOT))
+    h, d, xi, kick, T = a.slenderness, a.end_shortening, a.damping, a.kick, a.duration
+    ref, ref_n = reference_omega(h, d)
+    print(f"reference omega_1 = {ref:.8f} (n=1536: {ref_n:.8f}); h/L={h}, dL/L={d}, xi={xi}",
+          file=sys.stderr)
+    run_snapwarn(8, 20, h, d, xi, kick, 0.05)  # numba compile / cache load, not timed
+    rows = []
+    ours = [(12, 25), (24, 12), (24, 25), (48, 25), (48, 50), (96, 50), (96, 100), (192, 100)]
+    theirs = [(24, 2e-5), (48, 2e-5), (96, 1e-5)]
+    if a.quick:
+        ours = [(24, 25), (48, 50)]
+        theirs = [(48, 2e-5)]
+    for n, spp in ours:
+        rows.append(run_snapwarn(n, spp, h, d, xi, kick, T))
+        print(rows[-1], file=sys.stderr)
+    for n in sorted({n for n, _ in ours if n in (24, 48)}):
+        rows.append(run_snapwarn(n, 100, h, d, xi, kick, T, clamp="element"))
+        print(rows[-1], file=sys.stderr)
+    for n, dt in theirs:
+        rows.append(run_elastica(n, dt, h, d, xi, kick, T))
+        print(rows[-1], file=sys.stderr)
+    for r in rows:
+        r["rel_error"] = abs(r["omega"] / ref - 1.0)
+    RESULTS.mkdir(exist_ok=True)
+    keys = ["code", "clamp", "n", "dt", "steps", "newton_per_step", "cpu_per_unit", "omega",
+            "rel_error"]
+    with open(RESULTS / "cosserat.csv", "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=keys)
+        wr.writeheader()
+        for r in rows:
+            wr.writerow({k: r[k] for k in keys})
+    # speed ratio at equal or better accuracy: for each PyElastica run, our cheapest run
+    # with an error <= its error
+    print(f"{'code':10s} {'clamp':7s} {'n':>4s} {'dt':>9s} {'cpu/unit [s]':>12s} "
+          f"{'omega':>10s} {'rel.err':>9s}")
+    for r in rows:
+        print(f"{r['code']:10s} {r['clamp']:7s} {r['n']:4d} {r['dt']:9.2e} "
+              f"{r['cpu_per_unit']:12.4e} {r['omega']:10.5f} {r['rel_error']:9.2e}")
+    summary = []
+    for r in rows:
+        if r["code"] != "pyelastica" or not math.isfinite(r["omega"]):
+            continue
+        ok = [q for q in rows if q["code"] == "snapwarn" and q["rel_error"] <= r["rel_error"]]
+        if ok:
+            best = min(ok, key=lambda q: q["cpu_per_unit"])
+            ratio = r["cpu_per_unit"] / best["cpu_per_unit"]
+            summary.append((r, best, ratio))
+            print(f"PyElastica n={r['n']} (err {r['rel_error']:.2e}, {r['cpu_per_unit']:.3f} s"
+                  f"/unit) vs snapwarn n={best['n']} dt={best['dt']:.2e} (err "
+                  f"{best['rel_error']:.2e}, {best['cpu_per_unit']:.2e} s/unit): "
+                  f"speed ratio {ratio:.0f}x")
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for code, clamp, mk in (("snapwarn", "node", "o"), ("snapwarn", "element", "s"),
+                                ("pyelastica", "element", "^")):
+            sel = [r for r in rows if r["code"] == code and r["clamp"] == clamp]
+            if sel:
+                ax.loglog([r["cpu_per_unit"] for r in sel],
+                          [max(r["rel_error"], 1e-7) for r in sel], mk,
+                          label=f"{code} ({clamp} clamp)")
+                for r in sel:
+                    ax.annotate(f"n={r['n']}", (r["cpu_per_unit"], max(r["rel_error"], 1e-7)),
+                                fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set_xlabel("CPU time per unit simulated time [s]")
+        ax.set_ylabel("relative error of the fundamental frequency")
+        ax.set_title(f"Planar Cosserat rod vs PyElastica 1.0 (h/L={h}, dL/L={d}, xi={xi})",
+                     fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(RESULTS / "cosserat.png", dpi=120)
+    except ImportError:  # pragma: no cover
+        print("matplotlib missing: no chart", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
