@@ -76,7 +76,7 @@ REGIMES = ("underdamped", "overdamped")
 
 _KMAX = 3  # most correction terms in the sigma^2 law
 _KW_MAX = 3  # most terms beyond the constant in the static law
-_ALPHA = 0.01  # goodness-of-fit level for accepting a window
+_ALPHA = 0.05  # goodness-of-fit level for accepting a window
 _REL_FLOOR = 1e-12  # relative noise floor (exact data)
 _GRID = 111
 _RHO = 0.5  # corrections may reach this fraction of the leading term inside the window
@@ -445,9 +445,11 @@ def _sigma_comp(sw: Sweep, idx: slice, p: float, h: float, K: int) -> _Comp:
 def _w_comp(sw: Sweep, idx: slice, b: float, Kw: int) -> _Comp | None:
     if sw.w is None:
         return None
+    # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window, otherwise the
+    # b = 1/2 series (which contains x, x^2 ...) would fit a smooth deflection as well as b = 1
     if sw.w_sd is not None:
-        return _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], _w_exps(b, Kw), True)
-    return _Comp(sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False)
+        return _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], _w_exps(b, Kw), True, True, 1, False)
+    return _Comp(sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False)
 
 
 def _window_sizes(n: int) -> list[int]:
