@@ -480,22 +480,25 @@ def _mode_energy(ev: _Eval) -> np.ndarray:
 
 @dataclass
 class _Spectrum:
-    power: np.ndarray  # |rfft|^2 / N (per-sample variance units)
-    noise_var: float  # robust (median) white-noise level
-    significant: np.ndarray  # boolean per bin
+    power: np.ndarray  # plain periodogram |rfft|^2 / N (the paper's FFT)
+    hann: np.ndarray  # Hann-window periodogram, normalised to the white-noise variance
+    noise_var: float  # robust (median) white-noise level, from the Hann periodogram
+    significant: np.ndarray  # boolean per bin (Hann periodogram: no far leakage)
     k_hi: int  # highest significant bin (0 if none)
 
 
 def _spectrum(y: np.ndarray) -> _Spectrum:
     N = y.shape[0]
     P = np.abs(np.fft.rfft(y)) ** 2 / N
-    body = P[1:]
+    win = np.hanning(N + 2)[1:-1]
+    H = np.abs(np.fft.rfft(win * y)) ** 2 / float(np.sum(win * win))
+    body = H[2:] if H.size > 3 else H[1:]
     noise = float(np.median(body) / math.log(2.0)) if body.size else 0.0
     thr = math.log(max(body.size, 2) / 0.01)  # 1 % false alarm over all bins (chi2_2 / 2)
-    sig = P > noise * thr
+    sig = H > noise * thr
     sig[0] = False
     k = np.flatnonzero(sig)
-    return _Spectrum(P, noise, sig, int(k[-1]) if k.size else 0)
+    return _Spectrum(P, H, noise, sig, int(k[-1]) if k.size else 0)
 
 
 def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
@@ -565,7 +568,7 @@ def _peak_candidates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Add the significant periodogram peaks that no candidate explains (low per-sample SNR:
     the Hankel covariance of a short window may bury a mode the whole-record FFT sees)."""
-    P = spec.power
+    P = spec.hann
     nb = P.size
     if nb < 3:
         return p, q
@@ -579,7 +582,8 @@ def _peak_candidates(
     om_have = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
     add_p, add_q = [], []
     for j in peaks:
-        a, b, c = math.sqrt(P[j - 1]), math.sqrt(P[j]), math.sqrt(P[j + 1])
+        # parabola through the log of the Hann main lobe
+        a, b, c = (math.log(max(P[i], 1e-300)) for i in (j - 1, j, j + 1))
         den = a - 2 * b + c
         delta = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
         om = (j + delta) * bin_w
@@ -1048,6 +1052,11 @@ def _fit_parametric(
         q = np.concatenate((base_q, q_new))
     if fit is not None and refine:
         fit = _merge_close_modes(y, fit, max_iter)
+        p2, q2, _, c2 = _prune(y, fit.ev.p, fit.ev.q, fit.s2, max_modes, G=fit.ev.G)
+        if 0 < p2.size < fit.ev.p.size:
+            new = _levenberg_marquardt(y, p2, q2, common=fit.common, max_iter=max_iter)
+            if new is not None:
+                fit = new
     if fit is not None:
         energy = _mode_energy(fit.ev) / max(fit.s2, 1e-300)
     return fit, energy
@@ -1070,7 +1079,7 @@ def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
         e = _mode_energy(fit.ev)
         suspects = set()
         for i in range(K):
-            if p[i] < 0 and om[i] > 0:
+            if p[i] < 0:  # s1 + s2 = -p > 0: energy gain, impossible for a passive structure
                 suspects.add(i)
             for j in range(i + 1, K):
                 if abs(om[i] - om[j]) < 2.0 * (2 * math.pi / N):
@@ -1112,20 +1121,25 @@ def _order(fit: _Fit, energy: np.ndarray) -> tuple[_Fit, np.ndarray]:
 def _shifted_coefficients(p: np.ndarray, q: np.ndarray, c: np.ndarray, h: int) -> np.ndarray:
     """Linear coefficients of the same modes with the time origin moved to sample ``h``."""
     out = c.copy()
+    with np.errstate(all="ignore"):
+        _shift_into(p, q, c, h, out)
+    return out
+
+
+def _shift_into(p: np.ndarray, q: np.ndarray, c: np.ndarray, h: int, out: np.ndarray) -> None:
     for k in range(p.size):
         pk, qk = float(p[k]), float(q[k])
         D = 0.25 * pk * pk - qk
         vals = []
         for n in (h, h + 1):
             ch, sh, _ = _ch_sh(D * n * n)
-            e = math.exp(-0.5 * pk * n)
+            e = math.exp(min(-0.5 * pk * n, 700.0))
             vals.append(c[1 + 2 * k] * e * ch + c[2 + 2 * k] * e * n * sh)
         ch1, sh1, _ = _ch_sh(D)
         e1 = math.exp(-0.5 * pk)
         c1 = vals[0]
         c2 = (vals[1] - c1 * e1 * ch1) / (e1 * sh1)
         out[1 + 2 * k], out[2 + 2 * k] = c1, c2
-    return out
 
 
 def _one_step(y: np.ndarray, fit: _Fit, c: np.ndarray) -> tuple[float, float] | None:
@@ -1180,7 +1194,8 @@ def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag 
         a, b = res
     else:
         a = _one_step(y[:h], fit, fit.ev.c)
-        b = _one_step(y[h:], fit, _shifted_coefficients(fit.ev.p, fit.ev.q, fit.ev.c, h))
+        c_h = _shifted_coefficients(fit.ev.p, fit.ev.q, fit.ev.c, h)
+        b = _one_step(y[h:], fit, c_h) if np.all(np.isfinite(c_h)) else None
         if a is None or b is None:
             return None
     (q1, v1), (q2, v2) = a, b
