@@ -508,27 +508,47 @@ def _sigma_chi2(sw: Sweep, p: float, h: float, n: int, K: int, scale: float) -> 
     return _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K)], scale, with_interval=False).nll
 
 
+_ASSUMED_REL = 1e-2  # relative noise assumed when it can be neither given nor estimated
+_MIN_NOISE_DOF = 3
+
+
 def _estimate_noise(sw: Sweep) -> Sweep:
-    """Relative noise of |sigma^2| when not given: residual scatter of the nearest points."""
+    """Relative noise of |sigma^2| when not given: residual scatter of the nearest points about
+    the best candidate law with two corrections (at least 3 degrees of freedom); with fewer than
+    6 points it cannot be estimated and ``_ASSUMED_REL`` is assumed (see ``_noise_flag``)."""
     if sw.noise_given:
         return sw
     N = sw.mu.size
-    n = min(N, max(6, N // 2))
+    n = min(N, max(8, N // 2))
     idx = slice(N - n, N)
     scale = float(sw.mu[-1] - sw.mu[0])
     best = math.inf
-    for _, (a, _, h) in CANDIDATES.items():
-        K = min(2, n - 3)
-        if K < 0:
-            continue
-        c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True)
-        prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
-        dof = max(n - K - 2, 1)
-        best = min(best, prof.nll / dof)
-    s = math.sqrt(best) if math.isfinite(best) else 1e-3
+    K = min(2, n - 2 - _MIN_NOISE_DOF)
+    if K >= 0:
+        for _, (a, _, h) in CANDIDATES.items():
+            c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True)
+            prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
+            best = min(best, prof.nll / (n - K - 2))
+    s = math.sqrt(best) if math.isfinite(best) else _ASSUMED_REL
     s = max(s, _REL_FLOOR)
     return Sweep(
         sw.mu, sw.y, s * sw.y, sw.kind, sw.omega, sw.omega_sd, sw.w, sw.w_sd, False, sw.damping
+    )
+
+
+def _noise_flag(sw: Sweep) -> Flag:
+    """The flag telling how the noise of an estimated-noise sweep was obtained."""
+    which = "sigma2_std" if sw.kind == "sigma2" else "omega_std"
+    rel = float(np.median(sw.sd / sw.y))
+    if sw.mu.size < 4 + _MIN_NOISE_DOF:
+        return Flag(
+            "noise_assumed",
+            f"no {which} given and only {sw.mu.size} points: relative noise of |sigma2| "
+            f"assumed to be {rel:.2g}",
+        )
+    return Flag(
+        "noise_estimated",
+        f"no {which} given: relative noise of |sigma2| estimated from the scatter as {rel:.2g}",
     )
 
 
@@ -778,14 +798,7 @@ def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
     flags: list[Flag] = []
     sw = _estimate_noise(sw)
     if not sw.noise_given:
-        rel = float(np.median(sw.sd / sw.y))
-        flags.append(
-            Flag(
-                "noise_estimated",
-                f"no {'sigma2_std' if sw.kind == 'sigma2' else 'omega_std'} given: relative noise"
-                f" of |sigma2| estimated from the scatter as {rel:.2g}",
-            )
-        )
+        flags.append(_noise_flag(sw))
     scale = float(sw.mu[-1] - sw.mu[0])
     if sw.kind == "omega":
         assert sw.omega is not None
@@ -987,7 +1000,8 @@ def classify(
                 Flag(
                     "exponent_off",
                     f"free exponent a={a_hat:.3f}+-{a_se:.3f} is far from every candidate "
-                    f"({', '.join(f'{c:g}' for c in cands)})",
+                    f"({', '.join(f'{c:g}' for c in cands)}); a doubled exponent is the mark of "
+                    "over-damped data given as sigma2 = -omega^2 (give omega= instead)",
                 )
             )
             transition = "undetermined"

@@ -36,6 +36,7 @@ from service.analysis.classify import (
     _clean,
     _estimate_noise,
     _fit_candidate,
+    _noise_flag,
     _select_window,
     _with_damping,
     classify,
@@ -395,15 +396,7 @@ def predict(
             sw_used, _, _, fl = _analyse(sw0)
         else:
             sw_used = _estimate_noise(sw0)
-            fl = []
-            if not sw_used.noise_given:
-                rel = float(np.median(sw_used.sd / sw_used.y))
-                fl.append(
-                    Flag(
-                        "noise_estimated",
-                        f"no sigma2_std given: relative noise of |sigma2| estimated as {rel:.2g}",
-                    )
-                )
+            fl = [] if sw_used.noise_given else [_noise_flag(sw_used)]
         flags.extend(fl)
         if sw_used.w is None:
             bb = None
