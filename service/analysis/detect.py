@@ -43,7 +43,7 @@ model's damping; it lowers the variance when the model holds.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -237,7 +237,6 @@ class Detection:
     dt: float = 1.0
     kind: str = "impulse"
     iterations: int = 0
-    extra: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def flag_codes(self) -> tuple[str, ...]:
@@ -1316,7 +1315,6 @@ def detect(
             kind=kind,
         )
     y = y_raw / scale
-    N = y.size
     spec = _spectrum(y)
     iterations = 0
     modes: list[Mode]
@@ -1359,7 +1357,7 @@ def detect(
     if static_std_override is not None:
         static, static_std = mean, static_std_override
     fund = _fundamental(modes)
-    T = N * dt
+    T = N0 * dt
     if fund is None:
         flags.append(
             Flag(
@@ -1399,6 +1397,16 @@ def detect(
                     "low_snr",
                     f"the fundamental's record SNR is {m0.snr_db:.1f} dB (< {LOW_SNR_DB:g} dB; "
                     f"per-sample {snr_db:.1f} dB): estimates may be off the Cramer-Rao regime",
+                )
+            )
+        grow = [m for m in modes if m.sigma2 > 3.0 * m.sigma2_std]
+        if grow:
+            txt = ", ".join(f"{m.sigma2:.4g} +- {m.sigma2_std:.2g}" for m in grow)
+            flags.append(
+                Flag(
+                    "unstable",
+                    f"{len(grow)} mode(s) with sigma^2 > 0 ({txt}): a real pole grows, the "
+                    "equilibrium is unstable",
                 )
             )
         od = [m for m in modes if m.regime == "overdamped"]

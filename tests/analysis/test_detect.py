@@ -401,3 +401,26 @@ def test_validation_names_the_parameter_and_echoes_the_value(kwargs, match) -> N
     w = kwargs.pop("w")
     with pytest.raises(ValueError, match=match):
         detect(w, **kwargs)
+
+
+def test_unstable_mode_is_flagged_and_its_sigma2_positive() -> None:
+    """Past the transition: s^2 + xi s - sigma^2 = 0 with sigma^2 > 0 has a growing pole."""
+    sigma2, xi = 0.5, 2.0
+    lam = math.sqrt(0.25 * xi * xi + sigma2)
+    s_grow, s_decay = -0.5 * xi + lam, -0.5 * xi - lam
+    b = 1e-3 / (s_grow - s_decay)
+    dt, n = 5e-4, 10_000
+    w = record(
+        n,
+        dt,
+        [(40.0, 1.0, 5e-4, 0.0)],
+        noise=1e-6,
+        seed=16,
+        overdamped=[(-s_grow, -s_decay, b, -b)],
+    )
+    det = detect(w, dt=dt)
+    assert "unstable" in det.flag_codes
+    f = det.fundamental
+    assert f.sigma2 > 0
+    assert abs(f.sigma2 - sigma2) < 5 * f.sigma2_std
+    assert f.poles[0] == pytest.approx(s_grow, rel=0.02)
