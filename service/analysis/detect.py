@@ -413,9 +413,10 @@ def _levenberg_marquardt(
     lam = 1e-4
     it = 0
     small = False
+    lagged = False  # B's Jacobian built with an earlier iterate's c
     for it in range(1, max_iter + 1):  # noqa: B007
         A = B[:-1, :-1]
-        # gradient J^T r with r = y - Phi c (c exact at theta; J built with c_lag)
+        # gradient J^T r with r = y - Phi c (c exact at theta)
         g = B[:-1, -1] - B[:-1, nth:-1] @ c
         dA = np.diag(A).copy()
         dA[dA == 0] = 1.0
@@ -429,20 +430,37 @@ def _levenberg_marquardt(
                 c_new, rss_new = _solve_gram(B_new[nth:, nth:])
                 if rss_new <= rss * (1.0 + 1e-13):
                     accepted = True
+                    lam_used = lam
                     break
+            if lagged:
+                # retry with the exact Jacobian before damping the step
+                B_ex = _heavy_pass(y, p, q, c, common)
+                if B_ex is None:
+                    break
+                B, lagged = B_ex, False
+                A = B[:-1, :-1]
+                g = B[:-1, -1] - B[:-1, nth:-1] @ c
+                dA = np.diag(A).copy()
+                dA[dA == 0] = 1.0
+                continue
             lam *= 8.0
         if not accepted:
             break
         gain = rss - rss_new
         theta = theta + dth
         p, q, B, c, rss = p_new, q_new, B_new, c_new, rss_new
+        lagged = True
         lam = max(lam / 10.0, 1e-9)
-        # converged: step far below the statistical resolution, or no gain left
+        # converged: an undamped step far below the statistical resolution, or no gain left
+        # (a step shrunk by a large lambda says nothing about convergence)
         s2 = max(rss, 1e-300) / max(N - nth - 1 - 2 * K, 1)
-        cov_th = np.diag(Ainv)[:nth] * s2
-        small = bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(cov_th, 1e-300))))
-        if small or gain <= 1e-12 * rss:
-            break
+        if lam_used <= 1e-2:
+            cov_th = np.diag(_pinv_psd(A))[:nth] * s2
+            small = bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(cov_th, 1e-300))))
+            if small or gain <= 1e-12 * rss:
+                break
+        else:
+            small = False
     else:
         small = False
     # a last pass with the final c, unless the last step was negligible (then the lagged
