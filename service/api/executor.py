@@ -2,18 +2,18 @@
 
 The numerics hold the GIL (numpy partly, numba kernels unless compiled ``nogil``), so the
 default is a *process* pool started with ``spawn`` (safe next to uvicorn's threads). Workers
-die with their parent (Linux ``PR_SET_PDEATHSIG``), so a killed server leaves no orphan
-finishing a job behind its back.
+exit as soon as their parent is gone, so a killed server leaves no orphan finishing a job
+behind its back.
 """
 
 from __future__ import annotations
 
 import asyncio
-import ctypes
 import multiprocessing as mp
 import os
 import signal
-import sys
+import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any, TypeVar
@@ -21,17 +21,32 @@ from typing import Any, TypeVar
 T = TypeVar("T")
 
 
-def _die_with_parent() -> None:
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except OSError:  # pragma: no cover
-            pass
+def _die_with_parent(parent: int, period: float = 0.25) -> None:
+    """Exit as soon as ``parent`` is gone (we get re-parented), even if it was SIGKILLed.
+
+    A watchdog thread, not ``PR_SET_PDEATHSIG``: that one fires when the *thread* that
+    spawned us exits, and pools spawn workers from whichever thread submits first.
+    """
+    if os.getppid() != parent:
+        os._exit(70)
+
+    def watch() -> None:
+        while True:
+            time.sleep(period)
+            if os.getppid() != parent:
+                os._exit(70)
+
+    threading.Thread(target=watch, name="snapwarn-parent-watch", daemon=True).start()
 
 
-def _init_worker() -> None:
-    _die_with_parent()
+_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+               "NUMBA_NUM_THREADS")
+
+
+def _init_worker(parent: int) -> None:
+    for var in _ONE_THREAD:  # the pool is the parallelism: one BLAS thread per worker
+        os.environ.setdefault(var, "1")
+    _die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ.setdefault("MPLBACKEND", "Agg")
 
@@ -41,7 +56,8 @@ def make_pool(kind: str, workers: int, name: str) -> Executor:
     if kind == "thread":
         return ThreadPoolExecutor(max_workers=workers, thread_name_prefix=name)
     return ProcessPoolExecutor(
-        max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_init_worker
+        max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
+        initargs=(os.getpid(),),
     )
 
 

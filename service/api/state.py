@@ -40,10 +40,27 @@ class AppState:
             old.shutdown(wait=False, cancel_futures=True)
             return await run_in_pool(self.pool, fn, *args)
 
-    def numerics_fresh(self, max_age: float = 30.0) -> dict[str, bool] | None:
-        if self.numerics_cache and time.monotonic() - self.numerics_cache[0] < max_age:
-            return self.numerics_cache[1]
-        return None
+    def numerics_status(self, max_age: float = 60.0) -> dict[str, bool]:
+        """Which numerics the workers can load, as last seen ({} until known).
+
+        A refresh runs in the pool in the background when the value is missing or old.
+        """
+        cached = self.numerics_cache
+        if cached is None or time.monotonic() - cached[0] > max_age:
+            if not self.extra.get("numerics_pending"):
+                self.extra["numerics_pending"] = True
+                from service.api import numerics
+
+                def done(fut: Any) -> None:
+                    self.extra["numerics_pending"] = False
+                    if not fut.cancelled() and fut.exception() is None:
+                        self.numerics_cache = (time.monotonic(), fut.result())
+
+                try:
+                    self.pool.submit(numerics.available).add_done_callback(done)
+                except Exception:  # noqa: BLE001 - a broken pool is replaced on next use
+                    self.extra["numerics_pending"] = False
+        return dict(cached[1]) if cached else {}
 
 
 def get_state(request: Request) -> AppState:

@@ -68,6 +68,7 @@ def _healthcheck(svc: dict, env: dict[str, str]) -> int:
     return subprocess.run(_native(test[1:]), env=env, timeout=30).returncode
 
 
+@pytest.mark.slow  # ~35 s on a loaded 2-core machine; CI runs it with `make test-slow`
 def test_compose_commands_run_natively(compose: dict, new_db, tmp_path: Path) -> None:  # noqa: ANN001
     db_url = new_db("compose")
     port = free_port()

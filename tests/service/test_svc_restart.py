@@ -3,6 +3,7 @@ the interrupted job (real uvicorn subprocesses on one SQLite file)."""
 
 from __future__ import annotations
 
+import os
 import signal
 import time
 
@@ -18,6 +19,33 @@ def _job(url: str, jid: str) -> dict:
     r = httpx2.get(f"{url}/v1/jobs/{jid}", timeout=10)
     assert r.status_code == 200, r.text
     return r.json()
+
+
+def _descendants(root: int) -> set[int]:
+    parents = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as fh:
+                    parents[int(entry)] = int(fh.read().rsplit(")", 1)[1].split()[1])
+            except OSError:
+                pass
+    tree, grew = {root}, True
+    while grew:
+        grew = False
+        for pid, ppid in parents.items():
+            if ppid in tree and pid not in tree:
+                tree.add(pid)
+                grew = True
+    return tree - {root}
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
 def _until(pred, timeout: float, what: str):  # noqa: ANN001, ANN202
@@ -50,11 +78,14 @@ def test_sigkill_mid_job_loses_nothing_completed(tmp_path) -> None:  # noqa: ANN
         _until(lambda: (d := _job(a.url, long.id))["status"] == "running"
                and d["progress"]["fraction"] > 0.1, 60, "the long job to run")
 
+        workers = _descendants(a.proc.pid)
+        assert workers, "the server runs its work in child processes"
         a.stop(signal.SIGKILL)
         assert a.proc.returncode == -signal.SIGKILL
-        # the job's worker process died with the server: nobody updates the job any more
+        # its worker processes exit with it: nobody updates the job any more
+        _until(lambda: not any(_alive(p) for p in workers), 20, "orphans to exit")
         frozen = store.get_job(long.id)
-        time.sleep(1.0)
+        time.sleep(0.6)
         again = store.get_job(long.id)
         assert (again.fraction, again.message) == (frozen.fraction, frozen.message)
         assert again.status == "running"  # as the crash left it

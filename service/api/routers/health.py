@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import time
 from importlib.metadata import PackageNotFoundError, version
 
 from anyio import to_thread
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from service.api import numerics
 from service.api.state import StateDep
 from service.schemas import Health
 
@@ -36,14 +34,7 @@ async def healthz(state: StateDep) -> JSONResponse:
     except Exception as exc:  # noqa: BLE001
         db = f"error: {type(exc).__name__}"
         workers = 0
-    avail = state.numerics_fresh(max_age=float("inf") if state.settings.warm_pool else 30.0)
-    if avail is None and not state.settings.warm_pool:
-        try:
-            avail = await state.run(numerics.available)
-            state.numerics_cache = (time.monotonic(), avail)
-        except Exception:  # noqa: BLE001
-            avail = {}
-    avail = avail or {}
+    avail = state.numerics_status()  # never waits for the pool: /healthz stays cheap
     doc = Health(status="ok" if db == "ok" else "degraded", version=VERSION, database=db,
                  workers=workers, numerics=avail)
     return JSONResponse(doc.model_dump(), status_code=200 if db == "ok" else 503)
