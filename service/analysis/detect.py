@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -497,25 +498,35 @@ def _mode_energy(ev: _Eval) -> np.ndarray:
 
 @dataclass
 class _Spectrum:
-    power: np.ndarray  # plain periodogram |rfft|^2 / N (the paper's FFT)
+    y: np.ndarray
     hann: np.ndarray  # Hann-window periodogram, normalised to the white-noise variance
     noise_var: float  # robust (median) white-noise level, from the Hann periodogram
     significant: np.ndarray  # boolean per bin (Hann periodogram: no far leakage)
     k_hi: int  # highest significant bin (0 if none)
 
+    @property
+    def power(self) -> np.ndarray:
+        """Plain periodogram ``|rfft|^2 / N`` (the paper's FFT), computed on demand."""
+        return np.abs(np.fft.rfft(self.y)) ** 2 / self.y.shape[0]
+
+
+@lru_cache(maxsize=16)
+def _hann(n: int) -> tuple[np.ndarray, float]:
+    win = np.hanning(n + 2)[1:-1]
+    win.setflags(write=False)
+    return win, float(np.sum(win * win))
+
 
 def _spectrum(y: np.ndarray) -> _Spectrum:
-    N = y.shape[0]
-    P = np.abs(np.fft.rfft(y)) ** 2 / N
-    win = np.hanning(N + 2)[1:-1]
-    H = np.abs(np.fft.rfft(win * y)) ** 2 / float(np.sum(win * win))
+    win, norm = _hann(y.shape[0])
+    H = np.abs(np.fft.rfft(win * y)) ** 2 / norm
     body = H[2:] if H.size > 3 else H[1:]
     noise = float(np.median(body) / math.log(2.0)) if body.size else 0.0
     thr = math.log(max(body.size, 2) / 0.01)  # 1 % false alarm over all bins (chi2_2 / 2)
     sig = H > noise * thr
     sig[0] = False
     k = np.flatnonzero(sig)
-    return _Spectrum(P, H, noise, sig, int(k[-1]) if k.size else 0)
+    return _Spectrum(y, H, noise, sig, int(k[-1]) if k.size else 0)
 
 
 def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
@@ -902,8 +913,8 @@ def _fft_modes(
 ) -> tuple[list[Mode], list[Flag]]:
     """The paper's FFT peak (plus the significant secondary peaks)."""
     N = y.shape[0]
-    mag = np.sqrt(spec.power * N)
     P = spec.power
+    mag = np.sqrt(P * N)
     flags: list[Flag] = []
     nb = P.size
     if nb < 3 or not spec.significant.any():
@@ -1442,7 +1453,7 @@ def detect(
             )
     # aliasing: energy in the top of the band, or a mode close to Nyquist
     nyq = math.pi / dt
-    kb = int(ALIAS_FRACTION * (spec.power.size - 1))
+    kb = int(ALIAS_FRACTION * (spec.hann.size - 1))
     hot = int(np.sum(spec.significant[kb:])) if kb > 0 else 0
     near = [m.omega for m in modes if m.omega > ALIAS_FRACTION * nyq]
     if hot or near:
