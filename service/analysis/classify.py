@@ -336,6 +336,7 @@ def _profile(
     level: float = 0.95,
     inflate: float = 1.0,
     with_interval: bool = True,
+    xatol: float | None = None,
 ) -> _Profile:
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals."""
     last = float(mu_w[-1])
@@ -359,7 +360,9 @@ def _profile(
         return v if math.isfinite(v) else 1e300
 
     a_, b_ = t[max(i - 1, 0)], t[min(i + 1, G - 1)]
-    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": 1e-11})
+    # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-6 for model selection
+    tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-6)
+    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": tol})
     th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
     if i == 0:
         flags.append(
@@ -379,7 +382,7 @@ def _profile(
         if j < 0:
             lo, lo_open = last, True
         else:
-            tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-12)
+            tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-9)
             lo, lo_open = last + math.exp(tl), False
         j = int(np.searchsorted(t, th))
         while j < G and f[j] - fh < delta:
@@ -387,7 +390,7 @@ def _profile(
         if j >= G:
             hi, hi_open = last + math.exp(t[-1]), True
         else:
-            tu = optimize.brentq(lambda s: g(s) - fh - delta, th, t[j], xtol=1e-12)
+            tu = optimize.brentq(lambda s: g(s) - fh - delta, th, t[j], xtol=1e-9)
             hi, hi_open = last + math.exp(tu), False
         return lo, hi, lo_open, hi_open
 
@@ -648,13 +651,13 @@ def _free_exponent(
         comps = make(e)
         if fixed_mu is not None:
             return float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
-        return _profile(mu_w, comps, scale, with_interval=False).nll
+        return _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7).nll
 
     f = np.array([prof(e) for e in grid])
     f = np.where(np.isfinite(f), f, np.inf)
     i = int(np.argmin(f))
     a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    res = optimize.minimize_scalar(prof, bounds=(a_, b_), method="bounded", options={"xatol": 1e-6})
+    res = optimize.minimize_scalar(prof, bounds=(a_, b_), method="bounded", options={"xatol": 1e-4})
     eh, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(grid[i]), float(f[i]))
 
     def cross(sign: int) -> float:
@@ -664,7 +667,10 @@ def _free_exponent(
         if not 0 <= j < grid.size:
             return math.inf
         return abs(
-            optimize.brentq(lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j])) - eh
+            optimize.brentq(
+                lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j]), xtol=1e-5
+            )
+            - eh
         )
 
     up, dn = cross(+1), cross(-1)
@@ -952,7 +958,7 @@ def classify(
     def make_a(p: float) -> list[_Comp]:
         return [_Comp(sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, top.h, top.K), True, True)]
 
-    a2, a2_se = _free_exponent(sw.mu[idx], make_a, np.linspace(0.2, 2.5, 24), scale)
+    a2, a2_se = _free_exponent(sw.mu[idx], make_a, np.linspace(0.2, 2.5, 16), scale)
     a_hat, a_se = a2 / 2, a2_se / 2
     if regime == "overdamped" and sw.kind == "omega":
         a_hat, a_se = 2 * a_hat, 2 * a_se  # the observed (slow) time scale exponent
@@ -970,7 +976,7 @@ def classify(
 
         if n_c >= 5:
             b_hat, b_se = _free_exponent(
-                sw.mu[idx], make_b, np.linspace(0.25, 1.9, 23), scale, fixed_mu=top.profile.mu_star
+                sw.mu[idx], make_b, np.linspace(0.25, 1.9, 12), scale, fixed_mu=top.profile.mu_star
             )
         else:
             flags.append(Flag("b_not_estimated", f"only {n_c} informative points for b"))
