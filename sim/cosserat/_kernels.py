@@ -250,7 +250,7 @@ def integrate(
     for step in range(nsteps):
         for i in range(N):
             zn[i] = z[i]
-            znew[i] = z[i] + dt * v[i] + 0.5 * dt * dt * a[i]  # predictor: a_new = a
+            znew[i] = z[i] + dt * v[i]  # predictor: constant velocity
         converged = False
         for it in range(maxit):
             for i in range(N):

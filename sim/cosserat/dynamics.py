@@ -59,9 +59,12 @@ class Run:
     cpu_s: float
 
 
+Probe = tuple[tuple[int, int], tuple[float, float]]
+
+
 def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float, dt: float,
-              nsteps: int, every: int = 1, probes: list[tuple[tuple[int, int], tuple[float, float]]]
-              | None = None, rho_inf: float = 0.8, tol: float = 1e-13, maxit: int = 12, full_its: int = 99,
+              nsteps: int, every: int = 1, probes: list[Probe] | None = None,
+              rho_inf: float = 0.8, tol: float = 1e-13, maxit: int = 12, full_its: int = 99,
               fixed_extra: list[int] | None = None) -> Run:
     """Integrate the rod from (z0, v0) at fixed mu.
 
@@ -84,6 +87,8 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
         High-frequency spectral radius of the generalised-alpha method (1: trapezoidal).
     tol, maxit : float, int
         Newton tolerance on max |dz| and iteration cap per step.
+    full_its : int
+        Newton iterations with a fresh tangent; later ones reuse it (modified Newton).
     fixed_extra : list of int
         Additional dofs held fixed (e.g. an indenter on y(1/2)).
     """
@@ -249,8 +254,8 @@ class SnapThrough:
 
 
 def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float = 1e-3,
-                 elements: int = 50, damping: float = 6e-4, duration: float = 20.0,
-                 dt: float = 2e-3, mu_star: float | None = None) -> SnapThrough:
+                 elements: int = 50, damping: float = 6e-4, duration: float = 5.0,
+                 dt: float = 5e-4, mu_star: float | None = None) -> SnapThrough:
     """The paper's released-indenter experiment, asymmetric actuation.
 
     Start from the rod's equilibrium at its fold mu*; hold the midpoint's transverse position

@@ -103,11 +103,12 @@ def newton(
             dz = spla.spsolve(J.tocsc(), -g)
             mu += float(dz[pin])
             dz[pin] = 0.0
+        z_old = z.copy()
         z += dz
-        prev, dmax = dmax, float(np.max(np.abs(dz)))
         rod.apply_bc(z, mu)
         if symmetric:
             z = 0.5 * (z + rod.mirror(z))
+        prev, dmax = dmax, float(np.max(np.abs(z - z_old)))
         if not np.all(np.isfinite(z)):
             break
         if dmax < tol or (dmax < 1e-8 and dmax > 0.5 * prev):
