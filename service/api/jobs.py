@@ -90,7 +90,9 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
                 items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
                 progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
             progress(0.1, f"analysing {len(items)} signals")
-            result = numerics.sweep_from_signals(items)
+            names = [m["signal_id"] for m in params["measurements"]]
+            result = numerics.sweep_from_signals(
+                items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg))
         elif job.kind == "diagnostic-sleep":
             result = _diagnostic_sleep(params, progress)
         else:

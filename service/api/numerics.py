@@ -160,12 +160,13 @@ def warn(params: dict[str, Any], progress: Callable[[float, str], None]) -> dict
     return sanitize(res.to_dict())
 
 
-def sweep_from_signals(items: list[tuple[np.ndarray, float, float]]) -> dict[str, Any]:
+def sweep_from_signals(items: list[tuple[np.ndarray, float, float]], names: list[str],
+                       progress: Callable[[float, str], None]) -> dict[str, Any]:
     """The pipeline on recorded signals: ``[(w, dt, control_value), ...]`` -> document."""
     fn = load("sweep_from_signals")
     try:
         with _calling("the sweep pipeline"):
-            res = fn(items)
+            res = fn(items, names=names, progress=progress)
     except ValueError as exc:
         raise _as_problem(exc, "measurements") from None
     return sanitize(res.to_dict())

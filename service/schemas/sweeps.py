@@ -26,11 +26,11 @@ class SimulatedSweep(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     actuation: Actuation = "asymmetric"
-    model: Model = "auto"
-    damping: float | None = None
+    model: Model | None = Field(default=None, description="Simulator (pipeline default).")
+    damping: float | None = Field(default=None, ge=0)
     snr_db: float | None = None
     seed: int | None = None
-    max_measurements: int | None = Field(default=None, ge=2)
+    max_measurements: int | None = Field(default=None, ge=2, le=200)
 
 
 class SweepRequest(BaseModel):
@@ -44,7 +44,11 @@ class SweepRequest(BaseModel):
 
 
 class Sweep(BaseModel):
-    """A sweep, its job, and (once done) the pipeline's document and its main parts."""
+    """A sweep, its job, and (once done) the pipeline's document and its main parts.
+
+    ``result`` is the ``snapwarn warn --json`` document; ``prediction`` gathers its mu*,
+    interval, exponent and transition; ``alarm`` is the alarm after the last measurement.
+    """
 
     id: str
     name: str | None = None

@@ -19,9 +19,20 @@ from service.schemas import Sweep, SweepRequest
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 
 
+_PREDICTION_KEYS = ("mu_star", "mu_star_interval", "mu_star_std", "a", "transition",
+                    "probabilities", "stopped", "n_measurements")
+
+
 def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
+    """The sweep resource: the pipeline's document and its main parts, picked (not computed)."""
     result = job.result if job.status == "succeeded" else None
     r = result or {}
+    prediction = r.get("prediction")
+    if prediction is None and r.get("mu_star", None) is not None or "mu_star" in r:
+        prediction = {k: r[k] for k in _PREDICTION_KEYS if k in r}
+    alarm = r.get("alarm")
+    if isinstance(alarm, list):
+        alarm = alarm[-1] if alarm else None
     return {
         "id": sweep.id,
         "name": sweep.name,
@@ -31,8 +42,8 @@ def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
         "result": result,
         "measurements": r.get("measurements"),
         "classification": r.get("classification"),
-        "prediction": r.get("prediction"),
-        "alarm": r.get("alarm"),
+        "prediction": prediction,
+        "alarm": alarm,
         "created_at": as_utc(sweep.created_at),
     }
 
