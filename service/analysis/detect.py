@@ -37,7 +37,27 @@ Methods (``method=``)
 model's damping; it lowers the variance when the model holds.
 
 ``kind="ambient"`` analyses the biased autocorrelation of the mean-removed record (lags 1 to
-``N/2``): for a noise-driven linear structure it is a sum of damped modes with the same poles.
+at most ``N/2``, cut where it sinks into its estimation noise): for a noise-driven linear
+structure it is a sum of damped modes with the same poles. Standard errors then come from the
+scatter of the fit over segments of the record (the autocorrelation's errors are correlated).
+
+Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
+--------------------------------------------------------
+``no_mode``            nothing above the noise (or a constant record): ``fundamental`` is None.
+``few_periods``        the record spans fewer than 2 periods ``2 pi / sqrt|sigma^2|``.
+``low_snr``            the fundamental's record-integrated SNR is below 20 dB.
+``overdamped``         a mode has two real poles (no FFT peak); ``sigma^2 = -s1 s2``.
+``unstable``           a mode has ``sigma^2 > 0`` (a growing real pole).
+``nonlinear``          the fundamental's ``sigma^2`` differs between the two halves of the
+                       record by more than 5 standard errors (amplitude-dependent frequency).
+``aliasing``           significant energy or a mode above 0.8 x Nyquist.
+``damping_unresolved`` (FFT methods) a peak no wider than the resolution.
+``ambient``            the result comes from an autocorrelation fit (units of variance).
+``numerical``          the static level could not be estimated.
+
+Performance: the hot loops are numba kernels in :mod:`service.analysis._detect_kernels`
+(fused basis recurrences + Gram matrices, strided Hankel covariance, small symmetric
+eigensolvers); no BLAS thread pool is involved in the fit itself.
 """
 
 from __future__ import annotations
@@ -60,10 +80,22 @@ from service.analysis._detect_kernels import (
 )
 from service.analysis.common import Flag
 
-__all__ = ["METHODS", "KINDS", "Mode", "Fundamental", "Detection", "detect"]
+__all__ = ["METHODS", "KINDS", "FLAG_CODES", "Mode", "Fundamental", "Detection", "detect"]
 
 METHODS = ("auto", "varpro", "esprit", "fft", "fft-parabolic")
 KINDS = ("impulse", "ambient")
+FLAG_CODES = (
+    "no_mode",
+    "few_periods",
+    "low_snr",
+    "overdamped",
+    "unstable",
+    "nonlinear",
+    "aliasing",
+    "damping_unresolved",
+    "ambient",
+    "numerical",
+)
 MIN_SAMPLES = 16
 
 #: Thresholds of the flags (documented in the messages).

@@ -103,3 +103,12 @@ def test_common_damping_and_ambient_never_nan_without_a_flag(spec) -> None:
     dt = 10.0 ** spec["log_dt"]
     _check(detect(w, dt=dt, common_damping=True))
     _check(detect(w, dt=dt, kind="ambient"))
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(records, st.sampled_from(["auto", "fft", "esprit"]))
+def test_flag_codes_are_documented(spec, method) -> None:
+    from service.analysis.detect import FLAG_CODES
+
+    det = detect(_make(spec), dt=10.0 ** spec["log_dt"], method=method)
+    assert set(det.flag_codes) <= set(FLAG_CODES)
