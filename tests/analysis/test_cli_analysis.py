@@ -1,0 +1,91 @@
+"""The analysis CLI: detect, predict, warn — one JSON document, documented keys, clear errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from service.cli import main
+from sim import simulate
+from sim.euler_beam import bifurcation, spectrum
+from sim.scene import Scene
+
+
+def run_json(capsys, *argv: str) -> dict:
+    assert main([*argv, "--json"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1
+    return json.loads(out)
+
+
+def test_detect_on_a_simulated_csv(tmp_path, capsys) -> None:
+    out = tmp_path / "s.csv"
+    assert main(["simulate", "--actuation", "symmetric", "--mu", "1.5", "--snr", "40",
+                 "--seed", "1", "--out", str(out)]) == 0  # fmt: skip
+    capsys.readouterr()
+    doc = run_json(capsys, "detect", str(out))
+    assert {"modes", "fundamental", "flags"} <= set(doc)
+    for m in doc["modes"]:
+        assert {"omega", "frequency", "damping", "sigma2", "amplitude", "omega_std"} <= set(m)
+    f = doc["fundamental"]
+    assert {"omega", "sigma2", "sigma2_std", "regime"} <= set(f)
+    exact = spectrum("symmetric", 1.5, "U_A", modes=1).sigma2[0]
+    assert f["sigma2"] == pytest.approx(exact, rel=1e-3)
+    assert f["regime"] == "underdamped"
+    base = run_json(capsys, "detect", str(out), "--method", "fft")
+    assert abs(base["fundamental"]["sigma2"] / exact - 1) > abs(f["sigma2"] / exact - 1)
+
+
+def test_predict_from_a_sweep_table(tmp_path, capsys) -> None:
+    mu_star = bifurcation("antisymmetric").mu_star
+    mus = mu_star - np.geomspace(0.5, 1e-3, 10)
+    path = tmp_path / "sweep.csv"
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["mu", "sigma2", "sigma2_std"])
+        for m in mus:
+            s2 = spectrum("antisymmetric", m, "U_A", modes=1).sigma2[0]
+            w.writerow([m, s2, 1e-6 * abs(s2)])
+    doc = run_json(capsys, "predict", str(path))
+    assert {"transition", "a", "mu_star", "mu_star_interval", "probabilities", "flags"} <= set(doc)
+    assert doc["mu_star"] == pytest.approx(mu_star, abs=1e-4)
+    assert doc["a"] == pytest.approx(0.5)
+
+
+def test_predict_rejects_bad_tables(tmp_path, capsys) -> None:
+    p = tmp_path / "bad.csv"
+    p.write_text("mu,sigma2\n0.1,-5\n0.2,abc\n0.3,-3\n")
+    assert main(["predict", str(p), "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "sigma2" in err and "bad.csv" in err
+    p.write_text("mu,x\n0.1,1\n")
+    assert main(["predict", str(p)]) == 2
+    assert "sigma2" in capsys.readouterr().err
+
+
+def test_detect_rejects_a_missing_file(capsys) -> None:
+    assert main(["detect", "/nonexistent/rec.csv", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "/nonexistent/rec.csv" in err and err.count("\n") == 1
+
+
+def test_warn_json_document(capsys) -> None:
+    doc = run_json(capsys, "warn", "--model", "normal-form", "--actuation", "antisymmetric",
+                   "--seed", "2", "--max-measurements", "10", "--no-progress")  # fmt: skip
+    assert {"transition", "a", "mu_star", "mu_star_interval", "measurements", "alarm",
+            "baseline"} <= set(doc)  # fmt: skip
+    assert len(doc["measurements"]) <= 10
+    for m in doc["measurements"]:
+        assert {"mu", "omega", "sigma2", "sigma2_std", "w_static"} <= set(m)
+    assert "mu_star" in doc["baseline"]
+
+
+def test_simulated_record_round_trip_through_detect_keeps_static_level(tmp_path, capsys) -> None:
+    sig = simulate(Scene(actuation="asymmetric", mu=1.0, kick=1e-3, snr_db=50, seed=4))
+    p = tmp_path / "r.npy"
+    np.save(p, np.column_stack([sig.t, sig.w]))
+    doc = run_json(capsys, "detect", str(p))
+    assert doc["static_level"] == pytest.approx(sig.w_static, abs=1e-5)
