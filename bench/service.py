@@ -159,6 +159,23 @@ async def _level(url: str, body: bytes, clients: int, seconds: float) -> dict:
     }
 
 
+def _detect_reference(body: bytes, n: int = 200) -> dict:
+    """``detect`` on the same signal in this process: what the service adds is the rest."""
+    from service.analysis.detect import detect
+
+    d = json.loads(body)
+    w = np.asarray(d["w"])
+    detect(w, dt=d["dt"])
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        detect(w, dt=d["dt"])
+        times.append(time.perf_counter() - t0)
+    a = np.array(times) * 1e3
+    return {"p50_ms": float(np.percentile(a, 50)), "p95_ms": float(np.percentile(a, 95)),
+            "calls": n}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clients", type=int, nargs="+", default=[1, 8, 32])
@@ -181,9 +198,12 @@ def main(argv: list[str] | None = None) -> int:
             asyncio.run(_level(url, body, max(args.clients), args.warmup))  # warm every worker
             for c in args.clients:
                 cpu0 = _tree_cpu(proc.pid)
+                me0 = time.process_time()
                 load0 = os.getloadavg()[0]
                 res = asyncio.run(_level(url, body, c, args.seconds))
                 cpu = _tree_cpu(proc.pid) - cpu0
+                res["client_cpu_ms_per_request"] = (
+                    1e3 * (time.process_time() - me0) / max(1, res["requests"]))
                 res["server_cpu_ms_per_request"] = 1e3 * cpu / max(1, res["requests"])
                 cap = cores / (cpu / max(1, res["requests"])) if cpu > 0 else None
                 res["capacity_rps"] = cap
@@ -196,7 +216,8 @@ def main(argv: list[str] | None = None) -> int:
                 frac = 100 * (res["fraction_of_capacity"] or 0)
                 print(f"{c:3d} clients: p50 {res['p50_ms']:.1f} ms  p95 {res['p95_ms']:.1f} ms  "
                       f"p99 {res['p99_ms']:.1f} ms  {res['throughput_rps']:.1f} req/s  "
-                      f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req  capacity "
+                      f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req (client "
+                      f"{res['client_cpu_ms_per_request']:.2f})  capacity "
                       f"{cap or float('nan'):.1f} req/s ({frac:.0f}"
                       f"%)  errors {res['errors']}  per-client {res['min_requests_per_client']}"
                       f"..{res['max_requests_per_client']}", flush=True)
@@ -206,8 +227,12 @@ def main(argv: list[str] | None = None) -> int:
                 proc.wait(20)
             except subprocess.TimeoutExpired:
                 proc.kill()
+    ref = _detect_reference(body)
+    print(f"reference: detect() alone in one process: p50 {ref['p50_ms']:.2f} ms, "
+          f"p95 {ref['p95_ms']:.2f} ms")
     doc = {
         "benchmark": "POST /v1/detections, inline signal",
+        "detect_in_process": ref,
         "samples": args.samples,
         "seconds_per_level": args.seconds,
         "http_workers": args.http_workers,

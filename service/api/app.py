@@ -23,7 +23,7 @@ from service.api.routers import detections, health, jobs, signals, simulations, 
 from service.api.settings import Settings
 from service.api.state import AppState, require_api_key
 from service.api.storage import Store
-from service.schemas import Problem, SignalIn
+from service.schemas import DetectionRequest, Problem, SignalIn
 
 log = logging.getLogger("snapwarn.api")
 
@@ -99,7 +99,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
     doc = get_openapi(title=app.title, version=app.version, description=app.description,
                       routes=app.routes)
     comps = doc.setdefault("components", {}).setdefault("schemas", {})
-    for model in (Problem, SignalIn):
+    for model in (Problem, SignalIn, DetectionRequest):
         schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
         for name, sub in schema.pop("$defs", {}).items():
             comps.setdefault(name, sub)

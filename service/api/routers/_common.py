@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
+
 from service.schemas.common import PROBLEM_MEDIA_TYPE
 
 _PROBLEM = {"content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}}
@@ -21,3 +24,13 @@ def problems(*codes: int) -> dict[int | str, dict[str, Any]]:
         501: "The numerics this resource needs are not installed yet.",
     }
     return {c: {"description": text.get(c, "Error."), **_PROBLEM} for c in codes}
+
+
+def body_validation_error(exc: ValidationError) -> RequestValidationError:
+    """A pydantic error on a body parsed by hand, as FastAPI's own (``loc`` under "body")."""
+    errs = []
+    for e in exc.errors():
+        e = dict(e)
+        e["loc"] = ("body", *e.get("loc", ()))
+        errs.append(e)
+    return RequestValidationError(errs)

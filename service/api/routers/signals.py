@@ -7,12 +7,12 @@ from typing import Annotated, Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Query, Request, Response
-from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
 from service.api import codec, plots
 from service.api.problems import ApiProblem, invalid, not_found
+from service.api.routers._common import body_validation_error
 from service.api.state import AppState, StateDep, signal_meta
 from service.schemas import Control, SignalData, SignalIn, SignalMeta
 from service.schemas.common import PROBLEM_MEDIA_TYPE
@@ -51,15 +51,6 @@ UPLOAD_FORM_SCHEMA = {
 }
 
 
-def _validation_error(exc: ValidationError) -> RequestValidationError:
-    errs = []
-    for e in exc.errors():
-        e = dict(e)
-        e["loc"] = ("body", *e.get("loc", ()))
-        errs.append(e)
-    return RequestValidationError(errs)
-
-
 def _form_float(form: Any, name: str) -> float | None:
     v = form.get(name)
     if v is None or v == "":
@@ -84,7 +75,7 @@ async def _from_json(request: Request, state: AppState) -> codec.CleanSignal:
     try:
         doc = SignalIn.model_validate_json(body)
     except ValidationError as exc:
-        raise _validation_error(exc) from None
+        raise body_validation_error(exc) from None
     s = state.settings
     w, t, dt, t0 = await to_thread.run_sync(
         lambda: codec.clean_signal(w=doc.w, t=doc.t, dt=doc.dt, t0=doc.t0,
