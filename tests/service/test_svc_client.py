@@ -41,7 +41,8 @@ def test_importing_the_sdk_loads_nothing_heavy() -> None:
 
 
 def test_the_check_above_can_fail() -> None:
-    code = "import sys, service.api; print('numpy' in sys.modules and 'fastapi' in sys.modules)"
+    code = ("import sys, service.api.app; "
+            "print('numpy' in sys.modules and 'fastapi' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.stdout.strip() == "True"
 
@@ -70,9 +71,13 @@ async def test_async_client_in_process(asgi) -> None:  # noqa: ANN001
         await c.delete_signal(meta.id)
         with pytest.raises(NotFound):
             await c.signal_data(meta.id)
-        sw = await c.create_sweep(simulate={"actuation": "asymmetric"}) if numerics_has(
-            "service.analysis.pipeline", "warn") else None
-        if sw is None:
+        if numerics_has("service.analysis.pipeline", "warn"):
+            sw = await c.create_sweep(simulate={"actuation": "antisymmetric",
+                                                "max_measurements": 3, "seed": 1})
+            done = await c.wait(sw, progress=False, timeout=120, poll=0.1)
+            assert done.id == sw.id and done.status == "succeeded", done.job.error
+            assert len(done.measurements) == 3
+        else:
             with pytest.raises(NotImplementedOnServer):
                 await c.create_sweep(simulate={"actuation": "asymmetric"})
 
