@@ -30,7 +30,7 @@ class SimulatedSweep(BaseModel):
     damping: float | None = Field(default=None, ge=0)
     snr_db: float | None = None
     seed: int | None = None
-    max_measurements: int | None = Field(default=None, ge=2, le=200)
+    max_measurements: int | None = Field(default=None, ge=5, le=200)
 
 
 class SweepRequest(BaseModel):

@@ -73,10 +73,10 @@ async def test_async_client_in_process(asgi) -> None:  # noqa: ANN001
             await c.signal_data(meta.id)
         if numerics_has("service.analysis.pipeline", "warn"):
             sw = await c.create_sweep(simulate={"actuation": "antisymmetric",
-                                                "max_measurements": 3, "seed": 1})
+                                                "max_measurements": 5, "seed": 1})
             done = await c.wait(sw, progress=False, timeout=120, poll=0.1)
             assert done.id == sw.id and done.status == "succeeded", done.job.error
-            assert len(done.measurements) == 3
+            assert len(done.measurements) == 5
         else:
             with pytest.raises(NotImplementedOnServer):
                 await c.create_sweep(simulate={"actuation": "asymmetric"})
