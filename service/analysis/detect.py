@@ -587,7 +587,11 @@ def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
     Phi = _pinv_psd(U1.T @ U1, 1e-14) @ (U1.T @ U2)
     z = np.linalg.eigvals(Phi)
     z = z[np.abs(z) > 1e-12]
-    return np.log(z.astype(complex)) / stride
+    s = np.log(z.astype(complex)) / stride
+    # a pole that hardly changes across the Hankel window (|s| x span < 0.1) is not resolved
+    # by it: leave slow content to the residual rounds, whose stride is set by that content
+    span = (L - 1) * stride
+    return s[np.abs(s) * span >= 0.1]
 
 
 def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
@@ -608,7 +612,8 @@ def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
     reals.sort(key=abs)
     if reals and abs(reals[0]) * N < 1.0:
         reals = reals[1:]
-    reals.sort()
+    # a real pole growing by more than e^5 over the record is an artefact of the window
+    reals = sorted(r for r in reals if r * N > -5.0)
     while len(reals) >= 2:
         r1, r2 = reals.pop(0), reals.pop(0)
         ps.append(r1 + r2)
@@ -635,6 +640,7 @@ def _peak_candidates(
     k = np.arange(1, nb - 1)
     is_max = (P[k] >= P[k - 1]) & (P[k] > P[k + 1]) & spec.significant[k]
     peaks = k[is_max]
+    peaks = peaks[peaks >= 2]  # bins 0-1: a slow drift, left to the residual rounds
     if peaks.size == 0:
         return p, q
     peaks = peaks[np.argsort(-P[peaks])][:max_modes]
@@ -1044,6 +1050,24 @@ def _welch_peaks(x: np.ndarray) -> int:
     return int(peaks.size)
 
 
+def _initial_candidates(
+    y: np.ndarray, spec: _Spectrum, max_modes: int, peaks: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate modes ``(p, q)``: ESPRIT on the whole record, ESPRIT on its first eighth
+    (fast-decaying modes live there and vanish in a whole-record covariance), and the
+    significant periodogram peaks that neither explains."""
+    N = y.shape[0]
+    p, q = _candidates(_esprit(y, spec, 2 * max_modes + 1), N)
+    head = y[: N // 8]
+    if head.size >= 128:
+        hs = _spectrum(head)
+        ph, qh = _candidates(_esprit(head, hs, 2 * max_modes + 1), head.size)
+        p, q = np.concatenate((p, ph)), np.concatenate((q, qh))
+    if peaks:
+        p, q = _peak_candidates(spec, N, p, q, max_modes)
+    return p, q
+
+
 def _fit_parametric(
     y: np.ndarray,
     spec: _Spectrum,
@@ -1056,9 +1080,7 @@ def _fit_parametric(
     """ESPRIT initialisation, MDL pruning, varpro fit; then up to two rounds of residual
     ESPRIT (multi-scale: a slow residual gets a long strided window) to add missed modes."""
     N = y.shape[0]
-    s = _esprit(y, spec, 2 * max_modes + 1)
-    p, q = _candidates(s, N)
-    p, q = _peak_candidates(spec, N, p, q, max_modes)
+    p, q = _initial_candidates(y, spec, max_modes)
     fit: _Fit | None = None
     energy = np.zeros(0)
     for round_ in range(3):
@@ -1100,10 +1122,12 @@ def _fit_parametric(
             model_values(fit.ev.p, fit.ev.q, fit.ev.c, mv)
             r -= mv
         rspec = _spectrum(r)
-        if not rspec.significant.any():
+        head = r[: N // 8]
+        if not rspec.significant.any() and not (
+            head.size >= 128 and _spectrum(head).significant.any()
+        ):
             break
-        s_new = _esprit(r, rspec, 2 * max_modes + 1)
-        p_new, q_new = _candidates(s_new, N)
+        p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
         if p_new.size == 0:
             break
         base_p = fit.ev.p if fit is not None else np.zeros(0)
@@ -1112,6 +1136,7 @@ def _fit_parametric(
         q = np.concatenate((base_q, q_new))
     if fit is not None and refine:
         fit = _merge_close_modes(y, fit, max_iter)
+        fit = _repair_real_poles(y, fit, max_iter)
         p2, q2, _, c2 = _prune(y, fit.ev.p, fit.ev.q, fit.s2, max_modes, G=fit.ev.G)
         if 0 < p2.size < fit.ev.p.size:
             new = _levenberg_marquardt(y, p2, q2, common=fit.common, max_iter=max_iter)
@@ -1120,6 +1145,45 @@ def _fit_parametric(
     if fit is not None:
         energy = _mode_energy(fit.ev) / max(fit.s2, 1e-300)
     return fit, energy
+
+
+def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
+    """Undo a split of one overdamped pair over two modes (a local minimum where each mode
+    holds one true real pole and one spurious partner): for every two modes with real (or
+    heavily damped, omega < gamma) poles, try one pair made of a pole of each; keep the best
+    refit if it costs less than the MDL penalty of the mode it saves (``4 ln N`` noise
+    variances)."""
+    N = y.shape[0]
+    thr = 4.0 * math.log(N)
+    for _ in range(3):
+        p, q = fit.ev.p, fit.ev.q
+        D = 0.25 * p * p - q
+        pool = []
+        for k in range(p.size):
+            lam = math.sqrt(abs(D[k]))
+            if D[k] >= 0 or lam < 0.5 * p[k]:
+                pool.append((k, (-0.5 * p[k] - lam, -0.5 * p[k] + lam)))
+        if len(pool) < 2:
+            return fit
+        best = None
+        for i in range(len(pool)):
+            for j in range(i + 1, len(pool)):
+                ki, si = pool[i]
+                kj, sj = pool[j]
+                keep = [k for k in range(p.size) if k not in (ki, kj)]
+                for a in si:
+                    for b in sj:
+                        pn = np.append(p[keep], -(a + b))
+                        qn = np.append(q[keep], a * b)
+                        f = _levenberg_marquardt(y, pn, qn, common=fit.common, max_iter=max_iter)
+                        if f is None or (f.ev.rss - fit.ev.rss) >= thr * fit.s2:
+                            continue
+                        if best is None or f.ev.rss < best.ev.rss:
+                            best = f
+        if best is None:
+            return fit
+        fit = best
+    return fit
 
 
 def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
