@@ -19,6 +19,11 @@ PyElastica runs in its own virtual environment, never a dependency of the projec
 
 (or ``python bench/cosserat.py --setup``). Run: ``.venv/bin/python bench/cosserat.py``
 (``--quick`` for a short run). Writes bench/results/cosserat.csv and cosserat.png.
+
+``--mustar``: mu* of the rod against h/L and dL/L (node clamp, n = 200), with the
+inextensible elastica's mu* (shooting, sim.cosserat.elastica) and the element clamp of
+PyElastica at n = 50 for comparison with the paper's Table 1 (1.763, 1.973, 1.967 at
+dL/L = 1e-2). Writes bench/results/cosserat_mustar.csv and cosserat_mustar.png.
 """
 
 from __future__ import annotations
@@ -201,6 +206,75 @@ def run_elastica(n: int, dt: float, h: float, d: float, xi: float, kick: float,
             "newton_per_step": 0.0}
 
 
+def mustar_study() -> None:
+    from sim.cosserat import bifurcation
+    from sim.cosserat import elastica as E
+
+    acts = ("asymmetric", "symmetric", "antisymmetric")
+    paper = {"asymmetric": 1.763, "symmetric": 1.973, "antisymmetric": 1.967}
+    hs = [1e-4, 1e-3, 3e-3, 5e-3, 7e-3, 1e-2, 1.5e-2, 2e-2]
+    ds = [1e-3, 1e-2, 3e-2]
+    rows = []
+    for d in ds:
+        for act in acts:
+            t0 = time.process_time()
+            m_el = E.mu_star(act, d)
+            rows.append({"actuation": act, "end_shortening": d, "slenderness": 0.0,
+                         "model": "elastica", "clamp": "", "elements": 0, "mu_star": m_el,
+                         "cpu_s": time.process_time() - t0})
+            print(rows[-1], file=sys.stderr, flush=True)
+            for h in hs:
+                for clamp, n in (("node", 200), ("element", 50)):
+                    if clamp == "element" and d != 1e-2:
+                        continue
+                    t0 = time.process_time()
+                    try:
+                        m = bifurcation(act, end_shortening=d, slenderness=h, elements=n,
+                                        clamp=clamp).mu_star
+                    except Exception as e:  # e.g. too thick to buckle at this dL
+                        print(f"skip {act} d={d} h={h} {clamp}: {e}", file=sys.stderr)
+                        continue
+                    rows.append({"actuation": act, "end_shortening": d, "slenderness": h,
+                                 "model": "cosserat", "clamp": clamp, "elements": n,
+                                 "mu_star": m, "cpu_s": time.process_time() - t0})
+                    print(rows[-1], file=sys.stderr, flush=True)
+    RESULTS.mkdir(exist_ok=True)
+    keys = list(rows[0])
+    with open(RESULTS / "cosserat_mustar.csv", "w", newline="") as f:
+        wr = csv.DictWriter(f, fieldnames=keys)
+        wr.writeheader()
+        wr.writerows(rows)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    for ax, act in zip(axes, acts):
+        for d, col in zip(ds, ("C0", "C1", "C2")):
+            sel = [r for r in rows if r["actuation"] == act and r["end_shortening"] == d
+                   and r["model"] == "cosserat" and r["clamp"] == "node"]
+            el = [r["mu_star"] for r in rows if r["actuation"] == act
+                  and r["end_shortening"] == d and r["model"] == "elastica"]
+            ax.semilogx([r["slenderness"] for r in sel], [r["mu_star"] for r in sel], "o-",
+                        color=col, label=f"rod, node clamp n=200, dL/L={d:g}")
+            if el:
+                ax.axhline(el[0], color=col, ls=":", lw=1,
+                           label=f"elastica dL/L={d:g}: {el[0]:.4f}")
+        sel = [r for r in rows if r["actuation"] == act and r["clamp"] == "element"]
+        ax.semilogx([r["slenderness"] for r in sel], [r["mu_star"] for r in sel], "s--",
+                    color="C1", mfc="none", label="rod, element clamp n=50, dL/L=0.01")
+        ax.axhline(paper[act], color="k", ls="--", lw=1,
+                   label=f"paper Table 1: {paper[act]}")
+        ax.set_title(act)
+        ax.set_xlabel("h / L")
+        ax.set_ylabel("mu*")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(RESULTS / "cosserat_mustar.png", dpi=120)
+
+
 def setup_venv() -> None:
     if not (VENV / "bin" / "python").exists():
         subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
@@ -213,6 +287,7 @@ def main() -> None:
     ap.add_argument("--worker", nargs=2, help=argparse.SUPPRESS)
     ap.add_argument("--setup", action="store_true", help="create bench/.venv-elastica")
     ap.add_argument("--quick", action="store_true", help="fewer configurations")
+    ap.add_argument("--mustar", action="store_true", help="mu* against h/L and dL/L")
     ap.add_argument("--slenderness", type=float, default=1e-2)
     ap.add_argument("--end-shortening", type=float, default=1e-2)
     ap.add_argument("--damping", type=float, default=2e-4)
@@ -221,6 +296,10 @@ def main() -> None:
     a = ap.parse_args()
     if a.worker:
         elastica_worker(*a.worker)
+        return
+    if a.mustar:
+        sys.path.insert(0, str(ROOT))
+        mustar_study()
         return
     if a.setup:
         setup_venv()

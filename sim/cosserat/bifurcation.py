@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
 from . import statics as S
@@ -88,14 +89,17 @@ def _lam_min(rod: Rod, z: np.ndarray) -> float:
 
 
 def _fold_by_pin(
-    rod: Rod, z0: np.ndarray, mu0: float, c_stop: float, nsteps: int, xtol: float
+    rod: Rod, z0: np.ndarray, mu0: float, c_stop: float, nsteps: int, xtol: float,
+    symmetric: bool = False,
 ) -> tuple[float, np.ndarray, float, int]:
-    """Fold (max of mu along c = y(1/2)) of the branch through (z0, mu0): (mu*, z*, c*, solves)."""
+    """First root of the smallest Hessian eigenvalue along the branch through (z0, mu0),
+    parametrised by c = y(1/2) (a fold, or a symmetry-breaking bifurcation of a symmetric
+    branch): (mu*, z*, c*, solves)."""
     k = 3 * (rod.n // 2) + 1
     prev = (float(z0[k]), z0, mu0, _lam_min(rod, z0))
     solves = 0
     bracket = None
-    for c, z, mu in S._pinned_path(rod, z0, mu0, c_stop, nsteps):
+    for c, z, mu in S._pinned_path(rod, z0, mu0, c_stop, nsteps, symmetric=symmetric):
         solves += 1
         lam = _lam_min(rod, z)
         if lam < 0.0 <= prev[3]:
@@ -111,7 +115,7 @@ def _fold_by_pin(
         t = (c - ca) / (cb - ca)
         zg = za + t * (zb - za)
         zg[k] = c
-        zn, mn = S.newton(rod, zg, ma + t * (mb - ma), pin=k)
+        zn, mn = S.newton(rod, zg, ma + t * (mb - ma), pin=k, symmetric=symmetric)
         cache[c] = (zn, mn)
         return _lam_min(rod, zn)
 
@@ -120,6 +124,17 @@ def _fold_by_pin(
         f(c_star)
     z_star, mu_star = cache[c_star]
     return mu_star, z_star, c_star, solves + len(cache)
+
+
+def _critical_mode_is_symmetric(rod: Rod, z: np.ndarray) -> bool:
+    """Whether the Hessian's eigenvector nearest zero is invariant under the actuation's
+    symmetry (a fold of the symmetric branch) or reversed by it (symmetry breaking)."""
+    H, fidx = S._free_sparse(rod, z)
+    _, V = spla.eigsh(H, k=1, sigma=-1e-9, which="LM", tol=1e-12)
+    phi = np.zeros(rod.N)
+    phi[fidx] = V[:, 0]
+    img = rod.mirror(phi) - rod.mirror(np.zeros(rod.N))
+    return float(phi @ img) > 0.0
 
 
 def _root_in_mu(
@@ -174,21 +189,24 @@ def find_bifurcation(rod: Rod, *, xtol: float = 1e-12) -> Bifurcation:
         mu_star, z_star, c_star, solves = _fold_by_pin(rod, z0, 0.0, 0.05 * c0, 95, xtol * abs(c0))
         info["c_star"] = c_star / math.sqrt(rod.end_shortening)
     elif act == "symmetric":
-        mu_star, z_star, solves = _root_in_mu(rod, z0, 0.0, 0.05, 3.0, xtol)
-        try:
-            mu2, z2, c2, s2 = _fold_by_pin_sym(rod, z_star, mu_star, c0, xtol)
-            P2 = -rod.axial_force(z2)
-            secondary.append(
-                {
-                    "mu_star": mu2,
-                    "lambda_star": math.sqrt(max(P2, 0.0)),
-                    "transition": "saddle-node",
-                    "branches": ["U_A", "W_B"],
-                }
-            )
-            solves += s2
-        except S.ConvergenceError as e:  # pragma: no cover - reported, not fatal
-            info["secondary_error"] = str(e)
+        # U_A (mirror-symmetric) by the midpoint parametrisation, through folds; the first
+        # zero of the smallest eigenvalue is either the pitchfork (antisymmetric critical
+        # mode: S_A and S_B meet U_A) or a fold of U_A (symmetric mode), which for thick
+        # or strongly shortened strips comes first.
+        mu_star, z_star, c_star, solves = _fold_by_pin(
+            rod, z0, 0.0, 0.05 * c0, 95, xtol * abs(c0), symmetric=True)
+        if _critical_mode_is_symmetric(rod, z_star):
+            transition, branches = "saddle-node", ("U_A", "W_B")
+            info["note"] = "the fold of U_A comes before the pitchfork with S_A, S_B"
+        else:
+            try:
+                mu2, z2, c2, s2 = _fold_by_pin_sym(rod, z_star, mu_star, c0, xtol)
+                P2 = -rod.axial_force(z2)
+                secondary.append({"mu_star": mu2, "lambda_star": math.sqrt(max(P2, 0.0)),
+                                  "transition": "saddle-node", "branches": ["U_A", "W_B"]})
+                solves += s2
+            except S.ConvergenceError as e:  # pragma: no cover - reported, not fatal
+                info["secondary_error"] = str(e)
     else:
         # U_A by the midpoint parametrisation almost to the pitchfork, then S_B.
         # (w(1/2) is even in mu here, so start the midpoint parametrisation at mu = 1)

@@ -53,6 +53,24 @@ def _sparse(ab: np.ndarray) -> sp.csc_matrix:
     return sp.dia_matrix((ab, KU - np.arange(ab.shape[0])), shape=(N, N)).tocsc()
 
 
+def _anti_projector(rod: Rod) -> sp.csc_matrix:
+    """(I - R) / 2 with R the linear part of the actuation's symmetry (sparse, N x N):
+    node i <-> n - i, element e <-> n - 1 - e; x -> -x always; y -> y and theta -> -theta
+    for the mirror (symmetric), y -> -y and theta -> theta for the half-turn."""
+    n, N = rod.n, rod.N
+    mirror = rod.actuation == "symmetric"
+    if rod.actuation == "asymmetric":
+        raise ValueError("the asymmetric actuation has no symmetry")
+    i = np.arange(n + 1)
+    e = np.arange(n)
+    src = np.concatenate([3 * i, 3 * i + 1, 3 * e + 2])
+    dst = np.concatenate([3 * (n - i), 3 * (n - i) + 1, 3 * (n - 1 - e) + 2])
+    sy, st = (1.0, -1.0) if mirror else (-1.0, 1.0)
+    sgn = np.concatenate([-np.ones(n + 1), sy * np.ones(n + 1), st * np.ones(n)])
+    R = sp.csc_matrix((sgn, (dst, src)), shape=(N, N))
+    return (0.5 * (sp.identity(N, format="csc") - R)).tocsc()
+
+
 def newton(
     rod: Rod,
     z: np.ndarray,
@@ -89,14 +107,20 @@ def newton(
     if pin is not None and fixed[pin]:
         raise ValueError(f"pin must index a free dof, got {pin!r}")
     dmax = math.inf
+    P = _anti_projector(rod) if symmetric else None
     for _ in range(maxit):
         g = rod.gradient(z, mu)
         g[fixed] = 0.0
         ab = _dirichlet_band(rod, rod.hessian_band(z), fixed)
+        J = _sparse(ab)
+        if P is not None:
+            # lift the symmetry-breaking directions (a pitchfork's null mode): the Newton
+            # step of a symmetric residual is symmetric and does not see this term
+            J = J + float(np.median(np.abs(ab[4]))) * P
         if pin is None:
-            dz = spla.spsolve(_sparse(ab), -g)
+            dz = spla.spsolve(J.tocsc(), -g)
         else:
-            J = _sparse(ab).tolil()
+            J = J.tolil()
             m = rod.dgrad_dmu(z)
             m[fixed] = 0.0
             J[:, pin] = m[:, None]
@@ -278,7 +302,8 @@ def branch_state(rod: Rod, mu: float, branch: str = "U_A") -> np.ndarray:
         raise
 
 
-def _pinned_path(rod: Rod, z0: np.ndarray, mu0: float, c_stop: float, nsteps: int):
+def _pinned_path(rod: Rod, z0: np.ndarray, mu0: float, c_stop: float, nsteps: int,
+                 symmetric: bool = False):
     """Yield (c, z, mu) along the branch with c = y(1/2) from z0's value to c_stop."""
     k = 3 * (rod.n // 2) + 1
     c0 = float(z0[k])
@@ -296,7 +321,7 @@ def _pinned_path(rod: Rod, z0: np.ndarray, mu0: float, c_stop: float, nsteps: in
             zg = z + f * (z - zp)
             mug = mu + f * (mu - mup)
         zg[k] = c
-        zn, mun = newton(rod, zg, mug, pin=k)
+        zn, mun = newton(rod, zg, mug, pin=k, symmetric=symmetric)
         prev = (z, mu, float(z[k]))
         z, mu = zn, mun
         yield float(c), z, mu
