@@ -1059,7 +1059,8 @@ def _initial_candidates(
     N = y.shape[0]
     p, q = _candidates(_esprit(y, spec, 2 * max_modes + 1), N)
     head = y[: N // 8]
-    if head.size >= 128:
+    # only when the response decays within the record (the head holds most of the power)
+    if head.size >= 128 and float(np.mean(head * head)) > 3.0 * float(np.mean(y * y)):
         hs = _spectrum(head)
         ph, qh = _candidates(_esprit(head, hs, 2 * max_modes + 1), head.size)
         p, q = np.concatenate((p, ph)), np.concatenate((q, qh))
@@ -1124,7 +1125,9 @@ def _fit_parametric(
         rspec = _spectrum(r)
         head = r[: N // 8]
         if not rspec.significant.any() and not (
-            head.size >= 128 and _spectrum(head).significant.any()
+            head.size >= 128
+            and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
+            and _spectrum(head).significant.any()
         ):
             break
         p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
