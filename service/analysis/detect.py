@@ -23,10 +23,14 @@ Methods (``method=``)
     Initialisation only: strided (decimated) Hankel covariance + ESPRIT poles, model order by
     MDL on the linear amplitudes; no nonlinear refinement.
 ``"varpro"`` (= ``"auto"``)
-    ESPRIT initialisation, then variable-projection (separable) Levenberg-Marquardt least
-    squares on the poles ``(p_k, q_k)`` with the static level and the amplitudes projected
-    out; the parametrisation is smooth across critical damping, so an overdamped fundamental
-    is fitted as two real poles and ``sigma^2 = -q`` keeps its meaning. The model order is
+    ESPRIT initialisation (whole record, plus its first eighth when the response decays
+    within the record, plus unexplained Hann-periodogram peaks), then variable-projection
+    (separable) Levenberg-Marquardt least squares on the poles ``(p_k, q_k)`` with the static
+    level and the amplitudes projected out; residual rounds (ESPRIT on the residual, whose
+    stride adapts to slow content) add missed modes, and refit checks undo two known local
+    minima (two modes on one spectral line, an overdamped pair split over two modes). The
+    parametrisation is smooth across critical damping, so an overdamped fundamental is
+    fitted as two real poles and ``sigma^2 = -q`` keeps its meaning. The model order is
     chosen by MDL (backward elimination of modes whose removal costs less than
     ``4 ln N`` in chi-square units, i.e. ``(1/2) ln N`` per real parameter). The fundamental
     is the significant mode with the smallest ``|sigma^2|``. This is the maximum-likelihood
