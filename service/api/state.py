@@ -106,7 +106,7 @@ def signal_meta(row: SignalRow) -> dict[str, Any]:
         "control": control,
         "metadata": row.meta or {},
         "source": row.source,
-        "has_t": row.t is not None,
+        "has_t": bool(row.has_t),
         "sha256": row.sha256,
         "created_at": as_utc(row.created_at),
     }

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy import (
     JSON,
+    Boolean,
     DateTime,
     Double,
     Engine,
@@ -38,7 +39,14 @@ from sqlalchemy import (
     update,
 )
 from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+from sqlalchemy.orm import (
+    DeclarativeBase,
+    Mapped,
+    Session,
+    defer,
+    mapped_column,
+    sessionmaker,
+)
 
 F64 = np.dtype("<f8")
 
@@ -105,6 +113,7 @@ class SignalRow(Base):
     source: Mapped[str] = mapped_column(String(20))
     w: Mapped[bytes] = mapped_column(LargeBinary)
     t: Mapped[bytes | None] = mapped_column(LargeBinary)
+    has_t: Mapped[bool] = mapped_column(Boolean, default=False)
     sha256: Mapped[str] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(DateTime)
 
@@ -269,6 +278,7 @@ class Store:
             source=source,
             w=wb,
             t=encode_f64(t) if t is not None else None,
+            has_t=t is not None,
             sha256=hashlib.sha256(wb).hexdigest(),
             created_at=utcnow(),
         )
@@ -277,13 +287,17 @@ class Store:
         return row
 
     def get_signal_meta(self, signal_id: str) -> SignalRow | None:
+        """The row without its samples (they are not read from the database)."""
         with self.session() as s:
             return s.execute(
-                select(SignalRow).where(SignalRow.id == signal_id).options()
+                select(SignalRow)
+                .where(SignalRow.id == signal_id)
+                .options(defer(SignalRow.w, raiseload=True), defer(SignalRow.t, raiseload=True))
             ).scalar_one_or_none()
 
     def get_signal(self, signal_id: str) -> StoredSignal | None:
-        row = self.get_signal_meta(signal_id)
+        with self.session() as s:
+            row = s.get(SignalRow, signal_id)
         if row is None:
             return None
         t = decode_f64(row.t) if row.t is not None else None
