@@ -95,9 +95,21 @@ def start_server(tmp: Path, http_workers: int, analysis_workers: int | None) -> 
     env = dict(os.environ, SNAPWARN_LOG_LEVEL="warning", PYTHONUNBUFFERED="1")
     if analysis_workers:
         env["SNAPWARN_ANALYSIS_WORKERS"] = str(analysis_workers)
-    cmd = [sys.executable, "-c", "import sys; from service.cli import main; sys.exit(main())",
-           "serve", "--host", "127.0.0.1", "--port", str(port), "--workers", str(http_workers),
-           "--db", f"sqlite:///{tmp / 'bench.db'}", "--no-jobs"]
+    cmd = [
+        sys.executable,
+        "-c",
+        "import sys; from service.cli import main; sys.exit(main())",
+        "serve",
+        "--host",
+        "127.0.0.1",
+        "--port",
+        str(port),
+        "--workers",
+        str(http_workers),
+        "--db",
+        f"sqlite:///{tmp / 'bench.db'}",
+        "--no-jobs",
+    ]
     log = open(tmp / "server.log", "wb")  # noqa: SIM115
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
@@ -127,8 +139,9 @@ async def _level(url: str, body: bytes, clients: int, seconds: float) -> dict:
             while time.perf_counter() < stop_at:
                 t0 = time.perf_counter()
                 try:
-                    r = await c.post("/v1/detections", content=body,
-                                     headers={"content-type": "application/json"})
+                    r = await c.post(
+                        "/v1/detections", content=body, headers={"content-type": "application/json"}
+                    )
                     ok = r.status_code == 200
                     if not ok:
                         errors.append(f"{r.status_code}: {r.text[:200]}")
@@ -172,8 +185,11 @@ def _detect_reference(body: bytes, n: int = 200) -> dict:
         detect(w, dt=d["dt"])
         times.append(time.perf_counter() - t0)
     a = np.array(times) * 1e3
-    return {"p50_ms": float(np.percentile(a, 50)), "p95_ms": float(np.percentile(a, 95)),
-            "calls": n}
+    return {
+        "p50_ms": float(np.percentile(a, 50)),
+        "p95_ms": float(np.percentile(a, 95)),
+        "calls": n,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -182,8 +198,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=8.0, help="per level (bounded run)")
     ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--http-workers", type=int, default=1)
-    ap.add_argument("--analysis-workers", type=int, default=None,
-                    help="default: the server's (min(4, cores))")
+    ap.add_argument(
+        "--analysis-workers", type=int, default=None, help="default: the server's (min(4, cores))"
+    )
     ap.add_argument("--samples", type=int, default=10_000)
     ap.add_argument("--out", type=Path, default=RESULTS / "service")
     args = ap.parse_args(argv)
@@ -203,7 +220,8 @@ def main(argv: list[str] | None = None) -> int:
                 res = asyncio.run(_level(url, body, c, args.seconds))
                 cpu = _tree_cpu(proc.pid) - cpu0
                 res["client_cpu_ms_per_request"] = (
-                    1e3 * (time.process_time() - me0) / max(1, res["requests"]))
+                    1e3 * (time.process_time() - me0) / max(1, res["requests"])
+                )
                 res["server_cpu_ms_per_request"] = 1e3 * cpu / max(1, res["requests"])
                 cap = cores / (cpu / max(1, res["requests"])) if cpu > 0 else None
                 res["capacity_rps"] = cap
@@ -214,13 +232,16 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"{c:3d} clients: no answer; errors: {res['error_samples']}")
                     continue
                 frac = 100 * (res["fraction_of_capacity"] or 0)
-                print(f"{c:3d} clients: p50 {res['p50_ms']:.1f} ms  p95 {res['p95_ms']:.1f} ms  "
-                      f"p99 {res['p99_ms']:.1f} ms  {res['throughput_rps']:.1f} req/s  "
-                      f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req (client "
-                      f"{res['client_cpu_ms_per_request']:.2f})  capacity "
-                      f"{cap or float('nan'):.1f} req/s ({frac:.0f}"
-                      f"%)  errors {res['errors']}  per-client {res['min_requests_per_client']}"
-                      f"..{res['max_requests_per_client']}", flush=True)
+                print(
+                    f"{c:3d} clients: p50 {res['p50_ms']:.1f} ms  p95 {res['p95_ms']:.1f} ms  "
+                    f"p99 {res['p99_ms']:.1f} ms  {res['throughput_rps']:.1f} req/s  "
+                    f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req (client "
+                    f"{res['client_cpu_ms_per_request']:.2f})  capacity "
+                    f"{cap or float('nan'):.1f} req/s ({frac:.0f}"
+                    f"%)  errors {res['errors']}  per-client {res['min_requests_per_client']}"
+                    f"..{res['max_requests_per_client']}",
+                    flush=True,
+                )
         finally:
             proc.send_signal(signal.SIGTERM)
             try:
@@ -228,8 +249,10 @@ def main(argv: list[str] | None = None) -> int:
             except subprocess.TimeoutExpired:
                 proc.kill()
     ref = _detect_reference(body)
-    print(f"reference: detect() alone in one process: p50 {ref['p50_ms']:.2f} ms, "
-          f"p95 {ref['p95_ms']:.2f} ms")
+    print(
+        f"reference: detect() alone in one process: p50 {ref['p50_ms']:.2f} ms, "
+        f"p95 {ref['p95_ms']:.2f} ms"
+    )
     doc = {
         "benchmark": "POST /v1/detections, inline signal",
         "detect_in_process": ref,

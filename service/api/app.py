@@ -49,12 +49,19 @@ def _lifespan(settings: Settings) -> Any:
             def ready(avail: dict[str, bool]) -> None:
                 state.numerics_cache = (time.monotonic(), avail)
 
-            threading.Thread(target=warm_pool, args=(pool, settings.analysis_workers, ready),
-                             name="snapwarn-warm", daemon=True).start()
+            threading.Thread(
+                target=warm_pool,
+                args=(pool, settings.analysis_workers, ready),
+                name="snapwarn-warm",
+                daemon=True,
+            ).start()
         runner = None
         if settings.run_jobs:
-            runner = JobRunner(store, settings, partial(
-                make_pool, settings.executor, settings.job_workers, "snapwarn-jobs"))
+            runner = JobRunner(
+                store,
+                settings,
+                partial(make_pool, settings.executor, settings.job_workers, "snapwarn-jobs"),
+            )
             await to_thread.run_sync(runner.start)
         state.runner = runner
         app.state.snapwarn = state
@@ -96,8 +103,9 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
     """The OpenAPI document, with the schemas only referenced by hand (problems, uploads)."""
     if app.openapi_schema:
         return app.openapi_schema
-    doc = get_openapi(title=app.title, version=app.version, description=app.description,
-                      routes=app.routes)
+    doc = get_openapi(
+        title=app.title, version=app.version, description=app.description, routes=app.routes
+    )
     comps = doc.setdefault("components", {}).setdefault("schemas", {})
     for model in (Problem, SignalIn, DetectionRequest):
         schema = model.model_json_schema(ref_template="#/components/schemas/{model}")

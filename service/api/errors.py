@@ -19,7 +19,9 @@ log = logging.getLogger("snapwarn.api")
 
 def problem_response(problem: ApiProblem, instance: str | None) -> JSONResponse:
     return JSONResponse(
-        problem.to_dict(instance), status_code=problem.status, media_type=PROBLEM_MEDIA_TYPE,
+        problem.to_dict(instance),
+        status_code=problem.status,
+        media_type=PROBLEM_MEDIA_TYPE,
         headers=problem.headers or None,
     )
 

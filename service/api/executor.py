@@ -39,8 +39,7 @@ def _die_with_parent(parent: int, period: float = 0.25) -> None:
     threading.Thread(target=watch, name="snapwarn-parent-watch", daemon=True).start()
 
 
-_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
-               "NUMBA_NUM_THREADS")
+_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
 def _init_worker(parent: int) -> None:
@@ -56,13 +55,16 @@ def make_pool(kind: str, workers: int, name: str) -> Executor:
     if kind == "thread":
         return ThreadPoolExecutor(max_workers=workers, thread_name_prefix=name)
     return ProcessPoolExecutor(
-        max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_init_worker,
+        max_workers=workers,
+        mp_context=mp.get_context("spawn"),
+        initializer=_init_worker,
         initargs=(os.getpid(),),
     )
 
 
-def warm_pool(pool: Executor, workers: int,
-              on_ready: Callable[[dict[str, bool]], None] | None = None) -> None:
+def warm_pool(
+    pool: Executor, workers: int, on_ready: Callable[[dict[str, bool]], None] | None = None
+) -> None:
     """Start every worker and import the numerics there (best effort).
 
     ``on_ready`` receives which numerics entry points are installed.

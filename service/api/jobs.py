@@ -85,14 +85,19 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
             for k, m in enumerate(params["measurements"]):
                 sig = store.get_signal(m["signal_id"])
                 if sig is None:
-                    raise ApiProblem(422, f"signal {m['signal_id']!r} was deleted",
-                                     field=f"measurements[{k}].signal_id", value=m["signal_id"])
+                    raise ApiProblem(
+                        422,
+                        f"signal {m['signal_id']!r} was deleted",
+                        field=f"measurements[{k}].signal_id",
+                        value=m["signal_id"],
+                    )
                 items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
                 progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
             progress(0.1, f"analysing {len(items)} signals")
             names = [m["signal_id"] for m in params["measurements"]]
             result = numerics.sweep_from_signals(
-                items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg))
+                items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg)
+            )
         elif job.kind == "diagnostic-sleep":
             result = _diagnostic_sleep(params, progress)
         else:
@@ -125,11 +130,21 @@ def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, 
     n = len(sim["w"])
     dt = (float(t[-1]) - float(t[0])) / (n - 1)
     return store.add_signal(
-        w=sim["w"], dt=dt, t0=float(t[0]), t=t, source="simulation",
-        name=params.get("name"), unit=None, value_unit=None,
+        w=sim["w"],
+        dt=dt,
+        t0=float(t[0]),
+        t=t,
+        source="simulation",
+        name=params.get("name"),
+        unit=None,
+        value_unit=None,
         control={"name": "mu", "value": float(scene.get("mu", 0.0)), "unit": None},
-        metadata={"scene": scene, "model": sim["model"], "w_static": sim["w_static"],
-                  "info": sim["info"]},
+        metadata={
+            "scene": scene,
+            "model": sim["model"],
+            "w_static": sim["w_static"],
+            "info": sim["info"],
+        },
     )
 
 

@@ -77,9 +77,14 @@ def _calling(what: str) -> Iterator[None]:
     except ModuleNotFoundError as exc:
         name = exc.name or ""
         if name.split(".")[0] == "sim" or name.startswith("service.analysis"):
-            raise ApiProblem(501, f"{what} needs {name}, which is not available in this "
-                             "installation yet", title="Numerics not available",
-                             slug="numerics-unavailable", field="numerics", value=name) from None
+            raise ApiProblem(
+                501,
+                f"{what} needs {name}, which is not available in this installation yet",
+                title="Numerics not available",
+                slug="numerics-unavailable",
+                field="numerics",
+                value=name,
+            ) from None
         raise
 
 
@@ -160,8 +165,11 @@ def warn(params: dict[str, Any], progress: Callable[[float, str], None]) -> dict
     return sanitize(res.to_dict())
 
 
-def sweep_from_signals(items: list[tuple[np.ndarray, float, float]], names: list[str],
-                       progress: Callable[[float, str], None]) -> dict[str, Any]:
+def sweep_from_signals(
+    items: list[tuple[np.ndarray, float, float]],
+    names: list[str],
+    progress: Callable[[float, str], None],
+) -> dict[str, Any]:
     """The pipeline on recorded signals: ``[(w, dt, control_value), ...]`` -> document."""
     fn = load("sweep_from_signals")
     try:

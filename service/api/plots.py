@@ -26,8 +26,16 @@ def _save(fig: Any, fmt: str) -> bytes:
     return buf.getvalue()
 
 
-def signal_plot(t: np.ndarray, w: np.ndarray, *, title: str, unit: str | None,
-                value_unit: str | None, static_level: float | None, fmt: str = "png") -> bytes:
+def signal_plot(
+    t: np.ndarray,
+    w: np.ndarray,
+    *,
+    title: str,
+    unit: str | None,
+    value_unit: str | None,
+    static_level: float | None,
+    fmt: str = "png",
+) -> bytes:
     """w(t), decimated to at most ~20000 points by min/max pairs; the static level if known."""
     fig = _figure()
     ax = fig.add_subplot()
@@ -92,11 +100,20 @@ def sweep_series(doc: dict[str, Any]) -> dict[str, Any]:
     if isinstance(interval, (list, tuple)) and len(interval) == 2:
         lo, hi = _num(interval[0]), _num(interval[1])
     elif isinstance(interval, dict):
-        lo, hi = _num(_first(interval, ("low", "lo", "lower"))), _num(
-            _first(interval, ("high", "hi", "upper")))
-    return {"x": xs, "y": ys, "mu_star": mu_star, "lo": lo, "hi": hi,
-            "a": _num(pred.get("a")), "transition": pred.get("transition"),
-            "control_name": doc.get("control_name") or "mu"}
+        lo, hi = (
+            _num(_first(interval, ("low", "lo", "lower"))),
+            _num(_first(interval, ("high", "hi", "upper"))),
+        )
+    return {
+        "x": xs,
+        "y": ys,
+        "mu_star": mu_star,
+        "lo": lo,
+        "hi": hi,
+        "a": _num(pred.get("a")),
+        "transition": pred.get("transition"),
+        "control_name": doc.get("control_name") or "mu",
+    }
 
 
 def sweep_plot(doc: dict[str, Any], *, title: str, fmt: str = "png") -> bytes:
@@ -119,8 +136,7 @@ def sweep_plot(doc: dict[str, Any], *, title: str, fmt: str = "png") -> bytes:
         if s["lo"] is not None and s["hi"] is not None:
             a_.axvspan(s["lo"], s["hi"], color="tab:red", alpha=0.15, label="95% interval")
         if s["mu_star"] is not None:
-            a_.axvline(s["mu_star"], color="tab:red", lw=1.0,
-                       label=f"mu* = {s['mu_star']:.8g}")
+            a_.axvline(s["mu_star"], color="tab:red", lw=1.0, label=f"mu* = {s['mu_star']:.8g}")
         a_.set_xlabel(s["control_name"])
         a_.grid(alpha=0.3)
     ax.set_ylabel("T")
@@ -139,9 +155,15 @@ def sweep_plot(doc: dict[str, Any], *, title: str, fmt: str = "png") -> bytes:
     else:
         bx.text(0.5, 0.5, "no exponent in the result", ha="center", transform=bx.transAxes)
     if s["mu_star"] is not None and s["lo"] is not None and s["hi"] is not None:
-        bx.text(0.02, 0.02, f"mu* = {s['mu_star']:.10g}\n95%: [{s['lo']:.10g}, {s['hi']:.10g}]",
-                transform=bx.transAxes, fontsize=8, va="bottom",
-                bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+        bx.text(
+            0.02,
+            0.02,
+            f"mu* = {s['mu_star']:.10g}\n95%: [{s['lo']:.10g}, {s['hi']:.10g}]",
+            transform=bx.transAxes,
+            fontsize=8,
+            va="bottom",
+            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
+        )
     ax.set_title(title)
     bx.set_title(f"extrapolation ({s['transition'] or 'undetermined'})")
     for a_ in (ax, bx):

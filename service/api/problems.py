@@ -89,9 +89,7 @@ class ApiProblem(Exception):
         self.type = PROBLEM_TYPE_PREFIX + (slug or SLUGS.get(self.status, "error"))
         self.errors = list(errors or [])
         if field is not None and not self.errors:
-            self.errors.append(
-                {"field": field, "value": wire_value(value), "message": detail}
-            )
+            self.errors.append({"field": field, "value": wire_value(value), "message": detail})
         self.headers = headers or {}
 
     def __reduce__(self) -> Any:  # picklable across the process pool

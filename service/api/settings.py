@@ -62,8 +62,10 @@ class Settings(BaseSettings):
     )
     job_max_attempts: int = Field(default=3, ge=1)
     heartbeat_file: str | None = Field(
-        default=None, description="A file the job runner touches at every heartbeat "
-        "(for container healthchecks of `snapwarn worker`).")
+        default=None,
+        description="A file the job runner touches at every heartbeat "
+        "(for container healthchecks of `snapwarn worker`).",
+    )
     sync_simulation_models: list[str] = Field(
         default_factory=lambda: ["normal-form", "euler-beam"],
         description="Models whose simulations answer at once; others become jobs.",

@@ -35,8 +35,9 @@ class AppState:
             return await run_in_pool(self.pool, fn, *args)
         except BrokenProcessPool:
             old = self.pool
-            self.pool = make_pool(self.settings.executor, self.settings.analysis_workers,
-                                  "snapwarn-analysis")
+            self.pool = make_pool(
+                self.settings.executor, self.settings.analysis_workers, "snapwarn-analysis"
+            )
             old.shutdown(wait=False, cancel_futures=True)
             return await run_in_pool(self.pool, fn, *args)
 
@@ -92,8 +93,11 @@ def require_api_key(request: Request) -> None:
 def signal_meta(row: SignalRow) -> dict[str, Any]:
     control = None
     if row.control_name is not None or row.control_value is not None:
-        control = {"name": row.control_name or "mu", "value": row.control_value,
-                   "unit": row.control_unit}
+        control = {
+            "name": row.control_name or "mu",
+            "value": row.control_value,
+            "unit": row.control_unit,
+        }
     return {
         "id": row.id,
         "name": row.name,

@@ -436,8 +436,11 @@ class Store:
                 hb = row.heartbeat_at or row.started_at or row.created_at
                 if not (hb < cutoff or _owner_dead_here(row.owner)):
                     continue
-                cond = (JobRow.id == row.id, JobRow.status == "running",
-                        JobRow.attempts == row.attempts)
+                cond = (
+                    JobRow.id == row.id,
+                    JobRow.status == "running",
+                    JobRow.attempts == row.attempts,
+                )
                 if row.attempts >= max_attempts:
                     err = {
                         "type": "urn:snapwarn:problem:job-interrupted",
@@ -445,15 +448,30 @@ class Store:
                         "detail": f"the runner of this job stopped {row.attempts} time(s) "
                         f"(server restart or crash; max attempts {max_attempts}); giving up",
                     }
-                    res = s.execute(update(JobRow).where(*cond).values(
-                        status="failed", error=err, message="interrupted", finished_at=now,
-                        owner=None))
+                    res = s.execute(
+                        update(JobRow)
+                        .where(*cond)
+                        .values(
+                            status="failed",
+                            error=err,
+                            message="interrupted",
+                            finished_at=now,
+                            owner=None,
+                        )
+                    )
                     new = "failed"
                 else:
-                    res = s.execute(update(JobRow).where(*cond).values(
-                        status="queued", owner=None, fraction=0.0,
-                        message=f"resuming after an interruption (attempt {row.attempts + 1} "
-                        f"of {max_attempts})"))
+                    res = s.execute(
+                        update(JobRow)
+                        .where(*cond)
+                        .values(
+                            status="queued",
+                            owner=None,
+                            fraction=0.0,
+                            message=f"resuming after an interruption (attempt {row.attempts + 1} "
+                            f"of {max_attempts})",
+                        )
+                    )
                     new = "queued"
                 if res.rowcount == 1:
                     done.append((row.id, new))
@@ -467,13 +485,22 @@ class Store:
             return int(s.execute(q).scalar_one())
 
     # --- sweeps ------------------------------------------------------------------------------
-    def create_sweep(self, kind: str, request: dict[str, Any], params: dict[str, Any],
-                     name: str | None) -> tuple[SweepRow, JobRow]:
+    def create_sweep(
+        self, kind: str, request: dict[str, Any], params: dict[str, Any], name: str | None
+    ) -> tuple[SweepRow, JobRow]:
         sid = new_id()
         now = utcnow()
         sweep = SweepRow(id=sid, name=name, request=sanitize(request), created_at=now)
-        job = JobRow(id=sid, kind=kind, status="queued", params=sanitize(params), fraction=0.0,
-                     message="queued", attempts=0, created_at=now)
+        job = JobRow(
+            id=sid,
+            kind=kind,
+            status="queued",
+            params=sanitize(params),
+            fraction=0.0,
+            message="queued",
+            attempts=0,
+            created_at=now,
+        )
         with self.session() as s:
             s.add(job)
             s.add(sweep)
@@ -506,6 +533,10 @@ class Store:
     def live_workers(self, lease_s: float) -> int:
         cutoff = utcnow() - timedelta(seconds=lease_s)
         with self.session() as s:
-            return int(s.execute(
-                select(func.count()).select_from(WorkerRow).where(WorkerRow.heartbeat_at >= cutoff)
-            ).scalar_one())
+            return int(
+                s.execute(
+                    select(func.count())
+                    .select_from(WorkerRow)
+                    .where(WorkerRow.heartbeat_at >= cutoff)
+                ).scalar_one()
+            )

@@ -17,30 +17,50 @@ DEFAULT_OPENAPI = Path("openapi") / "openapi.json"
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this area's sub-commands to ``sub``."""
-    p = sub.add_parser("serve", help="run the REST API (uvicorn)",
-                       description="Run the REST API. Settings come from SNAPWARN_* variables; "
-                       "the options override them.")
+    p = sub.add_parser(
+        "serve",
+        help="run the REST API (uvicorn)",
+        description="Run the REST API. Settings come from SNAPWARN_* variables; "
+        "the options override them.",
+    )
     p.add_argument("--host", default=None, help="bind address (default 127.0.0.1)")
     p.add_argument("--port", default=None, help="port (default 8000)")
-    p.add_argument("--db", default=None, metavar="URL",
-                   help="database URL (default sqlite:///./var/snapwarn.db)")
+    p.add_argument(
+        "--db",
+        default=None,
+        metavar="URL",
+        help="database URL (default sqlite:///./var/snapwarn.db)",
+    )
     p.add_argument("--workers", default=None, help="uvicorn worker processes (default 1)")
-    p.add_argument("--no-jobs", action="store_true",
-                   help="do not run jobs in the server (run `snapwarn worker` instead)")
+    p.add_argument(
+        "--no-jobs",
+        action="store_true",
+        help="do not run jobs in the server (run `snapwarn worker` instead)",
+    )
     p.set_defaults(func=_serve)
 
-    w = sub.add_parser("worker", help="run persistent jobs from the database",
-                       description="Claim and run queued jobs (sweeps, long simulations) until "
-                       "stopped; restarted workers resume interrupted jobs.")
+    w = sub.add_parser(
+        "worker",
+        help="run persistent jobs from the database",
+        description="Claim and run queued jobs (sweeps, long simulations) until "
+        "stopped; restarted workers resume interrupted jobs.",
+    )
     w.add_argument("--db", default=None, metavar="URL", help="database URL")
     w.add_argument("--jobs", default=None, help="jobs run at once (default 1)")
     add_json_flag(w)
     w.set_defaults(func=_worker)
 
-    o = sub.add_parser("openapi", help="write the OpenAPI document of the REST API",
-                       description="Export the OpenAPI document exactly as the app serves it.")
-    o.add_argument("--out", default=str(DEFAULT_OPENAPI), metavar="PATH",
-                   help=f"output file, '-' for stdout (default {DEFAULT_OPENAPI})")
+    o = sub.add_parser(
+        "openapi",
+        help="write the OpenAPI document of the REST API",
+        description="Export the OpenAPI document exactly as the app serves it.",
+    )
+    o.add_argument(
+        "--out",
+        default=str(DEFAULT_OPENAPI),
+        metavar="PATH",
+        help=f"output file, '-' for stdout (default {DEFAULT_OPENAPI})",
+    )
     add_json_flag(o)
     o.set_defaults(func=_openapi)
 
@@ -83,16 +103,28 @@ def _settings():  # noqa: ANN202 - imported lazily
 def _serve(args: argparse.Namespace) -> int:
     port = _int("--port", args.port, 0, 65535)
     workers = _int("--workers", args.workers, 1, 64)
-    _apply_env(args.db, host=args.host, port=port, http_workers=workers,
-               run_jobs="false" if args.no_jobs else None)
+    _apply_env(
+        args.db,
+        host=args.host,
+        port=port,
+        http_workers=workers,
+        run_jobs="false" if args.no_jobs else None,
+    )
     settings = _settings()
     import uvicorn
 
-    sys.stderr.write(f"snapwarn: serving on http://{settings.host}:{settings.port} "
-                     f"(db {settings.db_url})\n")
-    uvicorn.run("service.api.app:app_from_env", factory=True, host=settings.host,
-                port=settings.port, workers=settings.http_workers,
-                log_level=settings.log_level, timeout_graceful_shutdown=5)
+    sys.stderr.write(
+        f"snapwarn: serving on http://{settings.host}:{settings.port} (db {settings.db_url})\n"
+    )
+    uvicorn.run(
+        "service.api.app:app_from_env",
+        factory=True,
+        host=settings.host,
+        port=settings.port,
+        workers=settings.http_workers,
+        log_level=settings.log_level,
+        timeout_graceful_shutdown=5,
+    )
     return 0
 
 
@@ -110,8 +142,11 @@ def _worker(args: argparse.Namespace) -> int:
 
     store = Store(settings.db_url)
     store.create_all()
-    runner = JobRunner(store, settings, partial(make_pool, settings.executor,
-                                                settings.job_workers, "snapwarn-jobs"))
+    runner = JobRunner(
+        store,
+        settings,
+        partial(make_pool, settings.executor, settings.job_workers, "snapwarn-jobs"),
+    )
     stop = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.set())
@@ -133,6 +168,9 @@ def _openapi(args: argparse.Namespace) -> int:
         return 0
     path = export_openapi(args.out)
     doc = openapi_document()
-    emit({"path": str(path), "paths": len(doc["paths"]), "openapi": doc["openapi"]},
-         json_mode=args.json, text=f"wrote {path} ({len(doc['paths'])} paths)")
+    emit(
+        {"path": str(path), "paths": len(doc["paths"]), "openapi": doc["openapi"]},
+        json_mode=args.json,
+        text=f"wrote {path} ({len(doc['paths'])} paths)",
+    )
     return 0

@@ -36,11 +36,21 @@ class Client:
     ...     doc = c.detect(sig.id)
     """
 
-    def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 60.0, *,
-                 transport: httpx2.BaseTransport | None = None,
-                 headers: dict[str, str] | None = None) -> None:
-        self._http = httpx2.Client(base_url=base_url, timeout=timeout, transport=transport,
-                                   headers=_headers(api_key, headers))
+    def __init__(
+        self,
+        base_url: str,
+        api_key: str | None = None,
+        timeout: float = 60.0,
+        *,
+        transport: httpx2.BaseTransport | None = None,
+        headers: dict[str, str] | None = None,
+    ) -> None:
+        self._http = httpx2.Client(
+            base_url=base_url,
+            timeout=timeout,
+            transport=transport,
+            headers=_headers(api_key, headers),
+        )
 
     def close(self) -> None:
         self._http.close()
@@ -52,8 +62,15 @@ class Client:
         self.close()
 
     def _run(self, call: core.Call) -> Any:
-        r = self._http.request(call.method, call.path, params=call.params, content=call.content,
-                               files=call.files, data=call.data, headers=call.headers or None)
+        r = self._http.request(
+            call.method,
+            call.path,
+            params=call.params,
+            content=call.content,
+            files=call.files,
+            data=call.data,
+            headers=call.headers or None,
+        )
         core.raise_for_problem(r)
         return call.parse(r)
 
@@ -114,8 +131,15 @@ class Client:
         """``GET /v1/jobs/{id}``."""
         return self._run(core.get_job(job_id))
 
-    def wait(self, job: Any, *, progress: bool = True, timeout: float | None = None,
-             poll: float = 0.25, raise_on_failure: bool = True) -> Any:
+    def wait(
+        self,
+        job: Any,
+        *,
+        progress: bool = True,
+        timeout: float | None = None,
+        poll: float = 0.25,
+        raise_on_failure: bool = True,
+    ) -> Any:
         """Poll a job (or a Sweep / SimulationResult / id) until it ends, drawing a bar.
 
         Returns the finished Job, or the refreshed Sweep when given a Sweep. Raises
@@ -144,11 +168,21 @@ class Client:
 class AsyncClient:
     """asyncio SDK client; the same methods as :class:`Client`, awaitable."""
 
-    def __init__(self, base_url: str, api_key: str | None = None, timeout: float = 60.0, *,
-                 transport: httpx2.AsyncBaseTransport | None = None,
-                 headers: dict[str, str] | None = None) -> None:
-        self._http = httpx2.AsyncClient(base_url=base_url, timeout=timeout, transport=transport,
-                                        headers=_headers(api_key, headers))
+    def __init__(
+        self,
+        base_url: str,
+        api_key: str | None = None,
+        timeout: float = 60.0,
+        *,
+        transport: httpx2.AsyncBaseTransport | None = None,
+        headers: dict[str, str] | None = None,
+    ) -> None:
+        self._http = httpx2.AsyncClient(
+            base_url=base_url,
+            timeout=timeout,
+            transport=transport,
+            headers=_headers(api_key, headers),
+        )
 
     async def aclose(self) -> None:
         await self._http.aclose()
@@ -160,9 +194,15 @@ class AsyncClient:
         await self.aclose()
 
     async def _run(self, call: core.Call) -> Any:
-        r = await self._http.request(call.method, call.path, params=call.params,
-                                     content=call.content, files=call.files, data=call.data,
-                                     headers=call.headers or None)
+        r = await self._http.request(
+            call.method,
+            call.path,
+            params=call.params,
+            content=call.content,
+            files=call.files,
+            data=call.data,
+            headers=call.headers or None,
+        )
         core.raise_for_problem(r)
         return call.parse(r)
 
@@ -178,8 +218,7 @@ class AsyncClient:
     async def get_signal(self, signal_id: str) -> SignalMeta:
         return await self._run(core.get_signal(signal_id))
 
-    async def signal_data(self, signal_id: str, *,
-                          as_numpy: bool | None = None) -> tuple[Any, Any]:
+    async def signal_data(self, signal_id: str, *, as_numpy: bool | None = None) -> tuple[Any, Any]:
         return await self._run(core.signal_data(signal_id, as_numpy=as_numpy))
 
     async def download_signal(self, signal_id: str, *, format: str = "csv") -> bytes:
@@ -209,8 +248,15 @@ class AsyncClient:
     async def get_job(self, job_id: str) -> Job:
         return await self._run(core.get_job(job_id))
 
-    async def wait(self, job: Any, *, progress: bool = True, timeout: float | None = None,
-                   poll: float = 0.25, raise_on_failure: bool = True) -> Any:
+    async def wait(
+        self,
+        job: Any,
+        *,
+        progress: bool = True,
+        timeout: float | None = None,
+        poll: float = 0.25,
+        raise_on_failure: bool = True,
+    ) -> Any:
         """See :meth:`Client.wait`."""
         jid = core.job_id_of(job)
         bar = core.Bar(progress, f"job {jid[:8]}")

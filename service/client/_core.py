@@ -71,8 +71,11 @@ def raise_for_problem(response: Any) -> None:
         doc = response.json()
         problem = Problem.model_validate(doc)
     except Exception:  # noqa: BLE001 - not a problem document (a proxy, a crash)
-        problem = Problem(title=response.reason_phrase or "Error", status=response.status_code,
-                          detail=response.text[:500] or None)
+        problem = Problem(
+            title=response.reason_phrase or "Error",
+            status=response.status_code,
+            detail=response.text[:500] or None,
+        )
     raise error_for(problem, method=response.request.method, url=str(response.request.url))
 
 
@@ -91,6 +94,7 @@ def _to_arrays(t: Any, w: Any, as_numpy: bool | None) -> tuple[Any, Any]:
 def _npy_or_json(as_numpy: bool | None) -> tuple[dict[str, str], Callable[[Any], Any]]:
     use = has_numpy() if as_numpy is None else as_numpy
     if use:
+
         def parse_npy(r: Any) -> tuple[Any, Any]:
             np = importlib.import_module("numpy")
             a = np.load(io.BytesIO(r.content), allow_pickle=False)
@@ -110,25 +114,49 @@ def health() -> Call:
     return Call("GET", "/healthz", parse=_model(Health))
 
 
-def upload_signal(w: Any, *, t: Any = None, dt: float | None = None, t0: float | None = None,
-                  unit: str | None = None, value_unit: str | None = None,
-                  control: Mapping[str, Any] | None = None,
-                  metadata: Mapping[str, Any] | None = None, name: str | None = None) -> Call:
+def upload_signal(
+    w: Any,
+    *,
+    t: Any = None,
+    dt: float | None = None,
+    t0: float | None = None,
+    unit: str | None = None,
+    value_unit: str | None = None,
+    control: Mapping[str, Any] | None = None,
+    metadata: Mapping[str, Any] | None = None,
+    name: str | None = None,
+) -> Call:
     doc: dict[str, Any] = {"w": as_list(w, "w")}
-    for k, v in (("t", as_list(t, "t")), ("dt", dt), ("t0", t0), ("unit", unit),
-                 ("value_unit", value_unit), ("name", name)):
+    for k, v in (
+        ("t", as_list(t, "t")),
+        ("dt", dt),
+        ("t0", t0),
+        ("unit", unit),
+        ("value_unit", value_unit),
+        ("name", name),
+    ):
         if v is not None:
             doc[k] = v
     if control is not None:
         doc["control"] = dict(control)
     if metadata is not None:
         doc["metadata"] = dict(metadata)
-    return Call("POST", "/v1/signals", content=dumps(doc), headers=dict(JSON_HEADERS),
-                parse=_model(SignalMeta))
+    return Call(
+        "POST",
+        "/v1/signals",
+        content=dumps(doc),
+        headers=dict(JSON_HEADERS),
+        parse=_model(SignalMeta),
+    )
 
 
-def upload_file(file: str | os.PathLike | bytes, *, filename: str | None = None,
-                format: str | None = None, **fields: Any) -> Call:
+def upload_file(
+    file: str | os.PathLike | bytes,
+    *,
+    filename: str | None = None,
+    format: str | None = None,
+    **fields: Any,
+) -> Call:
     if isinstance(file, (bytes, bytearray)):
         data = bytes(file)
         fname = filename or f"signal.{format or 'csv'}"
@@ -143,8 +171,9 @@ def upload_file(file: str | os.PathLike | bytes, *, filename: str | None = None,
         if v is None:
             continue
         form[k] = json.dumps(v) if k == "metadata" else str(v)
-    return Call("POST", "/v1/signals", files={"file": (fname, data)}, data=form,
-                parse=_model(SignalMeta))
+    return Call(
+        "POST", "/v1/signals", files={"file": (fname, data)}, data=form, parse=_model(SignalMeta)
+    )
 
 
 def get_signal(signal_id: str) -> Call:
@@ -157,8 +186,9 @@ def signal_data(signal_id: str, *, as_numpy: bool | None = None) -> Call:
 
 
 def download_signal(signal_id: str, *, format: str = "csv") -> Call:
-    return Call("GET", f"/v1/signals/{signal_id}/data", params={"format": format},
-                parse=lambda r: r.content)
+    return Call(
+        "GET", f"/v1/signals/{signal_id}/data", params={"format": format}, parse=lambda r: r.content
+    )
 
 
 def delete_signal(signal_id: str) -> Call:
@@ -171,20 +201,36 @@ def signal_plot(signal_id: str) -> Call:
 
 def simulate(**scene: Any) -> Call:
     doc = {k: v for k, v in scene.items() if v is not None}
-    return Call("POST", "/v1/simulations", content=dumps(doc), headers=dict(JSON_HEADERS),
-                parse=_model(SimulationResult))
+    return Call(
+        "POST",
+        "/v1/simulations",
+        content=dumps(doc),
+        headers=dict(JSON_HEADERS),
+        parse=_model(SimulationResult),
+    )
 
 
-def detect(signal_id: str | None = None, *, w: Any = None, t: Any = None,
-           dt: float | None = None, method: str = "auto") -> Call:
+def detect(
+    signal_id: str | None = None,
+    *,
+    w: Any = None,
+    t: Any = None,
+    dt: float | None = None,
+    method: str = "auto",
+) -> Call:
     doc: dict[str, Any] = {"method": method}
     if signal_id is not None:
         doc["signal_id"] = signal_id
     for k, v in (("w", as_list(w, "w")), ("t", as_list(t, "t")), ("dt", dt)):
         if v is not None:
             doc[k] = v
-    return Call("POST", "/v1/detections", content=dumps(doc), headers=dict(JSON_HEADERS),
-                parse=_model(Detection))
+    return Call(
+        "POST",
+        "/v1/detections",
+        content=dumps(doc),
+        headers=dict(JSON_HEADERS),
+        parse=_model(Detection),
+    )
 
 
 def _measurement(m: Any) -> dict[str, Any]:
@@ -199,8 +245,12 @@ def _measurement(m: Any) -> dict[str, Any]:
     return {"signal_id": sid, "control_value": value}
 
 
-def create_sweep(measurements: Iterable[Any] | None = None, *,
-                 simulate: Mapping[str, Any] | None = None, name: str | None = None) -> Call:
+def create_sweep(
+    measurements: Iterable[Any] | None = None,
+    *,
+    simulate: Mapping[str, Any] | None = None,
+    name: str | None = None,
+) -> Call:
     doc: dict[str, Any] = {}
     if measurements is not None:
         doc["measurements"] = [_measurement(m) for m in measurements]
@@ -208,8 +258,9 @@ def create_sweep(measurements: Iterable[Any] | None = None, *,
         doc["simulate"] = {k: v for k, v in simulate.items() if v is not None}
     if name is not None:
         doc["name"] = name
-    return Call("POST", "/v1/sweeps", content=dumps(doc), headers=dict(JSON_HEADERS),
-                parse=_model(Sweep))
+    return Call(
+        "POST", "/v1/sweeps", content=dumps(doc), headers=dict(JSON_HEADERS), parse=_model(Sweep)
+    )
 
 
 def get_sweep(sweep_id: str) -> Call:
@@ -249,8 +300,13 @@ class Bar:
         if enabled:
             from tqdm import tqdm
 
-            self._bar = tqdm(total=1000, desc=desc, unit="‰", leave=True,
-                             bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}")
+            self._bar = tqdm(
+                total=1000,
+                desc=desc,
+                unit="‰",
+                leave=True,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
+            )
         self._n = 0
 
     def update(self, job: Job) -> None:

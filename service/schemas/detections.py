@@ -34,5 +34,3 @@ class Detection(BaseModel):
     flags: list[DetectionFlag] = Field(default_factory=list)
     static_level: float | None = None
     method: str
-
-

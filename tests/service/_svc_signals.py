@@ -7,9 +7,16 @@ import io
 import numpy as np
 
 
-def ringdown(n: int = 4000, dt: float = 0.01, *, f: float = 1.3, zeta_rate: float = 0.05,
-             static: float = 0.3, noise: float = 1e-3, seed: int = 0) -> tuple[np.ndarray,
-                                                                              np.ndarray]:
+def ringdown(
+    n: int = 4000,
+    dt: float = 0.01,
+    *,
+    f: float = 1.3,
+    zeta_rate: float = 0.05,
+    static: float = 0.3,
+    noise: float = 1e-3,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
     t = np.arange(n) * dt
     rng = np.random.default_rng(seed)
     w = static + np.exp(-zeta_rate * t) * np.sin(2 * np.pi * f * t) + noise * rng.standard_normal(n)

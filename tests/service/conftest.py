@@ -109,8 +109,7 @@ class DbFactory:
     scope="session",
     params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)],
 )
-def new_db(request: pytest.FixtureRequest,
-           tmp_path_factory: pytest.TempPathFactory) -> DbFactory:
+def new_db(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> DbFactory:
     """Tests using it run on SQLite files and (if SNAPWARN_TEST_PG_URL is set) PostgreSQL."""
     pg = request.getfixturevalue("pg_url") if request.param == "postgres" else None
     return DbFactory(request.param, tmp_path_factory.mktemp(f"db-{request.param}"), pg)
@@ -155,25 +154,42 @@ class Server:
         return self.log.read_text(errors="replace") if self.log.exists() else ""
 
 
-def start_server(db_url: str, tmp: Path, *, extra_env: dict[str, str] | None = None,
-                 args: list[str] | None = None, timeout: float = 60.0) -> Server:
+def start_server(
+    db_url: str,
+    tmp: Path,
+    *,
+    extra_env: dict[str, str] | None = None,
+    args: list[str] | None = None,
+    timeout: float = 60.0,
+) -> Server:
     """Start `snapwarn serve` on a free loopback port and wait until /healthz answers."""
     port = free_port()
     env = dict(os.environ)
-    env.update({
-        "SNAPWARN_ANALYSIS_WORKERS": "1",
-        "SNAPWARN_JOB_WORKERS": "1",
-        "SNAPWARN_JOB_POLL_S": "0.05",
-        "SNAPWARN_JOB_HEARTBEAT_S": "0.3",
-        "SNAPWARN_JOB_LEASE_S": "3",
-        "SNAPWARN_LOG_LEVEL": "warning",
-        "PYTHONUNBUFFERED": "1",
-    })
+    env.update(
+        {
+            "SNAPWARN_ANALYSIS_WORKERS": "1",
+            "SNAPWARN_JOB_WORKERS": "1",
+            "SNAPWARN_JOB_POLL_S": "0.05",
+            "SNAPWARN_JOB_HEARTBEAT_S": "0.3",
+            "SNAPWARN_JOB_LEASE_S": "3",
+            "SNAPWARN_LOG_LEVEL": "warning",
+            "PYTHONUNBUFFERED": "1",
+        }
+    )
     env.pop("SNAPWARN_API_KEY", None)
     env.update(extra_env or {})
     log = tmp / f"server-{port}-{uuid.uuid4().hex[:6]}.log"
-    cmd = [*SNAPWARN, "serve", "--host", "127.0.0.1",
-           "--port", str(port), "--db", db_url, *(args or [])]
+    cmd = [
+        *SNAPWARN,
+        "serve",
+        "--host",
+        "127.0.0.1",
+        "--port",
+        str(port),
+        "--db",
+        db_url,
+        *(args or []),
+    ]
     fh = open(log, "wb")  # noqa: SIM115 - closed with the process
     proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=fh, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"

@@ -13,13 +13,16 @@ def _run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
     return subprocess.run([*SNAPWARN, *args], capture_output=True, text=True, timeout=timeout)
 
 
-@pytest.mark.parametrize(("args", "needle"), [
-    (("serve", "--port", "abc"), "--port: 'abc' is not an integer"),
-    (("serve", "--port", "70000"), "--port: '70000' must be in [0, 65535]"),
-    (("serve", "--workers", "0"), "--workers: '0' must be in [1, 64]"),
-    (("serve", "--db", "not-a-url"), "--db: 'not-a-url' is not a database URL"),
-    (("worker", "--jobs", "x"), "--jobs: 'x' is not an integer"),
-])
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("serve", "--port", "abc"), "--port: 'abc' is not an integer"),
+        (("serve", "--port", "70000"), "--port: '70000' must be in [0, 65535]"),
+        (("serve", "--workers", "0"), "--workers: '0' must be in [1, 64]"),
+        (("serve", "--db", "not-a-url"), "--db: 'not-a-url' is not a database URL"),
+        (("worker", "--jobs", "x"), "--jobs: 'x' is not an integer"),
+    ],
+)
 def test_bad_options_are_one_line_errors(args: tuple[str, ...], needle: str) -> None:
     r = _run(*args)
     assert r.returncode == 2, r

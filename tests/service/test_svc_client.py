@@ -41,8 +41,7 @@ def test_importing_the_sdk_loads_nothing_heavy() -> None:
 
 
 def test_the_check_above_can_fail() -> None:
-    code = ("import sys, service.api.app; "
-            "print('numpy' in sys.modules and 'fastapi' in sys.modules)")
+    code = "import sys, service.api.app; print('numpy' in sys.modules and 'fastapi' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.stdout.strip() == "True"
 
@@ -55,8 +54,9 @@ async def test_async_client_in_process(asgi) -> None:  # noqa: ANN001
     async with AsyncClient("http://asgi", transport=httpx2.ASGITransport(app=app)) as c:
         h = await c.health()
         assert h.status == "ok"
-        meta = await c.upload_signal(w, dt=0.01, unit="s", control={"name": "mu", "value": 0.7},
-                                     metadata={"run": 3})
+        meta = await c.upload_signal(
+            w, dt=0.01, unit="s", control={"name": "mu", "value": 0.7}, metadata={"run": 3}
+        )
         assert meta.n == 2000 and meta.control.value == 0.7
         tt, ww = await c.signal_data(meta.id)
         assert isinstance(ww, np.ndarray) and ww.tobytes() == w.tobytes()
@@ -72,8 +72,9 @@ async def test_async_client_in_process(asgi) -> None:  # noqa: ANN001
         with pytest.raises(NotFound):
             await c.signal_data(meta.id)
         if numerics_has("service.analysis.pipeline", "warn"):
-            sw = await c.create_sweep(simulate={"actuation": "antisymmetric",
-                                                "max_measurements": 5, "seed": 1})
+            sw = await c.create_sweep(
+                simulate={"actuation": "antisymmetric", "max_measurements": 5, "seed": 1}
+            )
             done = await c.wait(sw, progress=False, timeout=120, poll=0.1)
             assert done.id == sw.id and done.status == "succeeded", done.job.error
             assert len(done.measurements) == 5
@@ -110,8 +111,13 @@ def test_sync_client_over_uvicorn(live_server, tmp_path) -> None:  # noqa: ANN00
         assert c.health().database == "ok"
         path = tmp_path / "lab run.csv"
         path.write_bytes(csv_bytes(t, w))
-        meta = c.upload_file(path, control_name="angle", control_value=0.12,
-                             control_unit="deg", metadata={"operator": "ada"})
+        meta = c.upload_file(
+            path,
+            control_name="angle",
+            control_value=0.12,
+            control_unit="deg",
+            metadata={"operator": "ada"},
+        )
         assert meta.name == "lab run.csv" and meta.unit == "s" and meta.value_unit == "mm"
         assert meta.metadata["operator"] == "ada" and meta.control.unit == "deg"
         tt, ww = c.signal_data(meta.id)

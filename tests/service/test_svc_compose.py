@@ -79,21 +79,24 @@ def test_compose_commands_run_natively(compose: dict, new_db, tmp_path: Path) ->
             svc = compose["services"][name]
             env = dict(os.environ)
             env.update({k: str(v) for k, v in svc["environment"].items()})
-            env.update({
-                "SNAPWARN_DB_URL": db_url,
-                "SNAPWARN_HOST": "127.0.0.1",
-                "SNAPWARN_PORT": str(port),
-                "SNAPWARN_HEARTBEAT_FILE": str(tmp_path / f"{name}.alive"),
-                "SNAPWARN_ANALYSIS_WORKERS": "1",
-                "SNAPWARN_WARM_POOL": "false",
-                "SNAPWARN_JOB_HEARTBEAT_S": "0.3",
-                "SNAPWARN_JOB_POLL_S": "0.05",
-                "SNAPWARN_LOG_LEVEL": "warning",
-            })
+            env.update(
+                {
+                    "SNAPWARN_DB_URL": db_url,
+                    "SNAPWARN_HOST": "127.0.0.1",
+                    "SNAPWARN_PORT": str(port),
+                    "SNAPWARN_HEARTBEAT_FILE": str(tmp_path / f"{name}.alive"),
+                    "SNAPWARN_ANALYSIS_WORKERS": "1",
+                    "SNAPWARN_WARM_POOL": "false",
+                    "SNAPWARN_JOB_HEARTBEAT_S": "0.3",
+                    "SNAPWARN_JOB_POLL_S": "0.05",
+                    "SNAPWARN_LOG_LEVEL": "warning",
+                }
+            )
             envs[name] = env
             log = open(tmp_path / f"{name}.log", "wb")  # noqa: SIM115
-            procs[name] = subprocess.Popen(_native(svc["command"]), env=env, cwd=tmp_path,
-                                           stdout=log, stderr=subprocess.STDOUT)
+            procs[name] = subprocess.Popen(
+                _native(svc["command"]), env=env, cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT
+            )
             if name == "api":  # the worker starts once the api is healthy (depends_on)
                 end = time.monotonic() + 90
                 while _healthcheck(svc, env) != 0:

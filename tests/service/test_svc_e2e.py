@@ -67,8 +67,9 @@ def test_sdk_end_to_end(live_server, recorded, tmp_path, capsys) -> None:  # noq
 def test_simulated_sweep_job(live_server) -> None:  # noqa: ANN001
     require_numerics("service.analysis.pipeline", "warn")
     with Client(live_server.url, timeout=120) as c:
-        sweep = c.create_sweep(simulate={"actuation": "asymmetric", "max_measurements": 6,
-                                         "seed": 3})
+        sweep = c.create_sweep(
+            simulate={"actuation": "asymmetric", "max_measurements": 6, "seed": 3}
+        )
         done = c.wait(sweep, progress=False, timeout=300)
         assert done.status == "succeeded", done.job.error
         assert done.result["n_measurements"] == len(done.measurements) <= 6
@@ -83,8 +84,11 @@ def test_raw_http_end_to_end(live_server, recorded) -> None:  # noqa: ANN001
     with httpx2.Client(base_url=base, timeout=120) as h:
         ids = []
         for k, (mu, data) in enumerate(recorded):
-            r = h.post("/v1/signals", files={"file": (f"r{k}.csv", data, "text/csv")},
-                       data={"control_value": str(mu)})
+            r = h.post(
+                "/v1/signals",
+                files={"file": (f"r{k}.csv", data, "text/csv")},
+                data={"control_value": str(mu)},
+            )
             assert r.status_code == 201, r.text
             assert r.headers["location"] == f"/v1/signals/{r.json()['id']}"
             ids.append(r.json()["id"])
@@ -95,8 +99,14 @@ def test_raw_http_end_to_end(live_server, recorded) -> None:  # noqa: ANN001
         assert a.tobytes() == sent.tobytes()
         r = h.post("/v1/detections", json={"signal_id": ids[0]})
         assert r.status_code == 200 and r.json()["fundamental"]["sigma2"] < 0
-        r = h.post("/v1/sweeps", json={"measurements": [
-            {"signal_id": i, "control_value": mu} for i, (mu, _) in zip(ids, recorded)]})
+        r = h.post(
+            "/v1/sweeps",
+            json={
+                "measurements": [
+                    {"signal_id": i, "control_value": mu} for i, (mu, _) in zip(ids, recorded)
+                ]
+            },
+        )
         assert r.status_code == 202, r.text
         sid = r.json()["id"]
         assert r.headers["location"] == f"/v1/sweeps/{sid}"
@@ -112,8 +122,10 @@ def test_raw_http_end_to_end(live_server, recorded) -> None:  # noqa: ANN001
         assert r.status_code == 200 and r.headers["content-type"] == "image/png"
         # a bad request in the middle leaves everything stored as it was
         before = h.get(f"/v1/sweeps/{sid}").json()
-        r = h.post("/v1/sweeps", json={"measurements": [{"signal_id": ids[0]},
-                                                        {"signal_id": "gone"}]})
-        assert r.status_code == 422 and r.json()["errors"][0]["field"] == \
-            "measurements[1].signal_id"
+        r = h.post(
+            "/v1/sweeps", json={"measurements": [{"signal_id": ids[0]}, {"signal_id": "gone"}]}
+        )
+        assert (
+            r.status_code == 422 and r.json()["errors"][0]["field"] == "measurements[1].signal_id"
+        )
         assert h.get(f"/v1/sweeps/{sid}").json() == before

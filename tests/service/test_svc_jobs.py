@@ -80,8 +80,11 @@ async def test_detection_validation_needs_no_numerics(asgi) -> None:  # noqa: AN
         ({"w": [1, 2, 3]}, "dt"),
     ]
     for doc, field in cases:
-        r = await client.post("/v1/detections", content=json.dumps(doc).encode(),
-                              headers={"content-type": "application/json"})
+        r = await client.post(
+            "/v1/detections",
+            content=json.dumps(doc).encode(),
+            headers={"content-type": "application/json"},
+        )
         assert r.status_code == 422, (doc, r.text)
         assert r.json()["errors"][0]["field"] == field
     r = await client.post("/v1/detections", json={"signal_id": "missing"})
@@ -103,19 +106,23 @@ async def test_detection_inline_and_stored(asgi) -> None:  # noqa: ANN001
     sid = (await client.post("/v1/signals", json={"t": t.tolist(), "w": w.tolist()})).json()["id"]
     r = await client.post("/v1/detections", json={"signal_id": sid})
     assert r.status_code == 200
-    assert r.json()["fundamental"]["omega"] == pytest.approx(doc["fundamental"]["omega"],
-                                                             rel=1e-9)
-    r = await client.post("/v1/detections", json={"dt": 0.01, "w": w.tolist(),
-                                                  "method": "nonsense"})
+    assert r.json()["fundamental"]["omega"] == pytest.approx(doc["fundamental"]["omega"], rel=1e-9)
+    r = await client.post(
+        "/v1/detections", json={"dt": 0.01, "w": w.tolist(), "method": "nonsense"}
+    )
     assert r.status_code == 422 and "method" in r.json()["detail"]
 
 
 # --- simulations -----------------------------------------------------------------------------
 async def test_simulation_validation(asgi) -> None:  # noqa: ANN001
     _, client = asgi
-    for doc, field in [({"mu": 1.0, "probe": 2.0}, "probe"), ({"actuation": "sideways"},
-                       "actuation"), ({"model": "magic"}, "model"), ({"dt": -1.0}, "dt"),
-                       ({"mu": 1, "colour": 3}, "colour")]:
+    for doc, field in [
+        ({"mu": 1.0, "probe": 2.0}, "probe"),
+        ({"actuation": "sideways"}, "actuation"),
+        ({"model": "magic"}, "model"),
+        ({"dt": -1.0}, "dt"),
+        ({"mu": 1, "colour": 3}, "colour"),
+    ]:
         r = await client.post("/v1/simulations", json=doc)
         assert r.status_code == 422, (doc, r.text)
         assert r.json()["errors"][0]["field"] == field, r.json()
@@ -133,14 +140,16 @@ async def test_simulation_answers_501_until_the_simulator_exists(asgi) -> None: 
 async def test_simulation_runs(asgi) -> None:  # noqa: ANN001
     require_numerics("sim", "simulate")
     _, client = asgi
-    r = await client.post("/v1/simulations", json={"mu": 0.5, "model": "euler-beam",
-                                                   "snr_db": 30, "seed": 1})
+    r = await client.post(
+        "/v1/simulations", json={"mu": 0.5, "model": "euler-beam", "snr_db": 30, "seed": 1}
+    )
     assert r.status_code == 201, r.text
     sig = r.json()["signal"]
     assert sig["source"] == "simulation" and sig["control"]["value"] == 0.5
     assert sig["metadata"]["scene"]["mu"] == 0.5
-    r = await client.post("/v1/simulations", json={"mu": 0.5, "model": "euler-beam",
-                                                   "background": True})
+    r = await client.post(
+        "/v1/simulations", json={"mu": 0.5, "model": "euler-beam", "background": True}
+    )
     assert r.status_code == 202, r.text
     doc = await _job_until_done(client, r.json()["job"]["id"], timeout=120)
     assert doc["status"] == "succeeded", doc
@@ -155,11 +164,24 @@ async def test_sweep_validation(asgi) -> None:  # noqa: ANN001
     cases = [
         ({}, "measurements"),
         ({"measurements": [{"signal_id": no_control}]}, "measurements"),
-        ({"measurements": [{"signal_id": "nope", "control_value": 1},
-                           {"signal_id": no_control, "control_value": 2}]},
-         "measurements[0].signal_id"),
-        ({"measurements": [{"signal_id": no_control, "control_value": 1},
-                           {"signal_id": no_control}]}, "measurements[1].control_value"),
+        (
+            {
+                "measurements": [
+                    {"signal_id": "nope", "control_value": 1},
+                    {"signal_id": no_control, "control_value": 2},
+                ]
+            },
+            "measurements[0].signal_id",
+        ),
+        (
+            {
+                "measurements": [
+                    {"signal_id": no_control, "control_value": 1},
+                    {"signal_id": no_control},
+                ]
+            },
+            "measurements[1].control_value",
+        ),
         ({"simulate": {"actuation": "sideways"}}, "simulate.actuation"),
         ({"simulate": {"max_measurements": 1}}, "simulate.max_measurements"),
         ({"simulate": {}, "measurements": [{"signal_id": no_control}]}, "measurements"),
@@ -186,8 +208,9 @@ async def test_sweeps_answer_501_until_the_pipeline_exists(asgi) -> None:  # noq
 async def test_sweep_plot_before_success_is_409(asgi) -> None:  # noqa: ANN001
     app, client = asgi
     store = app.state.snapwarn.store
-    sweep, job = store.create_sweep("diagnostic-sleep", {"simulate": {}},
-                                    {"seconds": 30, "steps": 300}, "slow")
+    sweep, job = store.create_sweep(
+        "diagnostic-sleep", {"simulate": {}}, {"seconds": 30, "steps": 300}, "slow"
+    )
     r = await client.get(f"/v1/sweeps/{sweep.id}/plot.svg")
     assert r.status_code == 409 and r.json()["errors"][0]["field"] == "status"
     store.fail_job(job.id, None, {"title": "cancelled by the test"})
@@ -197,8 +220,7 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
     """The sweep resource and its charts only show the numbers the result holds."""
     app, client = asgi
     store = app.state.snapwarn.store
-    sweep, job = store.create_sweep("diagnostic-sleep", {"simulate": {}}, {"seconds": 0},
-                                    "charted")
+    sweep, job = store.create_sweep("diagnostic-sleep", {"simulate": {}}, {"seconds": 0}, "charted")
     claimed = None
     for _ in range(50):  # the runner may claim it first; then wait for it to finish
         row = store.get_job(job.id)
@@ -207,9 +229,12 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
         await asyncio.sleep(0.05)
     store_row = store.get_job(job.id)
     assert store_row.status == "succeeded", claimed
-    doc = {"measurements": [{"mu": m, "T": 1 / (2 - m) ** 0.5} for m in (0.5, 1.0, 1.5)],
-           "prediction": {"mu_star": 2.0, "interval": [1.98, 2.02]},
-           "classification": {"transition": "saddle-node"}, "alarm": False}
+    doc = {
+        "measurements": [{"mu": m, "T": 1 / (2 - m) ** 0.5} for m in (0.5, 1.0, 1.5)],
+        "prediction": {"mu_star": 2.0, "interval": [1.98, 2.02]},
+        "classification": {"transition": "saddle-node"},
+        "alarm": False,
+    }
     with store.session() as s:
         from service.api.storage import JobRow
 
@@ -230,12 +255,21 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
 async def test_limits_answer_413(tmp_path) -> None:  # noqa: ANN001
     import httpx2
 
-    app = create_app(test_settings(f"sqlite:///{tmp_path / 'small.db'}", max_body_bytes=4096,
-                                   max_samples=100, max_sweep_signals=2, executor="thread",
-                                   run_jobs=False, warm_pool=False))
+    app = create_app(
+        test_settings(
+            f"sqlite:///{tmp_path / 'small.db'}",
+            max_body_bytes=4096,
+            max_samples=100,
+            max_sweep_signals=2,
+            executor="thread",
+            run_jobs=False,
+            warm_pool=False,
+        )
+    )
     async with app.router.lifespan_context(app):
-        async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=app),
-                                      base_url="http://small") as c:
+        async with httpx2.AsyncClient(
+            transport=httpx2.ASGITransport(app=app), base_url="http://small"
+        ) as c:
             r = await c.post("/v1/signals", json={"dt": 1, "w": [0.5] * 101})
             assert r.status_code == 413, r.text
             assert r.json()["errors"][0]["field"] == "w"
@@ -248,29 +282,42 @@ async def test_limits_answer_413(tmp_path) -> None:  # noqa: ANN001
                 for _ in range(10):
                     yield b" " * 1000
 
-            r = await c.post("/v1/signals", content=chunks(),
-                             headers={"content-type": "application/json"})
+            r = await c.post(
+                "/v1/signals", content=chunks(), headers={"content-type": "application/json"}
+            )
             assert r.status_code == 413, r.text
             r = await c.post("/v1/signals", files={"file": ("a.csv", b"t,w\n" + b"0,1\n" * 2000)})
             assert r.status_code == 413
             r = await c.post("/v1/detections", json={"dt": 1, "w": [0.5] * 101})
             assert r.status_code == 413
-            ids = [(await c.post("/v1/signals", json={"dt": 1, "w": [1, 2],
-                                                      "control": {"value": k}})).json()["id"]
-                   for k in range(3)]
-            r = await c.post("/v1/sweeps", json={"measurements": [{"signal_id": i}
-                                                                  for i in ids]})
+            ids = [
+                (
+                    await c.post(
+                        "/v1/signals", json={"dt": 1, "w": [1, 2], "control": {"value": k}}
+                    )
+                ).json()["id"]
+                for k in range(3)
+            ]
+            r = await c.post("/v1/sweeps", json={"measurements": [{"signal_id": i} for i in ids]})
             assert r.status_code == 413 and r.json()["errors"][0]["field"] == "measurements"
 
 
 async def test_api_key(tmp_path) -> None:  # noqa: ANN001
     import httpx2
 
-    app = create_app(test_settings(f"sqlite:///{tmp_path / 'key.db'}", api_key="s3cret",
-                                   executor="thread", run_jobs=False, warm_pool=False))
+    app = create_app(
+        test_settings(
+            f"sqlite:///{tmp_path / 'key.db'}",
+            api_key="s3cret",
+            executor="thread",
+            run_jobs=False,
+            warm_pool=False,
+        )
+    )
     async with app.router.lifespan_context(app):
-        async with httpx2.AsyncClient(transport=httpx2.ASGITransport(app=app),
-                                      base_url="http://key") as c:
+        async with httpx2.AsyncClient(
+            transport=httpx2.ASGITransport(app=app), base_url="http://key"
+        ) as c:
             assert (await c.get("/healthz")).status_code == 200
             r = await c.get("/v1/jobs/x")
             assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"

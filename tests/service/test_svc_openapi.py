@@ -71,8 +71,13 @@ def test_document_covers_every_resource() -> None:
 def test_export_and_cli_write_the_same_file(tmp_path: Path) -> None:
     a = export_openapi(tmp_path / "a" / "openapi.json")
     out = tmp_path / "b.json"
-    r = subprocess.run([*SNAPWARN, "openapi", "--out", str(out), "--json"], capture_output=True,
-                       text=True, timeout=120, cwd=tmp_path)
+    r = subprocess.run(
+        [*SNAPWARN, "openapi", "--out", str(out), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["path"] == str(out)
     assert a.read_text() == out.read_text() == CHECKED_IN.read_text()

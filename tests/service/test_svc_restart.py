@@ -63,20 +63,36 @@ def test_sigkill_mid_job_loses_nothing_completed(tmp_path) -> None:  # noqa: ANN
     a = start_server(db, tmp_path)
     try:
         t, w = ringdown(5000)
-        r = httpx2.post(f"{a.url}/v1/signals", json={"dt": 0.01, "w": w.tolist(),
-                                                     "control": {"value": 1.5}}, timeout=30)
+        r = httpx2.post(
+            f"{a.url}/v1/signals",
+            json={"dt": 0.01, "w": w.tolist(), "control": {"value": 1.5}},
+            timeout=30,
+        )
         assert r.status_code == 201
         sig = r.json()
         data_before = httpx2.get(f"{a.url}/v1/signals/{sig['id']}/data?format=npy").content
 
         store = Store(db)
-        short = [store.create_job("diagnostic-sleep", {"seconds": 0.2, "echo": k})
-                 for k in range(2)]
-        done = {j.id: _until(lambda j=j: (d := _job(a.url, j.id))["status"] == "succeeded"
-                             and d, 60, "short jobs") for j in short}
+        short = [
+            store.create_job("diagnostic-sleep", {"seconds": 0.2, "echo": k}) for k in range(2)
+        ]
+        done = {
+            j.id: _until(
+                lambda j=j: (d := _job(a.url, j.id))["status"] == "succeeded" and d,
+                60,
+                "short jobs",
+            )
+            for j in short
+        }
         long = store.create_job("diagnostic-sleep", {"seconds": 4.0, "steps": 40, "echo": "L"})
-        _until(lambda: (d := _job(a.url, long.id))["status"] == "running"
-               and d["progress"]["fraction"] > 0.1, 60, "the long job to run")
+        _until(
+            lambda: (
+                (d := _job(a.url, long.id))["status"] == "running"
+                and d["progress"]["fraction"] > 0.1
+            ),
+            60,
+            "the long job to run",
+        )
 
         workers = _descendants(a.proc.pid)
         assert workers, "the server runs its work in child processes"
@@ -99,11 +115,13 @@ def test_sigkill_mid_job_loses_nothing_completed(tmp_path) -> None:  # noqa: ANN
             assert after == before
         meta = httpx2.get(f"{b.url}/v1/signals/{sig['id']}").json()
         assert meta == sig
-        assert httpx2.get(f"{b.url}/v1/signals/{sig['id']}/data?format=npy").content \
-            == data_before
+        assert httpx2.get(f"{b.url}/v1/signals/{sig['id']}/data?format=npy").content == data_before
         # the interrupted job is resumed at once (its owner is dead) and completes
-        final = _until(lambda: (d := _job(b.url, long.id))["status"] in ("succeeded", "failed")
-                       and d, 60, "the resumed job")
+        final = _until(
+            lambda: (d := _job(b.url, long.id))["status"] in ("succeeded", "failed") and d,
+            60,
+            "the resumed job",
+        )
         assert final["status"] == "succeeded", final
         assert final["attempts"] == 2 and final["result"]["echo"] == "L"
     finally:
@@ -121,14 +139,20 @@ def test_a_job_interrupted_too_often_fails_with_a_reason(tmp_path) -> None:  # n
     for attempt in (1, 2):
         s = start_server(db, tmp_path, extra_env=env)
         try:
-            _until(lambda a=attempt, u=s.url: (d := _job(u, job.id))["status"] == "running"
-                   and d["attempts"] == a, 60, f"attempt {attempt}")
+            _until(
+                lambda a=attempt, u=s.url: (
+                    (d := _job(u, job.id))["status"] == "running" and d["attempts"] == a
+                ),
+                60,
+                f"attempt {attempt}",
+            )
         finally:
             s.stop(signal.SIGKILL)
     s = start_server(db, tmp_path, extra_env=env)
     try:
-        final = _until(lambda: (d := _job(s.url, job.id))["status"] == "failed" and d, 30,
-                       "the job to fail")
+        final = _until(
+            lambda: (d := _job(s.url, job.id))["status"] == "failed" and d, 30, "the job to fail"
+        )
         assert final["error"]["title"] == "Job interrupted"
         assert "giving up" in final["error"]["detail"]
     finally:

@@ -16,8 +16,9 @@ PROBLEM = "application/problem+json"
 
 async def _post_json(client, doc: dict | str, path: str = "/v1/signals"):  # noqa: ANN001
     body = doc if isinstance(doc, str) else json.dumps(doc, allow_nan=True)
-    return await client.post(path, content=body.encode(),
-                             headers={"content-type": "application/json"})
+    return await client.post(
+        path, content=body.encode(), headers={"content-type": "application/json"}
+    )
 
 
 async def _npy(client, sid: str) -> np.ndarray:  # noqa: ANN001
@@ -29,9 +30,17 @@ async def _npy(client, sid: str) -> np.ndarray:  # noqa: ANN001
 async def test_json_upload_round_trips_exactly(asgi) -> None:  # noqa: ANN001
     _, client = asgi
     t, w = ringdown(1000)
-    r = await _post_json(client, {"dt": 0.01, "w": w.tolist(), "unit": "s",
-                                  "control": {"name": "angle", "value": 0.25, "unit": "rad"},
-                                  "metadata": {"rig": "A"}, "name": "run 1"})
+    r = await _post_json(
+        client,
+        {
+            "dt": 0.01,
+            "w": w.tolist(),
+            "unit": "s",
+            "control": {"name": "angle", "value": 0.25, "unit": "rad"},
+            "metadata": {"rig": "A"},
+            "name": "run 1",
+        },
+    )
     assert r.status_code == 201, r.text
     meta = r.json()
     assert r.headers["location"] == f"/v1/signals/{meta['id']}"
@@ -66,13 +75,15 @@ async def test_explicit_times_are_kept(asgi) -> None:  # noqa: ANN001
 async def test_file_uploads(asgi, fmt: str) -> None:  # noqa: ANN001
     _, client = asgi
     t, w = ringdown(500, dt=0.002)
-    data: dict[str, str] = {"control_value": "1.25", "control_name": "load",
-                            "control_unit": "N"}
+    data: dict[str, str] = {"control_value": "1.25", "control_name": "load", "control_unit": "N"}
     if fmt == "csv":
         files = {"file": ("run.csv", csv_bytes(t, w))}
     elif fmt == "tsv":
-        text = "# lab export\ntime\tsignal (V)\n" + "\n".join(
-            f"{float(a)!r}\t{float(b)!r}" for a, b in zip(t, w)) + "\n"
+        text = (
+            "# lab export\ntime\tsignal (V)\n"
+            + "\n".join(f"{float(a)!r}\t{float(b)!r}" for a, b in zip(t, w))
+            + "\n"
+        )
         files = {"file": ("run.tsv", text.encode())}
     elif fmt == "npy":
         files = {"file": ("run.npy", npy_bytes(w))}
@@ -106,8 +117,11 @@ async def test_delete(asgi) -> None:  # noqa: ANN001
     assert (await client.delete(f"/v1/signals/{sid}")).status_code == 204
     r = await client.get(f"/v1/signals/{sid}")
     assert r.status_code == 404 and r.headers["content-type"] == PROBLEM
-    assert r.json()["errors"][0] == {"field": "id", "value": sid,
-                                     "message": f"no signal with id {sid!r}"}
+    assert r.json()["errors"][0] == {
+        "field": "id",
+        "value": sid,
+        "message": f"no signal with id {sid!r}",
+    }
     assert (await client.delete(f"/v1/signals/{sid}")).status_code == 404
 
 

@@ -23,8 +23,14 @@ _INLINE_IN_LOOP = 100_000  # validate small inline signals on the loop, big ones
     response_model=Detection,
     summary="Detect the modes of a signal (the `snapwarn detect --json` document)",
     responses=problems(401, 404, 413, 422, 501),
-    openapi_extra={"requestBody": {"required": True, "content": {"application/json": {
-        "schema": {"$ref": "#/components/schemas/DetectionRequest"}}}}},
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": {"$ref": "#/components/schemas/DetectionRequest"}}
+            },
+        }
+    },
 )
 async def create_detection(request: Request, state: StateDep) -> JSONResponse:
     """Give ``signal_id`` (a stored signal) or ``w`` with ``t`` or ``dt`` (inline).
@@ -38,8 +44,11 @@ async def create_detection(request: Request, state: StateDep) -> JSONResponse:
         raise body_validation_error(exc) from None
     if req.signal_id is not None:
         if req.w is not None or req.t is not None or req.dt is not None:
-            raise invalid("signal_id", req.signal_id,
-                          "must not be given together with an inline signal (w, t, dt)")
+            raise invalid(
+                "signal_id",
+                req.signal_id,
+                "must not be given together with an inline signal (w, t, dt)",
+            )
         sig = await to_thread.run_sync(state.store.get_signal, req.signal_id)
         if sig is None:
             raise not_found("signal", req.signal_id)
@@ -50,8 +59,9 @@ async def create_detection(request: Request, state: StateDep) -> JSONResponse:
         s = state.settings
 
         def clean() -> tuple:
-            return codec.clean_signal(w=req.w, t=req.t, dt=req.dt, max_samples=s.max_samples,
-                                      uniform_rtol=s.uniform_rtol)
+            return codec.clean_signal(
+                w=req.w, t=req.t, dt=req.dt, max_samples=s.max_samples, uniform_rtol=s.uniform_rtol
+            )
 
         if len(req.w) <= _INLINE_IN_LOOP:
             w, _t, dt, _t0 = clean()

@@ -35,6 +35,11 @@ async def healthz(state: StateDep) -> JSONResponse:
         db = f"error: {type(exc).__name__}"
         workers = 0
     avail = state.numerics_status()  # never waits for the pool: /healthz stays cheap
-    doc = Health(status="ok" if db == "ok" else "degraded", version=VERSION, database=db,
-                 workers=workers, numerics=avail)
+    doc = Health(
+        status="ok" if db == "ok" else "degraded",
+        version=VERSION,
+        database=db,
+        workers=workers,
+        numerics=avail,
+    )
     return JSONResponse(doc.model_dump(), status_code=200 if db == "ok" else 503)

@@ -15,8 +15,12 @@ from service.schemas import Job
 router = APIRouter(prefix="/v1/jobs", tags=["jobs"])
 
 
-@router.get("/{job_id}", response_model=Job, summary="A job: status, progress, result, error",
-            responses=problems(401, 404))
+@router.get(
+    "/{job_id}",
+    response_model=Job,
+    summary="A job: status, progress, result, error",
+    responses=problems(401, 404),
+)
 async def get_job(job_id: str, state: StateDep) -> dict[str, Any]:
     row = await to_thread.run_sync(state.store.get_job, job_id)
     if row is None:

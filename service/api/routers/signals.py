@@ -31,10 +31,16 @@ UPLOAD_FORM_SCHEMA = {
     "type": "object",
     "required": ["file"],
     "properties": {
-        "file": {"type": "string", "format": "binary",
-                 "description": "CSV with a header, .npy, .npz, .wav or .mat"},
-        "format": {"type": "string", "enum": list(codec.FORMATS),
-                   "description": "Overrides the file extension."},
+        "file": {
+            "type": "string",
+            "format": "binary",
+            "description": "CSV with a header, .npy, .npz, .wav or .mat",
+        },
+        "format": {
+            "type": "string",
+            "enum": list(codec.FORMATS),
+            "description": "Overrides the file extension.",
+        },
         "dt": {"type": "number", "description": "Sampling step when the file has no time."},
         "t0": {"type": "number"},
         "unit": {"type": "string", "description": "Time unit (CSV headers may carry it)."},
@@ -78,10 +84,25 @@ async def _from_json(request: Request, state: AppState) -> codec.CleanSignal:
         raise body_validation_error(exc) from None
     s = state.settings
     w, t, dt, t0 = await to_thread.run_sync(
-        lambda: codec.clean_signal(w=doc.w, t=doc.t, dt=doc.dt, t0=doc.t0,
-                                   max_samples=s.max_samples, uniform_rtol=s.uniform_rtol))
-    clean = codec.CleanSignal(w=w, t=t, dt=dt, t0=t0, unit=doc.unit, value_unit=doc.value_unit,
-                              source="json", metadata=dict(doc.metadata))
+        lambda: codec.clean_signal(
+            w=doc.w,
+            t=doc.t,
+            dt=doc.dt,
+            t0=doc.t0,
+            max_samples=s.max_samples,
+            uniform_rtol=s.uniform_rtol,
+        )
+    )
+    clean = codec.CleanSignal(
+        w=w,
+        t=t,
+        dt=dt,
+        t0=t0,
+        unit=doc.unit,
+        value_unit=doc.value_unit,
+        source="json",
+        metadata=dict(doc.metadata),
+    )
     clean.metadata.setdefault("_name", doc.name)
     clean.metadata.setdefault("_control", doc.control.model_dump() if doc.control else None)
     return clean
@@ -109,15 +130,21 @@ async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
             raise invalid("metadata", meta_text, "must be a JSON object")
 
     def work() -> codec.CleanSignal:
-        parsed = codec.parse_upload(data, fmt, column=column, time_column=time_column,
-                                    channel=int(channel or 0))
+        parsed = codec.parse_upload(
+            data, fmt, column=column, time_column=time_column, channel=int(channel or 0)
+        )
         use_dt = dt if dt is not None else (parsed.dt if parsed.dt == parsed.dt else None)
         t_arr = parsed.t
         if t_arr is not None and dt is not None:
             raise invalid("dt", dt, "must not be given: the file has a time column")
         w, t, step, first = codec.clean_signal(
-            w=parsed.w, t=t_arr, dt=use_dt, t0=t0, max_samples=s.max_samples,
-            uniform_rtol=s.uniform_rtol)
+            w=parsed.w,
+            t=t_arr,
+            dt=use_dt,
+            t0=t0,
+            max_samples=s.max_samples,
+            uniform_rtol=s.uniform_rtol,
+        )
         parsed.w, parsed.t, parsed.dt, parsed.t0 = w, t, step, first
         return parsed
 
@@ -126,8 +153,11 @@ async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
     clean.value_unit = _form_str(form, "value_unit") or clean.value_unit
     file_meta = {"filename": upload.filename, **clean.metadata}
     clean.metadata = {**metadata, "file": file_meta}
-    cname, cval, cunit = (_form_str(form, "control_name"), _form_float(form, "control_value"),
-                          _form_str(form, "control_unit"))
+    cname, cval, cunit = (
+        _form_str(form, "control_name"),
+        _form_float(form, "control_value"),
+        _form_str(form, "control_unit"),
+    )
     if cval is not None and cval != cval or (cval is not None and abs(cval) == float("inf")):
         raise invalid("control_value", cval, "must be finite")
     control = None
@@ -165,8 +195,12 @@ async def create_signal(request: Request, state: StateDep) -> JSONResponse:
     elif ctype.startswith("application/json") or ctype == "":
         clean = await _from_json(request, state)
     else:
-        raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
-                         field="content-type", value=ctype)
+        raise ApiProblem(
+            415,
+            f"send application/json or multipart/form-data, not {ctype!r}",
+            field="content-type",
+            value=ctype,
+        )
     name = clean.metadata.pop("_name", None)
     control = clean.metadata.pop("_control", None)
     if control is not None and control.get("value") is not None:
@@ -175,12 +209,22 @@ async def create_signal(request: Request, state: StateDep) -> JSONResponse:
             raise invalid("control.value", v, "must be finite")
     row = await to_thread.run_sync(
         lambda: state.store.add_signal(
-            w=clean.w, dt=clean.dt, t0=clean.t0, t=clean.t, source=clean.source, name=name,
-            unit=clean.unit, value_unit=clean.value_unit, control=control,
-            metadata=clean.metadata))
+            w=clean.w,
+            dt=clean.dt,
+            t0=clean.t0,
+            t=clean.t,
+            source=clean.source,
+            name=name,
+            unit=clean.unit,
+            value_unit=clean.value_unit,
+            control=control,
+            metadata=clean.metadata,
+        )
+    )
     meta = SignalMeta.model_validate(signal_meta(row))
-    return JSONResponse(meta.model_dump(mode="json"), status_code=201,
-                        headers={"Location": f"/v1/signals/{row.id}"})
+    return JSONResponse(
+        meta.model_dump(mode="json"), status_code=201, headers={"Location": f"/v1/signals/{row.id}"}
+    )
 
 
 async def _load(state: AppState, signal_id: str) -> Any:
@@ -190,8 +234,9 @@ async def _load(state: AppState, signal_id: str) -> Any:
     return sig
 
 
-@router.get("/{signal_id}", response_model=SignalMeta, summary="A signal's metadata",
-            responses=ERRORS)
+@router.get(
+    "/{signal_id}", response_model=SignalMeta, summary="A signal's metadata", responses=ERRORS
+)
 async def get_signal(signal_id: str, state: StateDep) -> dict[str, Any]:
     row = await to_thread.run_sync(state.store.get_signal_meta, signal_id)
     if row is None:
@@ -215,8 +260,9 @@ async def get_signal_data(
     signal_id: str,
     request: Request,
     state: StateDep,
-    format: Annotated[str | None, Query(pattern="^(json|csv|npy)$",
-                                        description="Overrides the Accept header.")] = None,
+    format: Annotated[
+        str | None, Query(pattern="^(json|csv|npy)$", description="Overrides the Accept header.")
+    ] = None,
 ) -> Response:
     """Exactly the stored float64 samples (17 significant digits in CSV, binary in NPY)."""
     fmt = format
@@ -233,15 +279,29 @@ async def get_signal_data(
     t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
     if fmt == "csv":
         body = await to_thread.run_sync(codec.to_csv, t, sig.w, row.unit, row.value_unit)
-        return Response(body, media_type="text/csv", headers={
-            "Content-Disposition": f'attachment; filename="{row.id}.csv"'})
+        return Response(
+            body,
+            media_type="text/csv",
+            headers={"Content-Disposition": f'attachment; filename="{row.id}.csv"'},
+        )
     if fmt == "npy":
-        return Response(codec.to_npy(t, sig.w), media_type="application/x-npy", headers={
-            "Content-Disposition": f'attachment; filename="{row.id}.npy"'})
+        return Response(
+            codec.to_npy(t, sig.w),
+            media_type="application/x-npy",
+            headers={"Content-Disposition": f'attachment; filename="{row.id}.npy"'},
+        )
 
     def as_json() -> bytes:  # big signals: build the text off the event loop
-        return json.dumps({"id": row.id, "t": t.tolist(), "w": sig.w.tolist(), "dt": row.dt,
-                           "unit": row.unit, "value_unit": row.value_unit}).encode()
+        return json.dumps(
+            {
+                "id": row.id,
+                "t": t.tolist(),
+                "w": sig.w.tolist(),
+                "dt": row.dt,
+                "unit": row.unit,
+                "value_unit": row.value_unit,
+            }
+        ).encode()
 
     return Response(await to_thread.run_sync(as_json), media_type="application/json")
 
@@ -264,12 +324,13 @@ async def plot_signal(signal_id: str, state: StateDep) -> Response:
     row = sig.row
     t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
     static = (row.meta or {}).get("w_static")
-    png = await state.run(
-        _plot, t, sig.w, row.name or row.id, row.unit, row.value_unit, static)
+    png = await state.run(_plot, t, sig.w, row.name or row.id, row.unit, row.value_unit, static)
     return Response(png, media_type="image/png")
 
 
-def _plot(t: Any, w: Any, title: str, unit: str | None, value_unit: str | None,
-          static: float | None) -> bytes:
-    return plots.signal_plot(t, w, title=title, unit=unit, value_unit=value_unit,
-                             static_level=static, fmt="png")
+def _plot(
+    t: Any, w: Any, title: str, unit: str | None, value_unit: str | None, static: float | None
+) -> bytes:
+    return plots.signal_plot(
+        t, w, title=title, unit=unit, value_unit=value_unit, static_level=static, fmt="png"
+    )

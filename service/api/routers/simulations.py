@@ -24,8 +24,10 @@ _NOT_SCENE = {"model", "background", "name"}
     status_code=201,
     response_model=SimulationResult,
     summary="Simulate an impulse response and store it as a signal",
-    responses={202: {"description": "Became a job (see /v1/jobs/{id}).",
-                     "model": SimulationResult}, **problems(401, 413, 422, 501)},
+    responses={
+        202: {"description": "Became a job (see /v1/jobs/{id}).", "model": SimulationResult},
+        **problems(401, 413, 422, 501),
+    },
 )
 async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResponse:
     """201 with the stored signal, or 202 with the job that will store it."""
@@ -40,10 +42,16 @@ async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResp
         if state.runner is not None:
             state.runner.wake()
         job = Job.model_validate(job_doc(row))
-        return JSONResponse(SimulationResult(job=job).model_dump(mode="json"), status_code=202,
-                            headers={"Location": f"/v1/jobs/{row.id}"})
+        return JSONResponse(
+            SimulationResult(job=job).model_dump(mode="json"),
+            status_code=202,
+            headers={"Location": f"/v1/jobs/{row.id}"},
+        )
     sim = await state.run(numerics.simulate, scene, req.model)
     row = await to_thread.run_sync(store_simulated_signal, state.store, sim, params)
     meta = SignalMeta.model_validate(signal_meta(row))
-    return JSONResponse(SimulationResult(signal=meta).model_dump(mode="json"), status_code=201,
-                        headers={"Location": f"/v1/signals/{row.id}"})
+    return JSONResponse(
+        SimulationResult(signal=meta).model_dump(mode="json"),
+        status_code=201,
+        headers={"Location": f"/v1/signals/{row.id}"},
+    )

@@ -19,8 +19,16 @@ from service.schemas import Sweep, SweepRequest
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 
 
-_PREDICTION_KEYS = ("mu_star", "mu_star_interval", "mu_star_std", "a", "transition",
-                    "probabilities", "stopped", "n_measurements")
+_PREDICTION_KEYS = (
+    "mu_star",
+    "mu_star_interval",
+    "mu_star_std",
+    "a",
+    "transition",
+    "probabilities",
+    "stopped",
+    "n_measurements",
+)
 
 
 def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
@@ -52,8 +60,12 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
     ms = req.measurements or []
     limit = state.settings.max_sweep_signals
     if len(ms) > limit:
-        raise too_large("measurements", len(ms), f"{len(ms)} measurements exceed the limit of "
-                        f"{limit} (setting SNAPWARN_MAX_SWEEP_SIGNALS)")
+        raise too_large(
+            "measurements",
+            len(ms),
+            f"{len(ms)} measurements exceed the limit of "
+            f"{limit} (setting SNAPWARN_MAX_SWEEP_SIGNALS)",
+        )
     out = []
     for k, m in enumerate(ms):
         row = await to_thread.run_sync(state.store.get_signal_meta, m.signal_id)
@@ -61,8 +73,11 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
             raise invalid(f"measurements[{k}].signal_id", m.signal_id, "is not a stored signal")
         value = m.control_value if m.control_value is not None else row.control_value
         if value is None:
-            raise invalid(f"measurements[{k}].control_value", None,
-                          "is required: the signal was stored without a control value")
+            raise invalid(
+                f"measurements[{k}].control_value",
+                None,
+                "is required: the signal was stored without a control value",
+            )
         if not math.isfinite(value):
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
         out.append({"signal_id": m.signal_id, "control_value": float(value)})
@@ -92,8 +107,12 @@ async def create_sweep(req: SweepRequest, state: StateDep) -> JSONResponse:
         params = req.simulate.model_dump(exclude_none=True)
     await state.run(numerics.load_ok, needed)
     sweep, job = await to_thread.run_sync(
-        state.store.create_sweep, kind, req.model_dump(mode="json", exclude_none=True), params,
-        req.name)
+        state.store.create_sweep,
+        kind,
+        req.model_dump(mode="json", exclude_none=True),
+        params,
+        req.name,
+    )
     if state.runner is not None:
         state.runner.wake()
     doc = Sweep.model_validate(sweep_doc(sweep, job)).model_dump(mode="json")
@@ -107,8 +126,12 @@ async def _get(state: AppState, sweep_id: str) -> tuple[Any, Any]:
     return found
 
 
-@router.get("/{sweep_id}", response_model=Sweep, summary="A sweep: measurements, "
-            "classification, prediction, alarm", responses=problems(401, 404))
+@router.get(
+    "/{sweep_id}",
+    response_model=Sweep,
+    summary="A sweep: measurements, classification, prediction, alarm",
+    responses=problems(401, 404),
+)
 async def get_sweep(sweep_id: str, state: StateDep) -> dict[str, Any]:
     sweep, job = await _get(state, sweep_id)
     return sweep_doc(sweep, job)
@@ -117,8 +140,12 @@ async def get_sweep(sweep_id: str, state: StateDep) -> dict[str, Any]:
 async def _plot(sweep_id: str, state: AppState, fmt: str) -> Response:
     sweep, job = await _get(state, sweep_id)
     if job.status != "succeeded":
-        raise ApiProblem(409, f"sweep {sweep_id!r} is {job.status}; its chart exists once it "
-                         "succeeded", field="status", value=job.status)
+        raise ApiProblem(
+            409,
+            f"sweep {sweep_id!r} is {job.status}; its chart exists once it succeeded",
+            field="status",
+            value=job.status,
+        )
     body = await state.run(_render, job.result, sweep.name or sweep_id, fmt)
     return Response(body, media_type=plots.MEDIA[fmt])
 
@@ -127,17 +154,27 @@ def _render(doc: dict[str, Any], title: str, fmt: str) -> bytes:
     return plots.sweep_plot(doc, title=title, fmt=fmt)
 
 
-@router.get("/{sweep_id}/plot.png", summary="T(mu), the extrapolation and mu*'s interval (PNG)",
-            response_class=Response,
-            responses={200: {"content": {"image/png": {}}, "description": "PNG chart."},
-                       **problems(401, 404, 409)})
+@router.get(
+    "/{sweep_id}/plot.png",
+    summary="T(mu), the extrapolation and mu*'s interval (PNG)",
+    response_class=Response,
+    responses={
+        200: {"content": {"image/png": {}}, "description": "PNG chart."},
+        **problems(401, 404, 409),
+    },
+)
 async def plot_sweep_png(sweep_id: str, state: StateDep) -> Response:
     return await _plot(sweep_id, state, "png")
 
 
-@router.get("/{sweep_id}/plot.svg", summary="T(mu), the extrapolation and mu*'s interval (SVG)",
-            response_class=Response,
-            responses={200: {"content": {"image/svg+xml": {}}, "description": "SVG chart."},
-                       **problems(401, 404, 409)})
+@router.get(
+    "/{sweep_id}/plot.svg",
+    summary="T(mu), the extrapolation and mu*'s interval (SVG)",
+    response_class=Response,
+    responses={
+        200: {"content": {"image/svg+xml": {}}, "description": "SVG chart."},
+        **problems(401, 404, 409),
+    },
+)
 async def plot_sweep_svg(sweep_id: str, state: StateDep) -> Response:
     return await _plot(sweep_id, state, "svg")
