@@ -259,6 +259,7 @@ class _Comp:
     lead: bool = False  # constrain the corrections to stay below _RHO of the leading term
     lead_col: int = 0  # column of the leading term (the columns after it are corrections)
     signed: bool = True  # the leading term must have the sign of y (|sigma^2| > 0)
+    mu: np.ndarray | None = None  # own control values (a suffix of the sweep); None: the window
 
 
 def _comp_nll(x: np.ndarray, c: _Comp) -> np.ndarray:
@@ -309,10 +310,10 @@ def _lead_penalty(
 
 
 def _nll(mu_w: np.ndarray, comps: list[_Comp], mu_star: np.ndarray) -> np.ndarray:
-    x = np.asarray(mu_star, dtype=float)[:, None] - mu_w[None, :]
-    x = np.maximum(x, 1e-300)
-    out = np.zeros(x.shape[0])
+    ms = np.asarray(mu_star, dtype=float)[:, None]
+    out = np.zeros(ms.shape[0])
     for c in comps:
+        x = np.maximum(ms - (mu_w if c.mu is None else c.mu)[None, :], 1e-300)
         out += _comp_nll(x, c)
     return out
 
@@ -446,13 +447,19 @@ def _sigma_comp(sw: Sweep, idx: slice, p: float, h: float, K: int) -> _Comp:
 
 
 def _w_comp(sw: Sweep, idx: slice, b: float, Kw: int) -> _Comp | None:
+    """Static-deflection component on the window ``idx`` (its own: the static law holds farther
+    from mu* than the eigenvalue law, and near mu* w hardly moves)."""
     if sw.w is None:
         return None
     # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window, otherwise the
     # b = 1/2 series (which contains x, x^2 ...) would fit a smooth deflection as well as b = 1
     if sw.w_sd is not None:
-        return _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], _w_exps(b, Kw), True, True, 1, False)
-    return _Comp(sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False)
+        return _Comp(
+            sw.w[idx], 1.0 / sw.w_sd[idx], _w_exps(b, Kw), True, True, 1, False, sw.mu[idx]
+        )
+    return _Comp(
+        sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False, sw.mu[idx]
+    )
 
 
 def _window_sizes(n: int) -> list[int]:
@@ -606,40 +613,115 @@ class ModelFit:
     Kw: int
     bic: float
     profile: _Profile
+    n_w: int = 0
 
 
 def _fit_candidate(
-    sw: Sweep, name: str, a: float, b: float | None, h: float, n: int, scale: float, inflate: float
+    sw: Sweep,
+    name: str,
+    a: float,
+    b: float | None,
+    h: float,
+    n: int,
+    scale: float,
+    level: float = 0.95,
+    n_w: int | None = None,
 ) -> ModelFit:
+    """Fit one candidate: sigma^2 law on the nearest ``n`` points, static law (if any) on the
+    nearest ``n_w``; corrections chosen by BIC; mu* profiled jointly."""
     N = sw.mu.size
     idx = slice(N - n, N)
+    n_w = n if n_w is None else n_w
+    idx_w = slice(N - n_w, N)
     best: ModelFit | None = None
     kw_range = [0]
     if sw.w is not None and b is not None:
-        kw_range = [kw for kw in range(1, _KW_MAX + 1) if n - kw - 1 >= 2] or [0]
+        kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
     for K in range(_KMAX + 1):
         if n - K - 2 < 1:
             break
         for Kw in kw_range:
             comps = [_sigma_comp(sw, idx, 2 * a, h, K)]
-            k = K + 2
+            bic_pen = (K + 2) * math.log(n)
             if Kw:
-                wc = _w_comp(sw, idx, float(b), Kw)
+                wc = _w_comp(sw, idx_w, float(b), Kw)
                 assert wc is not None
                 comps.append(wc)
-                k += Kw + 1 + (0 if wc.known else 1)
+                bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
             prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
-            bic = prof.nll + k * math.log(n)
+            bic = prof.nll + bic_pen
             if best is None or bic < best.bic:
-                best = ModelFit(name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof)
+                best = ModelFit(
+                    name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w
+                )
     assert best is not None
     comps = [_sigma_comp(sw, idx, 2 * a, h, best.K)]
     if best.Kw:
-        wc = _w_comp(sw, idx, float(b), best.Kw)  # type: ignore[arg-type]
+        wc = _w_comp(sw, idx_w, float(b), best.Kw)  # type: ignore[arg-type]
         assert wc is not None
         comps.append(wc)
-    prof = _profile(sw.mu[idx], comps, scale, inflate=inflate)
-    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof)
+    prof = _profile(sw.mu[idx], comps, scale, level=level)
+    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof, n_w)
+
+
+def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[Flag]]:
+    """Window of the static law (>= n points) and, when not given, the noise of w.
+
+    The noise of w is estimated from the scatter about the widest static series (b = 1/2, five
+    terms, which contains the smooth b = 1 law) on the nearest max(8, n) points. The window then
+    grows while either static law (<= 1 + _KW_MAX terms, mu* fixed at the eigenvalue estimate)
+    passes the chi-square test; the candidates are compared on the largest such window, where
+    the wrong law cannot follow the data."""
+    flags: list[Flag] = []
+    N = sw.mu.size
+    if sw.w is None:
+        return sw, n, flags
+    if sw.w_sd is None:
+        m = min(N, max(8, n))
+        if m - 5 < _MIN_NOISE_DOF:
+            return sw, n, flags
+        idx = slice(N - m, N)
+        c = _Comp(sw.w[idx], np.ones(m), np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
+        rss = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0])
+        sig = max(math.sqrt(rss / (m - 5)), _REL_FLOOR * float(np.max(np.abs(sw.w))), 1e-300)
+        sw = Sweep(sw.mu, sw.y, sw.sd, sw.kind, sw.omega, sw.omega_sd, sw.w,
+                   np.full(N, sig), sw.noise_given, sw.damping)  # fmt: skip
+        flags.append(
+            Flag(
+                "w_noise_estimated", f"no w_static_std given: estimated from the scatter, {sig:.2g}"
+            )
+        )
+    best_n = n
+    for b in (0.5, 1.0):
+        misses = 0
+        for m in range(n, N + 1):
+            idx = slice(N - m, N)
+            ok = False
+            for Kw in range(1, _KW_MAX + 1):
+                dof = m - Kw - 1
+                if dof < 1:
+                    break
+                wc = _w_comp(sw, idx, b, Kw)
+                assert wc is not None
+                chi = float(_nll(sw.mu[idx], [wc], np.array([mu_star]))[0])
+                if stats.chi2.sf(chi, dof) >= _ALPHA:
+                    ok = True
+                    break
+            if ok:
+                best_n = max(best_n, m)
+                misses = 0
+            else:
+                misses += 1
+                if misses >= 3:
+                    break
+    return sw, best_n, flags
+
+
+def _exp_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
+    """Grid for a free exponent: uniform, plus the candidate values and their close neighbours
+    (precise data give valleys far narrower than the uniform step)."""
+    extra = [c + d for c in cands for d in (-0.02, -0.005, 0.0, 0.005, 0.02)]
+    return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
 
 
 def _free_exponent(
@@ -767,13 +849,47 @@ def _candidates(sw: Sweep) -> list[tuple[str, float, float | None, float]]:
     return [(k, a, b, h) for k, (a, b, h) in CANDIDATES.items()]
 
 
-def _compare(sw: Sweep, scale: float) -> tuple[list[ModelFit], int, list[Flag]]:
-    """Select the informative window, fit every candidate on it, return fits sorted by BIC."""
+_Law = tuple[str, float, "float | None", float]  # name, a, b (None: no static law), h
+
+
+def _compare(
+    sw: Sweep, scale: float, law: _Law | None = None, level: float = 0.95
+) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
+    """Select the informative window, fit every candidate (or only ``law``) on it, return the
+    fits sorted by BIC (and the sweep as used: noise rescaled, static noise estimated)."""
     flags: list[Flag] = []
-    sels = {
-        "saddle-node": _select_window(sw, 0.5, 0.5, scale),
-        "pitchfork": _select_window(sw, 1.0, 1.0, scale),
-    }
+    sel_laws = (
+        {"saddle-node": (0.5, 0.5), "pitchfork": (1.0, 1.0)}
+        if law is None
+        else {law[0]: (2 * law[1], law[3])}
+    )
+
+    def select(s: Sweep) -> dict[str, _Sel]:
+        return {nm: _select_window(s, p, h, scale) for nm, (p, h) in sel_laws.items()}
+
+    sels = select(sw)
+    if not any(s.accepted for s in sels.values()):
+        # over-dispersion: the data scatter more than their stated noise (or the simulator's
+        # round-off dominates near mu*): scale the noise by the best reduced chi-square
+        N = sw.mu.size
+        m = min(N, max(8, N // 2))
+        phi = math.inf
+        for p, h in sel_laws.values():
+            K = min(2, m - 2 - _MIN_NOISE_DOF)
+            if K < 0:
+                break
+            phi = min(phi, _sigma_chi2(sw, p, h, m, K, scale) / (m - K - 2))
+        if math.isfinite(phi) and phi > 1:
+            sw = Sweep(sw.mu, sw.y, sw.sd * math.sqrt(phi), sw.kind, sw.omega, sw.omega_sd,
+                       sw.w, sw.w_sd, sw.noise_given, sw.damping)  # fmt: skip
+            flags.append(
+                Flag(
+                    "noise_underestimated",
+                    f"the nearest points scatter {math.sqrt(phi):.3g} times more than the given "
+                    "noise: the noise was scaled up by that factor",
+                )
+            )
+            sels = select(sw)
     acc = [s.n for s in sels.values() if s.accepted]
     if acc:
         n_c = min(acc) if len(acc) > 1 else acc[0]
@@ -787,9 +903,32 @@ def _compare(sw: Sweep, scale: float) -> tuple[list[ModelFit], int, list[Flag]]:
                 f"{_KMAX} corrections) fits the nearest points within their noise",
             )
         )
-    fits = [_fit_candidate(sw, name, a, b, h, n_c, scale, 1.0) for name, a, b, h in _candidates(sw)]
+    n_w = n_c
+    if sw.w is not None:
+        # mu* from the eigenvalues alone fixes the static window
+        N = sw.mu.size
+        idx = slice(N - n_c, N)
+        pre = min(
+            (
+                _profile(
+                    sw.mu[idx],
+                    [_sigma_comp(sw, idx, p, h, min(sels[nm].K, n_c - 3))],
+                    scale,
+                    with_interval=False,
+                )  # fmt: skip
+                for nm, (p, h) in sel_laws.items()
+            ),
+            key=lambda pr: pr.nll,
+        )
+        sw, n_w, fl = _static_window(sw, n_c, pre.mu_star)
+        flags.extend(fl)
+    cands = _candidates(sw) if law is None else [(law[0], law[1], law[2], law[3])]
+    fits = [
+        _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_c, scale, level, n_w)
+        for name, a, b, h in cands
+    ]
     fits.sort(key=lambda f: f.bic)
-    return fits, n_c, flags
+    return sw, fits, n_c, flags
 
 
 def _probabilities(fits: list[ModelFit]) -> dict[str, float]:
@@ -799,8 +938,10 @@ def _probabilities(fits: list[ModelFit]) -> dict[str, float]:
     return {f.name: float(wv) for f, wv in zip(fits, wts, strict=True)}
 
 
-def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
-    """Noise estimate, damping (omega data), window and candidate fits."""
+def _analyse(
+    sw: Sweep, law: _Law | None = None, level: float = 0.95
+) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
+    """Noise estimate, damping (omega data), window and candidate fits (all, or ``law``)."""
     flags: list[Flag] = []
     sw = _estimate_noise(sw)
     if not sw.noise_given:
@@ -810,7 +951,7 @@ def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
         assert sw.omega is not None
         if sw.damping is not None:
             sw = _with_damping(sw, sw.damping)
-            fits, n_c, fl = _compare(sw, scale)
+            sw, fits, n_c, fl = _compare(sw, scale, law, level)
             return sw, fits, n_c, flags + fl
 
         # damping unknown: profile it. xi = 0 is the plain law; a point with omega < xi/2 is in
@@ -830,9 +971,9 @@ def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
         key0, law0 = score(sw)
         best = (key0, law0, 0.0)
         for xi in xis:
-            k, law = score(_with_damping(sw, float(xi)))
+            k, law_x = score(_with_damping(sw, float(xi)))
             if k < best[0]:
-                best = (k, law, float(xi))
+                best = (k, law_x, float(xi))
         _, (p, h, sel), xi = best
         if xi > 0:
             # refine xi on the chosen law and window
@@ -852,11 +993,11 @@ def _analyse(sw: Sweep) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
             p0, h0, sel0 = law0
             chi_0 = _sigma_chi2(sw, p0, h0, sel.n, sel.K, scale) if sel.n == sel0.n else math.inf
             if np.any(sw.omega < xi / 2) and chi_xi + math.log(sel.n) < chi_0:
-                fits, n_c, fl = _compare(s, scale)
+                s, fits, n_c, fl = _compare(s, scale, law, level)
                 return s, fits, n_c, flags + fl
-        fits, n_c, fl = _compare(sw, scale)
+        sw, fits, n_c, fl = _compare(sw, scale, law, level)
         return sw, fits, n_c, flags + fl
-    fits, n_c, fl = _compare(sw, scale)
+    sw, fits, n_c, fl = _compare(sw, scale, law, level)
     return sw, fits, n_c, flags + fl
 
 
@@ -930,7 +1071,14 @@ def classify(
         w_static_std=w_static_std,
         damping=damping,
     )
-    sw, fits, n_c, flags = _analyse(sw0)
+    return _classify_sweep(sw0, min_probability=min_probability)
+
+
+def _classify_sweep(
+    sw0: Sweep, *, min_probability: float = 0.9, level: float = 0.95
+) -> Classification:
+    """:func:`classify` on a validated sweep (``level``: of the candidates' profile intervals)."""
+    sw, fits, n_c, flags = _analyse(sw0, None, level)
     probs = _probabilities(fits)
     top = fits[0]
     N = sw.mu.size
@@ -958,7 +1106,7 @@ def classify(
     def make_a(p: float) -> list[_Comp]:
         return [_Comp(sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, top.h, top.K), True, True)]
 
-    a2, a2_se = _free_exponent(sw.mu[idx], make_a, np.linspace(0.2, 2.5, 16), scale)
+    a2, a2_se = _free_exponent(sw.mu[idx], make_a, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale)
     a_hat, a_se = a2 / 2, a2_se / 2
     if regime == "overdamped" and sw.kind == "omega":
         a_hat, a_se = 2 * a_hat, 2 * a_se  # the observed (slow) time scale exponent
@@ -968,18 +1116,25 @@ def classify(
     if sw.w is not None:
         wsd = sw.w_sd
 
+        n_w = max(top.n_w, n_c)
+        iw = slice(N - n_w, N)
+
         def make_b(b: float) -> list[_Comp]:
             e = _w_exps(b, max(top.Kw, 2))
-            wt = 1.0 / wsd[idx] if wsd is not None else np.ones(n_c)
+            wt = 1.0 / wsd[iw] if wsd is not None else np.ones(n_w)
             # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
-            return [_Comp(sw.w[idx], wt, e, wsd is not None, True, 1, False)]  # type: ignore[index]
+            return [_Comp(sw.w[iw], wt, e, wsd is not None, True, 1, False)]  # type: ignore[index]
 
-        if n_c >= 5:
+        if n_w >= 5:
             b_hat, b_se = _free_exponent(
-                sw.mu[idx], make_b, np.linspace(0.25, 1.9, 12), scale, fixed_mu=top.profile.mu_star
+                sw.mu[iw],
+                make_b,
+                _exp_grid(0.25, 1.9, [0.5, 1.0]),
+                scale,
+                fixed_mu=top.profile.mu_star,
             )
         else:
-            flags.append(Flag("b_not_estimated", f"only {n_c} informative points for b"))
+            flags.append(Flag("b_not_estimated", f"only {n_w} informative points for b"))
     else:
         flags.append(
             Flag("no_static_data", "no w_static: b and the criticality of a pitchfork unknown")

@@ -31,15 +31,9 @@ from service.analysis.classify import (
     CANDIDATES,
     Classification,
     ModelFit,
-    Sweep,
     _analyse,
+    _classify_sweep,
     _clean,
-    _estimate_noise,
-    _fit_candidate,
-    _noise_flag,
-    _select_window,
-    _with_damping,
-    classify,
     prepare_sweep,
 )
 from service.analysis.common import Flag
@@ -368,56 +362,23 @@ def predict(
     flags: list[Flag] = []
     cls: Classification | None = None
     if a is None and transition is None:
-        cls = classify(
-            mu,
-            sigma2,
-            sigma2_std=sigma2_std,
-            omega=omega,
-            omega_std=omega_std,
-            w_static=w_static,
-            w_static_std=w_static_std,
-            damping=damping,
-        )
+        cls = _classify_sweep(sw0, level=level)
         fits = list(cls.fits)
         probs = [cls.probabilities[f.name] for f in fits]
         keep = [i for i, p in enumerate(probs) if p > 1e-4]
         fits = [fits[i] for i in keep]
         probs = [probs[i] for i in keep]
-        if level != 0.95:
-            fits = [_refit_level(cls, f, sw0, level) for f in fits]
         flags.extend(f for f in cls.flags if f.code not in {"no_static_data"})
         name = cls.transition
         window = cls.window
         method = "model-average" if len(fits) > 1 else "profile-likelihood"
-        sw_used: Sweep | None = None
     else:
-        name, aa, bb, h = _law_for(transition, a)
-        if sw0.kind == "omega":
-            sw_used, _, _, fl = _analyse(sw0)
-        else:
-            sw_used = _estimate_noise(sw0)
-            fl = [] if sw_used.noise_given else [_noise_flag(sw_used)]
+        law = _law_for(transition, a)
+        name = law[0]
+        _, fits, window, fl = _analyse(sw0, law, level)
         flags.extend(fl)
-        if sw_used.w is None:
-            bb = None
-        scale = float(sw_used.mu[-1] - sw_used.mu[0])
-        sel = _select_window(sw_used, 2 * aa, h, scale)
-        if not sel.accepted:
-            flags.append(
-                Flag(
-                    "poor_fit",
-                    f"the {name} law (a={aa:g}, up to 3 corrections) does not fit the nearest "
-                    f"points within their noise (best p-value {sel.pvalue:.2g})",
-                )
-            )
-        fit = _fit_candidate(
-            sw_used, name, aa, bb, h, max(sel.n, min(3, sw_used.mu.size)), scale, 1.0
-        )
-        if level != 0.95:
-            fit = _refit_level_sweep(sw_used, fit, level)
-        flags.extend(fit.profile.flags)
-        fits, probs = [fit], [1.0]
-        window = fit.n
+        flags.extend(fits[0].profile.flags)
+        fits, probs = fits[:1], [1.0]
         method = "profile-likelihood"
         if window < 5:
             flags.append(
@@ -501,24 +462,3 @@ def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
             seen.add(f.code)
             out.append(f)
     return out
-
-
-def _refit_level_sweep(sw: Sweep, fit: ModelFit, level: float) -> ModelFit:
-    from service.analysis.classify import _profile, _sigma_comp, _w_comp
-
-    N = sw.mu.size
-    idx = slice(N - fit.n, N)
-    comps = [_sigma_comp(sw, idx, 2 * fit.a, fit.h, fit.K)]
-    if fit.Kw:
-        wc = _w_comp(sw, idx, fit.b, fit.Kw)
-        if wc is not None:
-            comps.append(wc)
-    prof = _profile(sw.mu[idx], comps, float(sw.mu[-1] - sw.mu[0]), level=level)
-    return ModelFit(fit.name, fit.a, fit.b, fit.h, fit.n, fit.K, fit.Kw, fit.bic, prof)
-
-
-def _refit_level(cls: Classification, fit: ModelFit, sw0: Sweep, level: float) -> ModelFit:
-    sw = _estimate_noise(sw0)
-    if sw.kind == "omega" and math.isfinite(cls.damping):
-        sw = _with_damping(sw, cls.damping)
-    return _refit_level_sweep(sw, fit, level)
