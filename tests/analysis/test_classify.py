@@ -14,6 +14,7 @@ The Euler-beam tests use ``sim.euler_beam`` (written independently) as the refer
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 
@@ -291,7 +292,14 @@ def test_validation_names_parameter_and_value(kwargs: dict, words: list[str]) ->
 @pytest.fixture(scope="module")
 def beam_sweeps() -> dict[str, dict]:
     """Exact beam spectra and static deflections at 20 points approaching mu*."""
-    beam = pytest.importorskip("sim.euler_beam")
+    pytest.importorskip("sim.euler_beam")
+    return _beam_sweeps()
+
+
+@functools.cache
+def _beam_sweeps() -> dict[str, dict]:
+    import sim.euler_beam as beam
+
     out = {}
     for act in ("asymmetric", "symmetric", "antisymmetric"):
         b = beam.bifurcation(act)
@@ -311,7 +319,7 @@ BEAM_KIND = {
 
 
 @pytest.mark.parametrize("act", list(BEAM_KIND))
-@pytest.mark.parametrize("rel", [1e-6, 1e-3])
+@pytest.mark.parametrize("rel", [pytest.param(1e-6, marks=pytest.mark.slow), 1e-3])
 def test_beam_spectra_classified_and_mu_star(beam_sweeps: dict, act: str, rel: float) -> None:
     d = beam_sweeps[act]
     assert d["kind"] == BEAM_KIND[act]  # the reference agrees with the paper

@@ -213,7 +213,8 @@ def test_beam_mu_star_10x_better_than_paper(beam_sweeps: dict, act: str) -> None
 
 
 def _sequential(act: str, ref: dict, seed: int, rel: float, budget: int = 30) -> tuple:
-    """Measure the beam at mu chosen by ``next_safe_mu`` (first 4 on a coarse grid)."""
+    """Measure the beam at mu chosen by ``next_safe_mu`` (first 4 on a coarse grid) until the
+    95 % interval is narrower than 2e-7 or the budget is spent."""
     from sim.euler_beam import equilibrium, spectrum
 
     rng = np.random.default_rng(seed)
@@ -228,8 +229,9 @@ def _sequential(act: str, ref: dict, seed: int, rel: float, budget: int = 30) ->
             ws.append(equilibrium(act, m, "U_A").w_quarter + 1e-6 * rng.standard_normal())
         s2a = np.array(s2s)
         p = predict(np.array(mus), s2a, sigma2_std=rel * np.abs(s2a), w_static=np.array(ws))
-        if len(mus) >= budget or not math.isfinite(p.next_safe_mu):
-            break
+        lo, hi = p.mu_star_interval
+        if len(mus) >= budget or not math.isfinite(p.next_safe_mu) or hi - lo < 2e-7:
+            break  # budget spent, or the interval is narrow enough (100x below the target)
         mus.append(p.next_safe_mu)
     return np.array(mus), p
 
