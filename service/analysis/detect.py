@@ -1194,11 +1194,12 @@ def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
 
 
 def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
-    """Refit-based order check for suspicious modes: pairs closer than two FFT bins, and
-    growing oscillations (``p < 0``). The weaker mode of each is removed and the model refitted;
-    the smaller model wins unless the bigger one lowers the RSS by more than the MDL penalty
-    (``4 ln N`` noise variances per mode). Guards against local minima where two modes share
-    one spectral line."""
+    """Refit-based order check for suspicious modes: pairs closer than two FFT bins, growing
+    oscillations (``p < 0``) and weak modes (energy below 10x the MDL threshold). The weaker
+    mode of each is removed and the model refitted; the smaller model wins unless the bigger
+    one lowers the RSS by more than the MDL penalty (``4 ln N`` noise variances per mode).
+    Guards against local minima where two modes share one spectral line or a spurious mode
+    holds part of another."""
     N = y.shape[0]
     thr = 4.0 * math.log(N)
     for _ in range(4):
@@ -1211,6 +1212,8 @@ def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
         suspects = set()
         for i in range(K):
             if p[i] < 0:  # s1 + s2 = -p > 0: energy gain, impossible for a passive structure
+                suspects.add(i)
+            if e[i] < 10.0 * thr * fit.s2:  # weak: may be a partner of a split mode
                 suspects.add(i)
             for j in range(i + 1, K):
                 if abs(om[i] - om[j]) < 2.0 * (2 * math.pi / N):
