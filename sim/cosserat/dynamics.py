@@ -285,14 +285,11 @@ def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float
         raise ValueError(f"dmu must be > 0, got {dmu!r}")
     rod = Rod(elements=elements, end_shortening=end_shortening, slenderness=slenderness,
               actuation="asymmetric")
-    bif = find_bifurcation(rod)
-    ms = bif.mu_star if mu_star is None else float(mu_star)
+    ms = find_bifurcation(rod).mu_star if mu_star is None else float(mu_star)
     k = 3 * (rod.n // 2) + 1
-    z = S.branch_state(rod, bif.mu_star - 1e-6) if mu_star is None else None
-    if z is None:
-        z = S.branch_state(rod, ms)
-    # pinned equilibria: y(1/2) held, mu raised quasi-statically (pinned Newton with mu fixed)
-    z = _pinned_follow(rod, z, bif.mu_star, ms + dmu, k)
+    z = S.branch_state(rod, ms - 1e-6)  # U_A at the fold (to 1e-6)
+    # pinned equilibria: y(1/2) held by the indenter while mu is raised quasi-statically
+    z = _pinned_follow(rod, z, ms - 1e-6, ms + dmu, k)
     zB = S.branch_state(rod, ms + dmu, "U_B")
     nsteps = int(round(duration / dt))
     r = math.sqrt(end_shortening)
