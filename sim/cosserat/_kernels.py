@@ -298,6 +298,11 @@ def integrate(
                 break
         if not converged and dmax < 1e3 * tol:
             converged = True  # round-off floor of a stiff rod
+        if not converged or not math.isfinite(dmax):
+            stats[0] = step  # z, v, a keep the last converged state
+            stats[1] = total_it
+            stats[2] = 1.0
+            return
         for i in range(N):
             if fixed[i] == 0:
                 anew[i] = (znew[i] - zn[i] - dt * v[i]) / (beta * dt * dt) - (
@@ -306,11 +311,6 @@ def integrate(
                 v[i] = v[i] + dt * ((1.0 - gam) * a[i] + gam * anew[i])
                 a[i] = anew[i]
             z[i] = znew[i]
-        if not converged or not math.isfinite(dmax):
-            stats[0] = step + 1
-            stats[1] = total_it
-            stats[2] = 1.0
-            return
         if (step + 1) % every == 0:
             for p in range(P):
                 rec[k_rec, p] = weights[p, 0] * z[probes[p, 0]] + weights[p, 1] * z[probes[p, 1]]

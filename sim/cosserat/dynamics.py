@@ -46,7 +46,9 @@ class Run:
     steps, newton_iterations : int
     stop : {"done", "diverged"}
     cpu_s : float
-        Process time spent in the kernel.
+        Process time spent in the kernel (all attempts).
+    dt : float
+        The step finally used (smaller than asked after a retry).
     """
 
     t: np.ndarray
@@ -57,6 +59,7 @@ class Run:
     newton_iterations: int
     stop: str
     cpu_s: float
+    dt: float = 0.0
 
 
 Probe = tuple[tuple[int, int], tuple[float, float]]
@@ -65,7 +68,7 @@ Probe = tuple[tuple[int, int], tuple[float, float]]
 def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float, dt: float,
               nsteps: int, every: int = 1, probes: list[Probe] | None = None,
               rho_inf: float = 0.8, tol: float = 1e-13, maxit: int = 12, full_its: int = 99,
-              fixed_extra: list[int] | None = None) -> Run:
+              fixed_extra: list[int] | None = None, retries: int = 3) -> Run:
     """Integrate the rod from (z0, v0) at fixed mu.
 
     Parameters
@@ -91,6 +94,10 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
         Newton iterations with a fresh tangent; later ones reuse it (modified Newton).
     fixed_extra : list of int
         Additional dofs held fixed (e.g. an indenter on y(1/2)).
+    retries : int
+        When a Newton solve fails (violent motion), the run is restarted with the step
+        halved (and ``every`` doubled, so the samples are the same), at most ``retries``
+        times; ``Run.stop`` is "diverged" if it still fails, with the record up to there.
     """
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive number, got {dt!r}")
@@ -116,22 +123,29 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
     a = np.where(fixed, 0.0, -g / mass - xi * v)
     if probes is None:
         probes = [rod.interp_weights(0.25)]
+    z_init, v_init, a_init = z.copy(), v.copy(), a.copy()
     pidx = np.array([p[0] for p in probes], dtype=np.int64)
     pw = np.array([p[1] for p in probes], dtype=np.float64)
     nrec = nsteps // every + 1
     rec = np.zeros((nrec, len(probes)))
     stats = np.zeros(3)
     c0 = time.process_time()
-    K.integrate(z, v, a, mass, fixed.astype(np.uint8), rod.n, rod.ds, rod.EA, rod.GA, 1.0,
-                rod.k_clamp, rod.k_clamp, aL, aR, float(xi), float(dt), int(nsteps),
-                int(every), pidx, pw, float(rho_inf), float(tol), int(maxit), int(full_its), rec,
-                stats)
+    for attempt in range(retries + 1):
+        K.integrate(z, v, a, mass, fixed.astype(np.uint8), rod.n, rod.ds, rod.EA, rod.GA, 1.0,
+                    rod.k_clamp, rod.k_clamp, aL, aR, float(xi), float(dt), int(nsteps),
+                    int(every), pidx, pw, float(rho_inf), float(tol), int(maxit),
+                    int(full_its), rec, stats)
+        if not stats[2] or attempt == retries:
+            break
+        dt, nsteps, every = 0.5 * dt, 2 * nsteps, 2 * every
+        z, v, a = z_init.copy(), v_init.copy(), a_init.copy()
+        rec[:] = 0.0
     cpu = time.process_time() - c0
     steps = int(stats[0])
     stop = "diverged" if stats[2] else "done"
     m = steps // every + 1
     return Run(t=np.arange(m) * every * dt, rec=rec[:m], z=z, v=v, steps=steps,
-               newton_iterations=int(stats[1]), stop=stop, cpu_s=cpu)
+               newton_iterations=int(stats[1]), stop=stop, cpu_s=cpu, dt=dt)
 
 
 def kick_velocity(rod: Rod, X: float, kick: float) -> np.ndarray:
@@ -211,7 +225,7 @@ def simulate(scene: Scene, *, steps_per_period: int = 100, periods: float = 40.0
         "sigma2": [float(x) for x in s2],
         "omega": omega1,
         "min_eigenvalue": float(lam),
-        "internal_dt": dt,
+        "internal_dt": run.dt,
         "steps": run.steps,
         "newton_iterations": run.newton_iterations,
         "cpu_s": run.cpu_s,
@@ -260,7 +274,7 @@ class SnapThrough:
 
 def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float = 1e-3,
                  elements: int = 50, damping: float = 6e-4, duration: float = 5.0,
-                 dt: float = 5e-4, mu_star: float | None = None) -> SnapThrough:
+                 dt: float = 1e-3, mu_star: float | None = None) -> SnapThrough:
     """The paper's released-indenter experiment, asymmetric actuation.
 
     Start from the rod's equilibrium at its fold mu*; hold the midpoint's transverse position
