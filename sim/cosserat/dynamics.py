@@ -317,7 +317,8 @@ def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float
     t_snap = float(run.t[hit[0]]) if hit.size else None
     return SnapThrough(mu_star=ms, mu=ms + dmu, t=run.t, w_mid=w_mid, w_probe=run.rec[:, 1],
                        w_mid_final=wf, t_snap=t_snap,
-                       info={"stop": run.stop, "cpu_s": run.cpu_s, "steps": run.steps})
+                       info={"stop": run.stop, "cpu_s": run.cpu_s, "steps": run.steps,
+                             "dt": run.dt})
 
 
 def _pinned_follow(rod: Rod, z: np.ndarray, mu0: float, mu1: float, k: int,

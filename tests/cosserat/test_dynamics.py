@@ -122,3 +122,21 @@ def test_snap_through_reaches_u_b_and_slows_near_the_fold():
     assert near.t_snap is not None and far.t_snap is not None
     # slower closer to the fold; saddle-node scaling t_snap ~ dmu^(-1/4): ratio 5^(1/4) ~ 1.5
     assert 1.3 < near.t_snap / far.t_snap < 1.8
+
+
+def test_a_too_large_step_is_retried_not_returned_wrong():
+    """A violent snap at dt = 8e-3 makes Newton fail; the run restarts with halved steps."""
+    r = snap_through(0.05, elements=32, duration=1.0, dt=8e-3)
+    assert r.info["stop"] == "done" and r.info["dt"] < 8e-3
+    ref = snap_through(0.05, elements=32, duration=1.0, dt=r.info["dt"], mu_star=r.mu_star)
+    k = int(round(8e-3 / r.info["dt"]))  # samples stay on the asked grid
+    assert r.w_mid.shape == (126,) and np.allclose(r.w_mid, ref.w_mid[::k])
+
+
+def test_critical_slowing_down_near_the_fold():
+    ms = 1.7758894669  # the n = 50, h/L = 1e-3 rod's fold (bifurcation("asymmetric", elements=50))
+    far = simulate(SCENE.with_(elements=50, duration=0.5))
+    near = simulate(SCENE.with_(elements=50, mu=ms - 1e-3, duration=0.5))
+    # saddle-node: omega ~ (mu* - mu)^(1/4) far from the overdamped layer
+    assert near.info["omega"] < 0.35 * far.info["omega"]
+    assert near.w_static > far.w_static  # pushed towards the fold, W(1/4) rises
