@@ -6,7 +6,7 @@ import json
 import subprocess
 
 import pytest
-from conftest import SNAPWARN
+from _svc_helpers import SNAPWARN
 
 
 def _run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:

@@ -10,8 +10,8 @@ import sys
 import httpx2
 import numpy as np
 import pytest
+from _svc_helpers import numerics_has, require_numerics
 from _svc_signals import csv_bytes, ringdown
-from conftest import numerics_has, require_numerics
 
 from service.client import (
     AsyncClient,

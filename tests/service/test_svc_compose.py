@@ -13,7 +13,7 @@ from pathlib import Path
 import httpx2
 import pytest
 import yaml
-from conftest import REPO, SNAPWARN, free_port
+from _svc_helpers import REPO, SNAPWARN, free_port
 
 from service.api.storage import Store
 

@@ -11,8 +11,8 @@ import time
 import httpx2
 import numpy as np
 import pytest
+from _svc_helpers import require_numerics
 from _svc_signals import csv_bytes
-from conftest import require_numerics
 
 from service.client import Client
 

@@ -7,8 +7,8 @@ import json
 
 import numpy as np
 import pytest
+from _svc_helpers import numerics_has, require_numerics, test_settings
 from _svc_signals import ringdown
-from conftest import numerics_has, require_numerics, test_settings
 
 from service.api import create_app
 

@@ -7,7 +7,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import REPO, SNAPWARN
+from _svc_helpers import REPO, SNAPWARN
 
 from service.api import export_openapi, openapi_document
 from service.api.app import render_openapi

@@ -9,8 +9,8 @@ import time
 
 import httpx2
 import pytest
+from _svc_helpers import start_server
 from _svc_signals import ringdown
-from conftest import start_server
 
 from service.api.storage import Store
 
