@@ -148,6 +148,16 @@ def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, 
     )
 
 
+def _terminate_workers(pool: Executor) -> None:
+    """End the worker processes of a process pool now (their jobs were handed back)."""
+    procs = getattr(pool, "_processes", None) or {}
+    for p in list(procs.values()):
+        try:
+            p.terminate()
+        except Exception:  # noqa: BLE001
+            pass
+
+
 class JobRunner:
     """Claims and runs jobs in a background thread; one per process that runs jobs."""
 
@@ -173,10 +183,20 @@ class JobRunner:
         self._wake.set()
 
     def stop(self, timeout: float = 5.0) -> None:
+        """Stop claiming; hand the running jobs back to the queue (resumed by any runner)."""
         self._stop.set()
         self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout)
+        with self._lock:
+            ids = list(self._running)
+        try:
+            n = self.store.release_jobs(ids, self.owner)
+            if n:
+                log.warning("stopping: %d running job(s) handed back to the queue", n)
+        except Exception:  # noqa: BLE001 - recovery by lease will do it
+            log.exception("could not hand back the running jobs")
+        _terminate_workers(self.pool)
         self.pool.shutdown(wait=False, cancel_futures=True)
         try:
             self.store.worker_gone(self.owner)
@@ -207,6 +227,7 @@ class JobRunner:
                 if now - last_recover >= min(s.job_lease_s / 2, 5.0):
                     last_recover = now
                     self._recover()
+                    self.store.prune_workers(max(3600.0, 10 * s.job_lease_s))
                 self._claim()
             except Exception:  # noqa: BLE001 - keep the runner alive (db hiccups)
                 log.exception("job runner iteration failed")
@@ -234,6 +255,8 @@ class JobRunner:
         with self._lock:
             self._running.pop(job_id, None)
         exc = fut.exception() if not fut.cancelled() else None
+        if exc is not None and self._stop.is_set():
+            return  # stopping: the job was handed back to the queue, not failed
         if exc is not None:
             log.error("job %s attempt %d crashed: %r", job_id, attempt, exc)
             try:

@@ -60,7 +60,9 @@ class Settings(BaseSettings):
     job_lease_s: float = Field(
         default=15.0, gt=0, description="A running job silent this long is resumed elsewhere."
     )
-    job_max_attempts: int = Field(default=3, ge=1)
+    job_max_attempts: int = Field(
+        default=5, ge=1, description="Starts of a job (restarts resume it) before it fails."
+    )
     heartbeat_file: str | None = Field(
         default=None,
         description="A file the job runner touches at every heartbeat "

@@ -33,6 +33,7 @@ from sqlalchemy import (
     String,
     Text,
     create_engine,
+    delete,
     event,
     func,
     select,
@@ -395,9 +396,10 @@ class Store:
 
     def fail_job(self, job_id: str, attempt: int | None, error: dict[str, Any]) -> bool:
         with self.session() as s:
-            cond = [JobRow.id == job_id, JobRow.status.in_(("queued", "running"))]
-            if attempt is not None:
-                cond.append(JobRow.attempts == attempt)
+            if attempt is not None:  # the runner of that attempt: only while it runs
+                cond = [JobRow.id == job_id, JobRow.status == "running", JobRow.attempts == attempt]
+            else:  # an operator: any job not finished yet
+                cond = [JobRow.id == job_id, JobRow.status.in_(("queued", "running"))]
             res = s.execute(
                 update(JobRow)
                 .where(*cond)
@@ -476,6 +478,29 @@ class Store:
                 if res.rowcount == 1:
                     done.append((row.id, new))
         return done
+
+    def release_jobs(self, job_ids: list[str], owner: str) -> int:
+        """Re-queue the running jobs of ``owner`` (it stops gracefully): another runner resumes
+        them at once. Their attempt count stays, so a late write of this owner is fenced off."""
+        if not job_ids:
+            return 0
+        with self.session() as s:
+            res = s.execute(
+                update(JobRow)
+                .where(JobRow.id.in_(job_ids), JobRow.owner == owner, JobRow.status == "running")
+                .values(
+                    status="queued",
+                    owner=None,
+                    fraction=0.0,
+                    message="resuming: its runner was stopped",
+                )
+            )
+            return int(res.rowcount or 0)
+
+    def prune_workers(self, older_than_s: float) -> None:
+        cutoff = utcnow() - timedelta(seconds=older_than_s)
+        with self.session() as s:
+            s.execute(delete(WorkerRow).where(WorkerRow.heartbeat_at < cutoff))
 
     def count_jobs(self, status: str | None = None) -> int:
         with self.session() as s:

@@ -157,3 +157,34 @@ def test_a_job_interrupted_too_often_fails_with_a_reason(tmp_path) -> None:  # n
         assert "giving up" in final["error"]["detail"]
     finally:
         s.stop()
+
+
+@pytest.mark.slow
+def test_a_graceful_stop_hands_the_running_job_back(tmp_path) -> None:  # noqa: ANN001
+    db = f"sqlite:///{tmp_path / 'graceful.db'}"
+    a = start_server(db, tmp_path, extra_env={"SNAPWARN_JOB_LEASE_S": "600"})
+    store = Store(db)
+    job = store.create_job("diagnostic-sleep", {"seconds": 3.0, "steps": 30, "echo": "g"})
+    try:
+        _until(
+            lambda: (d := _job(a.url, job.id))["status"] == "running"
+            and d["progress"]["fraction"] > 0,
+            60,
+            "the job to run",
+        )
+    finally:
+        rc = a.stop(signal.SIGTERM)
+    assert rc in (0, -signal.SIGTERM), a.output()
+    row = store.get_job(job.id)
+    assert row.status == "queued" and "runner was stopped" in row.message
+    # a long lease: only the hand-back (not the lease) lets the next server resume it at once
+    b = start_server(db, tmp_path, extra_env={"SNAPWARN_JOB_LEASE_S": "600"})
+    try:
+        final = _until(
+            lambda: (d := _job(b.url, job.id))["status"] in ("succeeded", "failed") and d,
+            60,
+            "the resumed job",
+        )
+        assert final["status"] == "succeeded" and final["attempts"] == 2
+    finally:
+        b.stop()
