@@ -305,6 +305,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=20261121)
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (cells run in parallel)")
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument(
+        "--plot-only", action="store_true", help="re-read the CSV, print the table and re-plot"
+    )
     args = ap.parse_args(argv)
     if args.plot_only:
         with (args.out / "detector.csv").open() as fh:
