@@ -316,12 +316,12 @@ def warn(
                            seed=None if seed is None else seed + k)  # fmt: skip
         try:
             sig = simulate(scene, model)
-        except ValueError as exc:  # no equilibrium: the strip snapped
-            flags.append(Flag("snapped", f"no U_A equilibrium at mu={mu_next!r}: {exc}"))
+        except ValueError as exc:  # no stable equilibrium left: the strip snapped
+            flags.append(Flag("snapped", f"no stable U_A equilibrium at mu={mu_next!r}: {exc}"))
             stopped = "snapped"
             break
-        det = detect(sig.w, dt=sig.dt)
         try:
+            det = detect(sig.w, dt=sig.dt)
             m = measurement_from_detection(mu_next, det, sig.t[-1], sig.dt)
         except ValueError as exc:
             flags.append(Flag("no_mode", str(exc)))

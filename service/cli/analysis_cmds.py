@@ -215,9 +215,57 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn_job(actuation: str, seed: int, queue: Any) -> dict:
+    """One demo sweep in a worker process; progress goes back through ``queue``."""
+    from service.analysis.pipeline import warn
+
+    def cb(fraction: float, message: str) -> None:
+        if queue is not None:
+            queue.put((actuation, fraction, message))
+
+    return warn(actuation, seed=seed, max_measurements=30, progress=cb).to_dict()
+
+
+def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
+    """The three sweeps, in parallel worker processes (one per core, at most three)."""
+    import multiprocessing as mp
+    import os
+    import queue as queue_mod
+    from concurrent.futures import ProcessPoolExecutor, wait
+
+    acts = ("asymmetric", "symmetric", "antisymmetric")
+    ctx = mp.get_context("spawn")
+    workers = max(1, min(len(acts), os.cpu_count() or 1))
+    bars = {}
+    if show_progress:
+        from tqdm import tqdm
+
+        for i, act in enumerate(acts):
+            bars[act] = tqdm(total=100, desc=f"{act:13}", position=i, file=sys.stderr,
+                             leave=False, unit="%", dynamic_ncols=True)  # fmt: skip
+    with ctx.Manager() as mgr:
+        q = mgr.Queue() if show_progress else None
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as ex:
+            futs = [ex.submit(_warn_job, act, seed + k, q) for k, act in enumerate(acts)]
+            pending = set(futs)
+            while pending:
+                done, pending = wait(pending, timeout=0.2)
+                while q is not None:
+                    try:
+                        act, frac, msg = q.get_nowait()
+                    except queue_mod.Empty:
+                        break
+                    bars[act].n = int(round(100 * frac))
+                    bars[act].set_postfix_str(msg[:60])
+                    bars[act].refresh()
+            runs = [f.result() for f in futs]
+    for bar in bars.values():
+        bar.close()
+    return runs
+
+
 def _demo(args: argparse.Namespace) -> int:
     """The main job: early warning for the three actuations of the Euler beam."""
-    from service.analysis.pipeline import warn
     from service.cli.sim_cmds import beam_summary, beam_summary_text
 
     t0 = time.perf_counter()
@@ -225,15 +273,7 @@ def _demo(args: argparse.Namespace) -> int:
     if not args.json:
         sys.stdout.write(beam_summary_text(summary) + "\n\n")
         sys.stdout.flush()
-    runs = []
-    for k, act in enumerate(("asymmetric", "symmetric", "antisymmetric")):
-        cb = _progress_printer(not args.no_progress)
-        try:
-            res = warn(act, seed=args.seed + k, max_measurements=30, progress=cb)
-        finally:
-            if cb is not None:
-                cb.close()
-        runs.append(res.to_dict())
+    runs = _run_demo_sweeps(args.seed, not args.no_progress)
     doc = {"beam": summary, "warn": runs, "seconds": time.perf_counter() - t0}
     rows = [
         "Early warning (Euler beam, xi = 2e-4, 40 dB): true mu*, the paper's rule, ours",

@@ -30,6 +30,7 @@ from sim.scene import Scene, Signal, add_noise
 PERIODS = 40  # default record length in fundamental periods
 SAMPLES_PER_PERIOD = 50  # default sampling of the fundamental
 MAX_SAMPLES = 400_000
+MAX_GROWTH = 12.0  # largest e-folding of an unstable mode over a record (e^12 ~ 1.6e5)
 
 
 @dataclass(frozen=True)
@@ -271,6 +272,13 @@ def impulse_response(scene: Scene, *, method: str = "modal", n: int = DEFAULT_N)
     duration = scene.duration if scene.duration is not None else duration
     dt = scene.dt if scene.dt is not None else dt
     t = _time_grid(duration, dt)
+    growth = math.sqrt(max(float(np.max(sp.sigma2)), 0.0)) * float(t[-1])
+    if growth > MAX_GROWTH:
+        raise BeamError(
+            f"branch {scene.branch!r} at mu={scene.mu!r} is unstable (sigma^2 = "
+            f"{float(np.max(sp.sigma2)):.6g} > 0): a kick grows by e^{growth:.0f} over the record, "
+            "the strip would snap; shorten the duration or use snap_through"
+        )
     w_static = float(eq.shape(np.array([scene.probe]))[0])
     common = dict(
         kick=scene.kick,

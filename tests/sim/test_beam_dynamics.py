@@ -207,3 +207,11 @@ def test_scene_validation_names_the_field() -> None:
         Scene(damping=-1.0)
     with pytest.raises(SceneError, match="mu"):
         Scene(mu=float("inf"))
+
+
+def test_unstable_equilibrium_is_refused_not_overflowed() -> None:
+    """Past the subcritical pitchfork U_A still exists but is unstable: the strip would snap."""
+    with pytest.raises(ValueError, match="unstable"):
+        impulse_response(Scene(actuation="symmetric", mu=2.005, kick=1e-3, duration=100.0))
+    short = impulse_response(Scene(actuation="symmetric", mu=2.005, kick=1e-6, duration=0.5))
+    assert np.all(np.isfinite(short.w))
