@@ -34,8 +34,13 @@ lint: setup
 serve: setup
 	$(BIN)/snapwarn serve
 
+## Every benchmark (one command each; BENCH_ARGS=--quick for a smoke run).
 bench: setup
-	$(BIN)/python bench/beam.py
+	$(BIN)/python bench/beam.py $(BENCH_ARGS)
+	$(BIN)/python bench/detector.py $(BENCH_ARGS)
+	$(BIN)/python bench/cosserat.py $(BENCH_ARGS)
+	$(BIN)/python bench/warn.py $(BENCH_ARGS)
+	$(BIN)/python bench/service.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info
