@@ -85,3 +85,27 @@ def test_bad_arguments_give_one_line_error_and_nonzero_exit(argv, needle, tmp_pa
     assert proc.returncode != 0
     assert needle in proc.stderr and "Traceback" not in proc.stderr
     assert proc.stdout == ""
+
+
+def test_cosserat_through_the_cli(capsys, tmp_path) -> None:
+    argv = ["bifurcation", "--model", "cosserat", "--actuation", "asymmetric",
+            "--end-shortening", "1e-2", "--slenderness", "1e-3", "--elements", "24"]  # fmt: skip
+    doc = run_json(capsys, *argv)
+    assert doc["model"] == "cosserat" and doc["elements"] == 24
+    assert doc["transition"] == "saddle-node" and abs(doc["mu_star"] - 1.78) < 0.03
+    out = tmp_path / "c.csv"
+    doc = run_json(capsys, "simulate", "--model", "cosserat", "--actuation", "symmetric",
+                   "--mu", "1.0", "--elements", "24", "--end-shortening", "1e-2",
+                   "--slenderness", "1e-2", "--out", str(out))  # fmt: skip
+    assert doc["model"] == "cosserat" and out.exists()
+
+
+@pytest.mark.slow
+def test_warn_on_the_cosserat_rod(capsys) -> None:
+    doc = run_json(capsys, "warn", "--model", "cosserat", "--actuation", "asymmetric",
+                   "--elements", "24", "--end-shortening", "1e-2", "--slenderness", "6.3e-3",
+                   "--max-measurements", "12", "--seed", "1", "--no-progress")  # fmt: skip
+    t = doc["truth"]
+    assert t["max_mu_measured"] < t["mu_star"]
+    assert doc["transition"] == "saddle-node"
+    assert abs(t["error"]) < 1e-2
