@@ -312,6 +312,23 @@ class Store:
             s.delete(row)
         return True
 
+    def list_signals(self, limit: int, offset: int) -> tuple[list[SignalRow], int]:
+        """A page of signals (newest first, samples not read) and the total count."""
+        with self.session() as s:
+            rows = (
+                s.execute(
+                    select(SignalRow)
+                    .options(defer(SignalRow.w, raiseload=True), defer(SignalRow.t, raiseload=True))
+                    .order_by(SignalRow.created_at.desc(), SignalRow.id)
+                    .limit(limit)
+                    .offset(offset)
+                )
+                .scalars()
+                .all()
+            )
+            total = s.execute(select(func.count()).select_from(SignalRow)).scalar_one()
+        return list(rows), int(total)
+
     def count_signals(self) -> int:
         with self.session() as s:
             return int(s.execute(select(func.count()).select_from(SignalRow)).scalar_one())
@@ -501,6 +518,30 @@ class Store:
         cutoff = utcnow() - timedelta(seconds=older_than_s)
         with self.session() as s:
             s.execute(delete(WorkerRow).where(WorkerRow.heartbeat_at < cutoff))
+
+    def list_jobs(
+        self, status: str | None, kind: str | None, limit: int, offset: int
+    ) -> tuple[list[JobRow], int]:
+        """A page of jobs (newest first) and the total count of those matching."""
+        cond = []
+        if status:
+            cond.append(JobRow.status == status)
+        if kind:
+            cond.append(JobRow.kind == kind)
+        with self.session() as s:
+            rows = (
+                s.execute(
+                    select(JobRow)
+                    .where(*cond)
+                    .order_by(JobRow.created_at.desc(), JobRow.id)
+                    .limit(limit)
+                    .offset(offset)
+                )
+                .scalars()
+                .all()
+            )
+            total = s.execute(select(func.count()).select_from(JobRow).where(*cond)).scalar_one()
+        return list(rows), int(total)
 
     def count_jobs(self, status: str | None = None) -> int:
         with self.session() as s:

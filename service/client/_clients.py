@@ -14,7 +14,9 @@ from service.schemas import (
     Detection,
     Health,
     Job,
+    JobPage,
     SignalMeta,
+    SignalPage,
     SimulationResult,
     Sweep,
 )
@@ -86,6 +88,14 @@ class Client:
     def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
         """``POST /v1/signals`` (multipart): a path or bytes (CSV, NPY, NPZ, WAV, MAT)."""
         return self._run(core.upload_file(file, **kw))
+
+    def list_signals(self, *, limit: int = 50, offset: int = 0) -> SignalPage:
+        """``GET /v1/signals``: a page of signals, newest first."""
+        return self._run(core.list_signals(limit=limit, offset=offset))
+
+    def list_jobs(self, **kw: Any) -> JobPage:
+        """``GET /v1/jobs``: a page of jobs (``status=``, ``kind=``, ``limit=``, ``offset=``)."""
+        return self._run(core.list_jobs(**kw))
 
     def get_signal(self, signal_id: str) -> SignalMeta:
         """``GET /v1/signals/{id}``."""
@@ -214,6 +224,12 @@ class AsyncClient:
 
     async def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
         return await self._run(core.upload_file(file, **kw))
+
+    async def list_signals(self, *, limit: int = 50, offset: int = 0) -> SignalPage:
+        return await self._run(core.list_signals(limit=limit, offset=offset))
+
+    async def list_jobs(self, **kw: Any) -> JobPage:
+        return await self._run(core.list_jobs(**kw))
 
     async def get_signal(self, signal_id: str) -> SignalMeta:
         return await self._run(core.get_signal(signal_id))

@@ -21,8 +21,10 @@ from service.schemas import (
     Detection,
     Health,
     Job,
+    JobPage,
     Problem,
     SignalMeta,
+    SignalPage,
     SimulationResult,
     Sweep,
 )
@@ -174,6 +176,23 @@ def upload_file(
     return Call(
         "POST", "/v1/signals", files={"file": (fname, data)}, data=form, parse=_model(SignalMeta)
     )
+
+
+def list_signals(*, limit: int = 50, offset: int = 0) -> Call:
+    return Call(
+        "GET", "/v1/signals", params={"limit": limit, "offset": offset}, parse=_model(SignalPage)
+    )
+
+
+def list_jobs(
+    *, status: str | None = None, kind: str | None = None, limit: int = 50, offset: int = 0
+) -> Call:
+    params: dict[str, Any] = {"limit": limit, "offset": offset}
+    if status:
+        params["status"] = status
+    if kind:
+        params["kind"] = kind
+    return Call("GET", "/v1/jobs", params=params, parse=_model(JobPage))
 
 
 def get_signal(signal_id: str) -> Call:

@@ -9,8 +9,8 @@ from service.schemas.common import (
     Problem,
 )
 from service.schemas.detections import Detection, DetectionFlag, DetectionRequest
-from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobStatus, Progress
-from service.schemas.signals import SignalData, SignalIn, SignalMeta
+from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobPage, JobStatus, Progress
+from service.schemas.signals import SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.simulations import SimulationRequest, SimulationResult
 from service.schemas.sweeps import SimulatedSweep, Sweep, SweepMeasurement, SweepRequest
 
@@ -26,12 +26,14 @@ __all__ = [
     "Health",
     "Job",
     "JobError",
+    "JobPage",
     "JobStatus",
     "Problem",
     "Progress",
     "SignalData",
     "SignalIn",
     "SignalMeta",
+    "SignalPage",
     "SimulatedSweep",
     "SimulationRequest",
     "SimulationResult",

@@ -39,3 +39,12 @@ class Job(BaseModel):
     @property
     def done(self) -> bool:
         return self.status in TERMINAL_STATUSES
+
+
+class JobPage(BaseModel):
+    """A page of jobs, newest first."""
+
+    items: list[Job]
+    total: int
+    limit: int
+    offset: int

@@ -58,3 +58,12 @@ class SignalData(BaseModel):
     dt: float
     unit: str | None = None
     value_unit: str | None = None
+
+
+class SignalPage(BaseModel):
+    """A page of stored signals, newest first."""
+
+    items: list[SignalMeta]
+    total: int
+    limit: int
+    offset: int

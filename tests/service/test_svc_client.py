@@ -123,6 +123,8 @@ def test_sync_client_over_uvicorn(live_server, tmp_path) -> None:  # noqa: ANN00
         tt, ww = c.signal_data(meta.id)
         assert ww.tobytes() == w.tobytes() and tt.tobytes() == t.tobytes()
         assert c.get_signal(meta.id) == meta
+        assert meta.id in [m.id for m in c.list_signals(limit=500).items]
+        assert c.list_jobs(status="failed", limit=5).limit == 5
         csv = c.download_signal(meta.id, format="csv").decode()
         assert csv.splitlines()[0] == "t [s],w [mm]"
         png = c.signal_plot(meta.id)

@@ -323,3 +323,28 @@ async def test_api_key(tmp_path) -> None:  # noqa: ANN001
             assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"
             r = await c.get("/v1/jobs/x", headers={"authorization": "Bearer s3cret"})
             assert r.status_code == 404
+
+
+async def test_lists_of_signals_and_jobs(asgi) -> None:  # noqa: ANN001
+    app, client = asgi
+    store = app.state.snapwarn.store
+    made = []
+    for k in range(3):
+        r = await client.post("/v1/signals", json={"dt": 1, "w": [k, k + 1], "name": f"l{k}"})
+        made.append(r.json()["id"])
+    r = await client.get("/v1/signals", params={"limit": 2})
+    assert r.status_code == 200
+    page = r.json()
+    assert page["limit"] == 2 and page["offset"] == 0 and page["total"] >= 3
+    assert [s["id"] for s in page["items"]] == made[::-1][:2]  # newest first
+    r = await client.get("/v1/signals", params={"limit": 0})
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "limit"
+    job = store.create_job("diagnostic-sleep", {"fail": True})
+    app.state.snapwarn.runner.wake()
+    await _job_until_done(client, job.id)
+    r = await client.get("/v1/jobs", params={"status": "failed", "kind": "diagnostic-sleep"})
+    assert r.status_code == 200
+    items = r.json()["items"]
+    assert job.id in [j["id"] for j in items] and all(j["status"] == "failed" for j in items)
+    r = await client.get("/v1/jobs", params={"status": "sleeping"})
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "status"

@@ -167,8 +167,9 @@ def test_a_graceful_stop_hands_the_running_job_back(tmp_path) -> None:  # noqa: 
     job = store.create_job("diagnostic-sleep", {"seconds": 3.0, "steps": 30, "echo": "g"})
     try:
         _until(
-            lambda: (d := _job(a.url, job.id))["status"] == "running"
-            and d["progress"]["fraction"] > 0,
+            lambda: (
+                (d := _job(a.url, job.id))["status"] == "running" and d["progress"]["fraction"] > 0
+            ),
             60,
             "the job to run",
         )

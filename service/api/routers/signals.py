@@ -14,7 +14,7 @@ from service.api import codec, plots
 from service.api.problems import ApiProblem, invalid, not_found
 from service.api.routers._common import body_validation_error
 from service.api.state import AppState, StateDep, signal_meta
-from service.schemas import Control, SignalData, SignalIn, SignalMeta
+from service.schemas import Control, SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.common import PROBLEM_MEDIA_TYPE
 
 router = APIRouter(prefix="/v1/signals", tags=["signals"])
@@ -225,6 +225,21 @@ async def create_signal(request: Request, state: StateDep) -> JSONResponse:
     return JSONResponse(
         meta.model_dump(mode="json"), status_code=201, headers={"Location": f"/v1/signals/{row.id}"}
     )
+
+
+@router.get("", response_model=SignalPage, summary="Stored signals, newest first", responses=ERRORS)
+async def list_signals(
+    state: StateDep,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> dict[str, Any]:
+    rows, total = await to_thread.run_sync(state.store.list_signals, limit, offset)
+    return {
+        "items": [signal_meta(r) for r in rows],
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+    }
 
 
 async def _load(state: AppState, signal_id: str) -> Any:
