@@ -90,9 +90,21 @@ def _signal(n: int = 10_000, seed: int = 0) -> dict:
     return {"dt": dt, "w": w.tolist()}
 
 
-def start_server(tmp: Path, http_workers: int, analysis_workers: int | None) -> tuple:
+def start_server(
+    tmp: Path,
+    http_workers: int,
+    analysis_workers: int | None,
+    http_impl: str = "auto",
+    loop_impl: str = "auto",
+) -> tuple:
     port = _free_port()
-    env = dict(os.environ, SNAPWARN_LOG_LEVEL="warning", PYTHONUNBUFFERED="1")
+    env = dict(
+        os.environ,
+        SNAPWARN_LOG_LEVEL="warning",
+        PYTHONUNBUFFERED="1",
+        SNAPWARN_HTTP_IMPL=http_impl,
+        SNAPWARN_LOOP_IMPL=loop_impl,
+    )
     if analysis_workers:
         env["SNAPWARN_ANALYSIS_WORKERS"] = str(analysis_workers)
     cmd = [
@@ -172,6 +184,12 @@ async def _level(url: str, body: bytes, clients: int, seconds: float) -> dict:
     }
 
 
+def _has(module: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(module) is not None
+
+
 def _detect_reference(body: bytes, n: int = 200) -> dict:
     """``detect`` on the same signal in this process: what the service adds is the rest."""
     from service.analysis.detect import detect
@@ -202,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
         "--analysis-workers", type=int, default=None, help="default: the server's (min(4, cores))"
     )
     ap.add_argument("--samples", type=int, default=10_000)
+    ap.add_argument("--http", default="auto", help="uvicorn HTTP parser: auto, httptools, h11")
+    ap.add_argument("--loop", default="auto", help="uvicorn event loop: auto, uvloop, asyncio")
     ap.add_argument("--out", type=Path, default=RESULTS / "service")
     args = ap.parse_args(argv)
 
@@ -209,7 +229,9 @@ def main(argv: list[str] | None = None) -> int:
     body = json.dumps(_signal(args.samples)).encode()
     rows = []
     with tempfile.TemporaryDirectory() as d:
-        proc, url = start_server(Path(d), args.http_workers, args.analysis_workers)
+        proc, url = start_server(
+            Path(d), args.http_workers, args.analysis_workers, args.http, args.loop
+        )
         try:
             health = httpx2.get(url + "/healthz").json()
             asyncio.run(_level(url, body, max(args.clients), args.warmup))  # warm every worker
@@ -259,6 +281,12 @@ def main(argv: list[str] | None = None) -> int:
         "samples": args.samples,
         "seconds_per_level": args.seconds,
         "http_workers": args.http_workers,
+        "uvicorn": {
+            "http": args.http,
+            "loop": args.loop,
+            "httptools_installed": _has("httptools"),
+            "uvloop_installed": _has("uvloop"),
+        },
         "server_health": health,
         "cores": cores,
         "machine": platform.platform(),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -31,6 +32,14 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, ge=0, le=65535)
     http_workers: int = Field(default=1, ge=1, description="uvicorn worker processes.")
     log_level: str = "info"
+    http_impl: Literal["auto", "httptools", "h11"] = Field(
+        default="auto",
+        description="uvicorn HTTP parser: 'auto' (httptools if installed), 'httptools' or 'h11'.",
+    )
+    loop_impl: Literal["auto", "uvloop", "asyncio"] = Field(
+        default="auto",
+        description="uvicorn event loop: 'auto' (uvloop if installed), 'uvloop' or 'asyncio'.",
+    )
     api_key: str | None = Field(
         default=None, description="If set, /v1 requires 'Authorization: Bearer <key>'."
     )

@@ -123,6 +123,8 @@ def _serve(args: argparse.Namespace) -> int:
         port=settings.port,
         workers=settings.http_workers,
         log_level=settings.log_level,
+        http=settings.http_impl,
+        loop=settings.loop_impl,
         timeout_graceful_shutdown=5,
     )
     return 0
