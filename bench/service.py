@@ -14,7 +14,7 @@ Starts a real server (`snapwarn serve`, uvicorn, SQLite file in a temporary fold
 - the server's CPU time per request: user + system time of the server process and all its
   descendants (the analysis pool) from /proc, divided by the requests answered,
 - the capacity the cores allow, cores / CPU time per request, and the throughput as a fraction
-  of it.
+  of it; also with the load generator's own CPU per request counted (it shares the cores).
 
 The client runs in this process on the same machine: its CPU competes with the server's, and
 the cores are shared with whatever else runs (the load average is recorded). Writes
@@ -248,20 +248,29 @@ def main(argv: list[str] | None = None) -> int:
                 cap = cores / (cpu / max(1, res["requests"])) if cpu > 0 else None
                 res["capacity_rps"] = cap
                 res["fraction_of_capacity"] = res["throughput_rps"] / cap if cap else None
+                # the load generator shares the cores: what they allow with it counted
+                both = (cpu / max(1, res["requests"])) + res["client_cpu_ms_per_request"] / 1e3
+                res["capacity_with_client_rps"] = cores / both if both > 0 else None
+                res["fraction_of_capacity_with_client"] = (
+                    res["throughput_rps"] / res["capacity_with_client_rps"]
+                    if res["capacity_with_client_rps"]
+                    else None
+                )
                 res["loadavg_1min_before"] = load0
                 rows.append(res)
                 if not res["requests"]:
                     print(f"{c:3d} clients: no answer; errors: {res['error_samples']}")
                     continue
                 frac = 100 * (res["fraction_of_capacity"] or 0)
+                frac2 = 100 * (res["fraction_of_capacity_with_client"] or 0)
                 print(
                     f"{c:3d} clients: p50 {res['p50_ms']:.1f} ms  p95 {res['p95_ms']:.1f} ms  "
                     f"p99 {res['p99_ms']:.1f} ms  {res['throughput_rps']:.1f} req/s  "
                     f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req (client "
                     f"{res['client_cpu_ms_per_request']:.2f})  capacity "
-                    f"{cap or float('nan'):.1f} req/s ({frac:.0f}"
-                    f"%)  errors {res['errors']}  per-client {res['min_requests_per_client']}"
-                    f"..{res['max_requests_per_client']}",
+                    f"{cap or float('nan'):.1f} req/s ({frac:.0f}%, {frac2:.0f}"
+                    f"% counting the client)  errors {res['errors']}  per-client "
+                    f"{res['min_requests_per_client']}..{res['max_requests_per_client']}",
                     flush=True,
                 )
         finally:
