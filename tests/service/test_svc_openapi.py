@@ -42,6 +42,8 @@ def test_document_covers_every_resource() -> None:
     for path, method in [
         ("/healthz", "get"),
         ("/v1/signals", "post"),
+        ("/v1/signals", "get"),
+        ("/v1/jobs", "get"),
         ("/v1/signals/{signal_id}", "get"),
         ("/v1/signals/{signal_id}", "delete"),
         ("/v1/signals/{signal_id}/data", "get"),
