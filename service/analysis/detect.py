@@ -558,11 +558,18 @@ def _spectrum(y: np.ndarray) -> _Spectrum:
     H = np.abs(np.fft.rfft(win * y)) ** 2 / norm
     body = H[2:] if H.size > 3 else H[1:]
     noise = float(np.median(body) / math.log(2.0)) if body.size else 0.0
-    thr = math.log(max(body.size, 2) / 0.01)  # 1 % false alarm over all bins (chi2_2 / 2)
+    thr = math.log(max(body.size, 2) / 1e-3)  # 0.1 % false alarm per record (chi2_2 / 2)
     sig = H > noise * thr
     sig[0] = False
-    k = np.flatnonzero(sig)
-    return _Spectrum(y, H, noise, sig, int(k[-1]) if k.size else 0)
+    k_hi = 0
+    if sig.any():
+        # band edge: where 99.9 % of the power above the noise floor lies (a lone noise bin
+        # or a weak high harmonic must not shrink the ESPRIT window; residual rounds get the
+        # latter with their own stride)
+        excess = np.cumsum(np.where(sig, H - noise, 0.0))
+        k_hi = int(np.searchsorted(excess, 0.999 * excess[-1])) + 1
+        k_hi = min(k_hi, H.size - 1)
+    return _Spectrum(y, H, noise, sig, k_hi)
 
 
 def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
@@ -1562,7 +1569,7 @@ def detect(
     kb = int(ALIAS_FRACTION * (spec.hann.size - 1))
     hot = int(np.sum(spec.significant[kb:])) if kb > 0 else 0
     near = [m.omega for m in modes if m.omega > ALIAS_FRACTION * nyq]
-    if hot or near:
+    if hot >= 2 or near:
         flags.append(
             Flag(
                 "aliasing",
