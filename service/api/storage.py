@@ -412,6 +412,13 @@ class Store:
             return res.rowcount == 1
 
     def fail_job(self, job_id: str, attempt: int | None, error: dict[str, Any]) -> bool:
+        """Mark a job failed with a problem-like ``error`` (type, title, detail)."""
+        error = {
+            "type": "urn:snapwarn:problem:job-failed",
+            "title": "Job failed",
+            "detail": None,
+            **error,
+        }
         with self.session() as s:
             if attempt is not None:  # the runner of that attempt: only while it runs
                 cond = [JobRow.id == job_id, JobRow.status == "running", JobRow.attempts == attempt]

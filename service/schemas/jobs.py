@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 JobStatus = Literal["queued", "running", "succeeded", "failed"]
 TERMINAL_STATUSES = ("succeeded", "failed")
@@ -17,7 +17,11 @@ class Progress(BaseModel):
 
 
 class JobError(BaseModel):
-    type: str
+    """Why a job failed (an RFC 9457 problem: type, title, detail, maybe errors)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    type: str = "about:blank"
     title: str
     detail: str | None = None
 
