@@ -207,6 +207,8 @@ BAD_FILES = [
     ("run.xyz", b"1,2", {}, 415, "file"),
     ("run.csv", b"t,w\n0,1\n1,2\n", {"metadata": "{nope"}, 422, "metadata"),
     ("run.csv", b"t,w\n0,1\n1,2\n", {"control_value": "x"}, 422, "control_value"),
+    ("run.csv", b"t,w\n0,1\n1,2\n", {"unit": "s" * 101}, 422, "unit"),
+    ("run.csv", b"t,w\n0,1\n1,2\n", {"control_value": "inf"}, 422, "control_value"),
 ]
 
 

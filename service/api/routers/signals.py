@@ -67,12 +67,28 @@ def _form_float(form: Any, name: str) -> float | None:
         raise invalid(name, v, "is not a number") from None
 
 
+#: Longest text of each form field (the database columns' sizes, as in the JSON schema).
+_FORM_MAX = {
+    "name": 500,
+    "control_name": 200,
+    "unit": 100,
+    "value_unit": 100,
+    "control_unit": 100,
+    "column": 200,
+    "time_column": 200,
+    "format": 10,
+}
+
+
 def _form_str(form: Any, name: str) -> str | None:
     v = form.get(name)
     if v is None or v == "":
         return None
     if not isinstance(v, str):
         raise invalid(name, getattr(v, "filename", "<file>"), "must be a text field")
+    limit = _FORM_MAX.get(name)
+    if limit is not None and len(v) > limit:
+        raise invalid(name, v, f"is longer than {limit} characters")
     return v
 
 
@@ -163,7 +179,7 @@ async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
     control = None
     if cname or cval is not None or cunit:
         control = Control(name=cname or "mu", value=cval, unit=cunit).model_dump()
-    clean.metadata["_name"] = _form_str(form, "name") or upload.filename
+    clean.metadata["_name"] = _form_str(form, "name") or (upload.filename or "")[:500] or None
     clean.metadata["_control"] = control
     return clean
 
