@@ -109,6 +109,8 @@ class Sweep:
         Whether the caller gave the noise of ``sigma2`` / ``omega``.
     damping : float or None
         Damping ``xi`` (1/time) in ``s^2 + xi s - sigma^2 = 0`` when known.
+    w_noise_given : bool
+        False when ``w_sd`` was estimated (the static fits then profile their variance).
     """
 
     mu: np.ndarray
@@ -121,6 +123,7 @@ class Sweep:
     w_sd: np.ndarray | None
     noise_given: bool
     damping: float | None
+    w_noise_given: bool = True
 
 
 def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
@@ -455,7 +458,14 @@ def _w_comp(sw: Sweep, idx: slice, b: float, Kw: int) -> _Comp | None:
     # b = 1/2 series (which contains x, x^2 ...) would fit a smooth deflection as well as b = 1
     if sw.w_sd is not None:
         return _Comp(
-            sw.w[idx], 1.0 / sw.w_sd[idx], _w_exps(b, Kw), True, True, 1, False, sw.mu[idx]
+            sw.w[idx],
+            1.0 / sw.w_sd[idx],
+            _w_exps(b, Kw),
+            sw.w_noise_given,  # an estimated noise is profiled in the final fits
+            True,
+            1,
+            False,
+            sw.mu[idx],
         )
     return _Comp(
         sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False, sw.mu[idx]
@@ -616,6 +626,17 @@ class ModelFit:
     n_w: int = 0
 
 
+_K_CRITERION = "aicc"
+
+
+def _crit(nll: float, bic: float, k: int, m: int) -> float:
+    """Criterion choosing the number of correction terms of one candidate: AICc (less biased
+    extrapolation to mu* than BIC, whose heavier penalty truncates corrections too early)."""
+    if _K_CRITERION == "bic":
+        return bic
+    return nll + 2 * k + (2 * k * (k + 1) / (m - k - 1) if m - k - 1 > 0 else math.inf)
+
+
 def _fit_candidate(
     sw: Sweep,
     name: str,
@@ -634,6 +655,7 @@ def _fit_candidate(
     n_w = n if n_w is None else n_w
     idx_w = slice(N - n_w, N)
     best: ModelFit | None = None
+    best_crit = math.inf
     kw_range = [0]
     if sw.w is not None and b is not None:
         kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
@@ -650,7 +672,11 @@ def _fit_candidate(
                 bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
             prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
             bic = prof.nll + bic_pen
-            if best is None or bic < best.bic:
+            k_all = K + 2 + (Kw + 1 if Kw else 0)
+            m_all = n + (n_w if Kw else 0)
+            crit = _crit(prof.nll, bic, k_all, m_all)
+            if best is None or crit < best_crit:
+                best_crit = crit
                 best = ModelFit(
                     name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w
                 )
@@ -685,7 +711,7 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
         rss = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0])
         sig = max(math.sqrt(rss / (m - 5)), _REL_FLOOR * float(np.max(np.abs(sw.w))), 1e-300)
         sw = Sweep(sw.mu, sw.y, sw.sd, sw.kind, sw.omega, sw.omega_sd, sw.w,
-                   np.full(N, sig), sw.noise_given, sw.damping)  # fmt: skip
+                   np.full(N, sig), sw.noise_given, sw.damping, False)  # fmt: skip
         flags.append(
             Flag(
                 "w_noise_estimated", f"no w_static_std given: estimated from the scatter, {sig:.2g}"
@@ -703,6 +729,7 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
                     break
                 wc = _w_comp(sw, idx, b, Kw)
                 assert wc is not None
+                wc = _Comp(wc.y, wc.wt, wc.exps, True, True, 1, False, wc.mu)  # chi^2 test
                 chi = float(_nll(sw.mu[idx], [wc], np.array([mu_star]))[0])
                 if stats.chi2.sf(chi, dof) >= _ALPHA:
                     ok = True
@@ -904,7 +931,7 @@ def _compare(
             )
         )
     n_w = n_c
-    if sw.w is not None:
+    if sw.w is not None and (law is None or law[2] is not None):
         # mu* from the eigenvalues alone fixes the static window
         N = sw.mu.size
         idx = slice(N - n_c, N)
@@ -1122,8 +1149,9 @@ def _classify_sweep(
         def make_b(b: float) -> list[_Comp]:
             e = _w_exps(b, max(top.Kw, 2))
             wt = 1.0 / wsd[iw] if wsd is not None else np.ones(n_w)
+            known = wsd is not None and sw.w_noise_given
             # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
-            return [_Comp(sw.w[iw], wt, e, wsd is not None, True, 1, False)]  # type: ignore[index]
+            return [_Comp(sw.w[iw], wt, e, known, True, 1, False)]  # type: ignore[index]
 
         if n_w >= 5:
             b_hat, b_se = _free_exponent(

@@ -363,18 +363,27 @@ def predict(
     cls: Classification | None = None
     if a is None and transition is None:
         cls = _classify_sweep(sw0, level=level)
-        fits = list(cls.fits)
-        probs = [cls.probabilities[f.name] for f in fits]
-        keep = [i for i, p in enumerate(probs) if p > 1e-4]
-        fits = [fits[i] for i in keep]
-        probs = [probs[i] for i in keep]
+        # each candidate that matters is refitted on its own informative window (the
+        # classification compares them on a common one) and averaged with its probability.
+        # mu* comes from the eigenvalue law alone: the static law, fitted over its wider window,
+        # tells b but biases mu* (measured on the beam: rmse 5.4e-8 with it, 2.3e-8 without,
+        # and 90 % instead of 95 % coverage)
+        fits, probs = [], []
+        for f in cls.fits:
+            pr = cls.probabilities[f.name]
+            if pr <= 1e-3:
+                continue
+            law = (f.name, f.a, None, f.h)
+            _, own, _, _ = _analyse(sw0, law, level)
+            fits.append(own[0])
+            probs.append(pr)
         flags.extend(f for f in cls.flags if f.code not in {"no_static_data"})
         name = cls.transition
         window = cls.window
         method = "model-average" if len(fits) > 1 else "profile-likelihood"
     else:
-        law = _law_for(transition, a)
-        name = law[0]
+        name, aa, _, hh = _law_for(transition, a)
+        law = (name, aa, None, hh)  # mu* from the eigenvalue law alone (see above)
         _, fits, window, fl = _analyse(sw0, law, level)
         flags.extend(fl)
         flags.extend(fits[0].profile.flags)
