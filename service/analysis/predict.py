@@ -186,7 +186,8 @@ class Prediction:
     transition : str
         Transition assumed or classified.
     probabilities : dict of str to float
-        Candidate probabilities used for the average (one entry when the law was given).
+        Candidate probabilities of the classification (one entry when the law was given);
+        candidates above 1e-3 enter the average.
     window : int
         Number of informative (nearest) points used.
     n_terms : int
@@ -214,11 +215,17 @@ class Prediction:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (non-finite numbers become ``None``)."""
+        c = self.classification
         return {
             "mu_star": _clean(self.mu_star),
             "mu_star_interval": _clean(list(self.mu_star_interval)),
             "mu_star_std": _clean(self.mu_star_std),
             "a": _clean(self.a),
+            # the classification's free estimates (None when the law was given)
+            "a_std": _clean(c.a_std) if c is not None else None,
+            "b": _clean(c.b) if c is not None else None,
+            "b_std": _clean(c.b_std) if c is not None else None,
+            "regime": c.regime if c is not None else None,
             "method": self.method,
             "alarm": _clean(dict(self.alarm)),
             "next_safe_mu": _clean(self.next_safe_mu),
@@ -455,7 +462,11 @@ def predict(
         next_safe_mu=float(nxt),
         flags=tuple(_dedupe(flags)),
         transition=name,
-        probabilities={f.name: float(p) for f, p in zip(fits, probs, strict=True)},
+        probabilities=(
+            dict(cls.probabilities)
+            if cls is not None
+            else {f.name: float(p) for f, p in zip(fits, probs, strict=True)}
+        ),
         window=int(window),
         n_terms=int(n_terms),
         baseline=baseline,
