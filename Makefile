@@ -42,5 +42,9 @@ bench: setup
 	$(BIN)/python bench/warn.py $(BENCH_ARGS)
 	$(BIN)/python bench/service.py
 
+## Export the OpenAPI spec of the real app to openapi/openapi.json.
+openapi: setup
+	$(BIN)/snapwarn openapi
+
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info
