@@ -179,9 +179,10 @@ class Prediction:
         ``level``: ``"none"``, ``"watch"`` (T > 3 T0), ``"warning"`` (T > 10 T0) or
         ``"critical"`` (the interval's lower end within one half-width of the last point).
     next_safe_mu : float
-        Suggested next measurement: ``mu[-1] + step_fraction * (lo - margin - mu[-1])``; NaN with
-        flag ``no_safe_step`` when the interval's lower end (minus the margin) is not beyond the
-        last point.
+        Suggested next measurement: ``mu[-1] + min(step_fraction * (bound - margin - mu[-1]),
+        max_step_growth * (mu[-1] - mu[-2]))`` with ``bound`` the smaller of the interval's lower
+        end and the model-free two-point ``sigma^4`` extrapolation; NaN with flag
+        ``no_safe_step`` when that bound is not beyond the last point.
     flags : tuple of Flag
     transition : str
         Transition assumed or classified.
@@ -308,6 +309,7 @@ def predict(
     level: float = 0.95,
     step_fraction: float = 0.5,
     margin: float = 0.0,
+    max_step_growth: float = 2.0,
 ) -> Prediction:
     """Predict mu* from measurements along an upward sweep.
 
@@ -337,6 +339,8 @@ def predict(
         Fraction of the distance to the interval's lower end that ``next_safe_mu`` advances.
     margin : float
         Extra distance (unit of ``mu``) kept below the interval's lower end.
+    max_step_growth : float
+        The suggested step is at most this multiple of the last step (trust region).
 
     Returns
     -------
@@ -354,6 +358,8 @@ def predict(
         raise ValueError(f"step_fraction must be in (0, 1), got step_fraction={step_fraction!r}")
     if not (math.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin must be finite and >= 0, got margin={margin!r}")
+    if not (math.isfinite(max_step_growth) and max_step_growth > 0):
+        raise ValueError(f"max_step_growth must be > 0, got max_step_growth={max_step_growth!r}")
     if a is not None:
         a = _check_a(a)
     sw0 = prepare_sweep(
@@ -431,16 +437,33 @@ def predict(
     else:
         lvl = "none"
     alarm = {"t_ratio": t_ratio, "distance": float(dist), "level": lvl}
-    room = lo - margin - last
+    if t_ratio < 2.0:
+        flags.append(
+            Flag(
+                "slowdown_not_reached",
+                f"T/T0 = {t_ratio:.3g} < 2: the critical slowing down has barely begun, the "
+                "asymptotic laws may not hold yet and the interval can be over-confident",
+            )
+        )
+    # the next measurement: a fraction of the way to the interval's lower end, but never beyond
+    # the model-free bound of the last pair (|sigma^2|^2 extrapolated linearly to zero: exact at
+    # leading order near a fold, short of mu* near a pitchfork) and never more than
+    # `max_step_growth` times the last step (a trust region: far from mu* the laws do not hold
+    # yet and the interval can be confidently wrong)
+    bound = lo
+    y1, y2 = float(sw0.y[-2]), float(sw0.y[-1])
+    if y1 > y2:
+        bound = min(bound, last + y2**2 * (last - float(sw0.mu[-2])) / (y1**2 - y2**2))
+    room = bound - margin - last
     if room > 0:
-        nxt = last + step_fraction * room
+        nxt = last + min(step_fraction * room, max_step_growth * (last - float(sw0.mu[-2])))
     else:
         nxt = math.nan
         flags.append(
             Flag(
                 "no_safe_step",
-                f"the interval's lower end {lo:.6g} (minus margin {margin:g}) is not beyond the "
-                f"last measured mu={last:.6g}",
+                f"the safe bound {bound:.6g} (interval's lower end or the model-free sigma^4 "
+                f"bound, minus margin {margin:g}) is not beyond the last measured mu={last:.6g}",
             )
         )
     baseline = None

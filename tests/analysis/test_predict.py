@@ -110,12 +110,17 @@ def test_predict_model_average_when_law_unknown(kind: str) -> None:
 
 def test_next_safe_mu_stays_below_the_interval() -> None:
     d = sweep("saddle-node", seed=12, xmin=1e-3)
-    for margin in (0.0, 1e-4):
-        p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], transition="saddle-node",
-                    margin=margin, step_fraction=0.5)  # fmt: skip
+    mu, y = d["mu"], -d["sigma2"]
+    # model-free bound: |sigma^2|^2 through the last two points, extrapolated to zero
+    b4 = mu[-1] + y[-1] ** 2 * (mu[-1] - mu[-2]) / (y[-2] ** 2 - y[-1] ** 2)
+    for margin, growth in ((0.0, 2.0), (1e-4, 2.0), (0.0, 0.1)):
+        p = predict(mu, d["sigma2"], sigma2_std=d["sigma2_std"], transition="saddle-node",
+                    margin=margin, step_fraction=0.5, max_step_growth=growth)  # fmt: skip
         lo = p.mu_star_interval[0]
-        assert d["mu"][-1] < p.next_safe_mu <= lo - margin < 1.78
-        assert p.next_safe_mu == pytest.approx(d["mu"][-1] + 0.5 * (lo - margin - d["mu"][-1]))
+        bound = min(lo, b4)
+        want = mu[-1] + min(0.5 * (bound - margin - mu[-1]), growth * (mu[-1] - mu[-2]))
+        assert p.next_safe_mu == pytest.approx(want, rel=0, abs=1e-12)
+        assert mu[-1] < p.next_safe_mu <= lo - margin < 1.78
 
 
 def test_level_changes_the_interval() -> None:
@@ -157,6 +162,7 @@ def test_omega_input_equals_sigma2_input_when_underdamped() -> None:
         ({"level": 1.5}, ["level", "1.5"]),
         ({"step_fraction": 0.0}, ["step_fraction", "0.0"]),
         ({"margin": -1.0}, ["margin", "-1.0"]),
+        ({"max_step_growth": 0.0}, ["max_step_growth", "0.0"]),
         ({"sigma2_std": [1.0, 1.0]}, ["sigma2_std", "length", "2"]),
     ],
 )
