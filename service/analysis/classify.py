@@ -717,6 +717,26 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
                 "w_noise_estimated", f"no w_static_std given: estimated from the scatter, {sig:.2g}"
             )
         )
+    else:
+        # over-dispersion of the static data (e.g. the mean of a kicked, nonlinear record is
+        # shifted by ~ amplitude^2 / |sigma^2|, far above a detector's stated offset error):
+        # scale the given noise by the reduced chi-square of the widest static series
+        m = min(N, max(8, n))
+        if m - 5 >= _MIN_NOISE_DOF:
+            idx = slice(N - m, N)
+            c = _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
+            phi = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0]) / (m - 5)
+            if phi > float(stats.chi2.ppf(0.99, m - 5)) / (m - 5):
+                sw = Sweep(sw.mu, sw.y, sw.sd, sw.kind, sw.omega, sw.omega_sd, sw.w,
+                           sw.w_sd * math.sqrt(phi), sw.noise_given, sw.damping,
+                           sw.w_noise_given)  # fmt: skip
+                flags.append(
+                    Flag(
+                        "w_noise_underestimated",
+                        f"the static deflections scatter {math.sqrt(phi):.3g} times more than "
+                        "w_static_std: that noise was scaled up by this factor",
+                    )
+                )
     best_n = n
     for b in (0.5, 1.0):
         misses = 0
