@@ -275,15 +275,19 @@ def _mixture(
 
 
 def _truncation_spread(sw: Sweep, fit: ModelFit) -> float:
-    """Largest |mu* change| over neighbouring fits: one more correction term, the window
-    without its one, two or three farthest points (and without one, with one more term)."""
+    """Largest |mu* change| over neighbouring fits: one more correction term (same window or
+    one point less), the window without its one, two or three farthest points with the same
+    number of terms or one less. A series near the edge of its convergence (another
+    singularity close to mu*, e.g. the symmetric case's secondary fold 0.012 beyond mu*) makes
+    these disagree, and the interval says so."""
     N = sw.mu.size
     scale = float(sw.mu[-1] - sw.mu[0])
     m0 = fit.profile.mu_star
     out = 0.0
-    for n2, K2 in ((fit.n, fit.K + 1), (fit.n - 1, fit.K), (fit.n - 2, fit.K),
-                   (fit.n - 3, fit.K), (fit.n - 1, fit.K + 1)):  # fmt: skip
-        if n2 - K2 - 2 < 1 or n2 < 3:
+    alternatives = [(fit.n, fit.K + 1), (fit.n - 1, fit.K + 1)]
+    alternatives += [(fit.n - d, fit.K - e) for d in (1, 2, 3) for e in (0, 1)]
+    for n2, K2 in alternatives:
+        if n2 - K2 - 2 < 1 or n2 < 3 or K2 < 0:
             continue
         idx = slice(N - n2, N)
         comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, K2)
