@@ -55,6 +55,7 @@ def test_warn_meets_the_accuracy_target(actuation: str) -> None:
     res = warn(actuation, seed=3, max_measurements=30)
     t = res.to_dict()["truth"]
     assert abs(t["error"]) <= 1e-5
+    assert t["covered"]  # coverage over seeds is measured by bench/warn.py
     assert t["transition_correct"]
     assert t["max_mu_measured"] < t["mu_star"]
 
