@@ -52,3 +52,16 @@ def emit_error(message: str, *, json_mode: bool) -> None:
 
 def add_json_flag(parser: Any) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON document on stdout")
+
+
+def finite(text: str) -> float:
+    """argparse type: a finite float (the error names the value; argparse adds the option)."""
+    import argparse
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+    return v

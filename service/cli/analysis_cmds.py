@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from service.cli._common import CliError, add_json_flag, bad, emit
+from service.cli._common import CliError, add_json_flag, bad, emit, finite
 
 
 # ------------------------------------------------------------------------------- file readers
@@ -294,16 +294,6 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _finite(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
-    return v
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the analysis sub-commands to ``sub``."""
     p = sub.add_parser("detect", help="poles of a recorded signal")
@@ -311,7 +301,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", default="auto",
                    choices=("auto", "varpro", "esprit", "fft", "fft-parabolic"))  # fmt: skip
     p.add_argument("--kind", default="impulse", choices=("impulse", "ambient"))
-    p.add_argument("--dt", type=_finite, default=None, help="sample step if the file has none")
+    p.add_argument("--dt", type=finite, default=None, help="sample step if the file has none")
     add_json_flag(p)
     p.set_defaults(func=_detect)
 
@@ -328,12 +318,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    choices=("euler-beam", "normal-form", "cosserat", "auto"))  # fmt: skip
     p.add_argument("--actuation", required=True,
                    choices=("asymmetric", "symmetric", "antisymmetric"))  # fmt: skip
-    p.add_argument("--damping", type=_finite, default=2e-4)
-    p.add_argument("--snr", type=_finite, default=40.0)
+    p.add_argument("--damping", type=finite, default=2e-4)
+    p.add_argument("--snr", type=finite, default=40.0)
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--max-measurements", type=int, default=30)
-    p.add_argument("--end-shortening", type=_finite, default=None)
-    p.add_argument("--slenderness", type=_finite, default=None)
+    p.add_argument("--end-shortening", type=finite, default=None)
+    p.add_argument("--slenderness", type=finite, default=None)
     p.add_argument("--elements", type=int, default=None)
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)

@@ -4,25 +4,10 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 from pathlib import Path
 
-from service.cli._common import CliError, add_json_flag, bad, emit
+from service.cli._common import CliError, add_json_flag, bad, emit, finite
 from sim.scene import ACTUATIONS, BRANCHES, SceneError
-
-
-def _finite(option: str):
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{text!r} is not finite")
-        return v
-
-    parse.__name__ = option
-    return parse
 
 
 def _add_actuation(p: argparse.ArgumentParser) -> None:
@@ -155,21 +140,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bifurcation", help="mu* and type of the transition")
     _add_actuation(p)
     p.add_argument("--model", default="euler-beam", choices=("euler-beam", "cosserat"))
-    p.add_argument("--end-shortening", type=_finite("--end-shortening"), default=1e-2)
-    p.add_argument("--slenderness", type=_finite("--slenderness"), default=1e-3)
+    p.add_argument("--end-shortening", type=finite, default=1e-2)
+    p.add_argument("--slenderness", type=finite, default=1e-3)
     p.add_argument("--elements", type=int, default=None)
     add_json_flag(p)
     p.set_defaults(func=_bifurcation)
 
     p = sub.add_parser("equilibria", help="every equilibrium on the six branches at mu")
     _add_actuation(p)
-    p.add_argument("--mu", type=_finite("--mu"), required=True)
+    p.add_argument("--mu", type=finite, required=True)
     add_json_flag(p)
     p.set_defaults(func=_equilibria)
 
     p = sub.add_parser("spectrum", help="sigma^2 spectrum of an equilibrium")
     _add_actuation(p)
-    p.add_argument("--mu", type=_finite("--mu"), required=True)
+    p.add_argument("--mu", type=finite, required=True)
     p.add_argument("--branch", default="U_A", choices=BRANCHES)
     p.add_argument("--modes", type=int, default=10)
     add_json_flag(p)
@@ -185,17 +170,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--model", default="euler-beam", choices=("euler-beam", "normal-form", "cosserat", "auto")
     )
     _add_actuation(p)
-    p.add_argument("--mu", type=_finite("--mu"), required=True)
+    p.add_argument("--mu", type=finite, required=True)
     p.add_argument("--branch", default="U_A", choices=BRANCHES)
-    p.add_argument("--damping", type=_finite("--damping"), default=2e-4)
-    p.add_argument("--duration", type=_finite("--duration"), default=None)
-    p.add_argument("--dt", type=_finite("--dt"), default=None)
-    p.add_argument("--kick", type=_finite("--kick"), default=1e-2)
-    p.add_argument("--snr", type=_finite("--snr"), default=None, help="noise, dB")
+    p.add_argument("--damping", type=finite, default=2e-4)
+    p.add_argument("--duration", type=finite, default=None)
+    p.add_argument("--dt", type=finite, default=None)
+    p.add_argument("--kick", type=finite, default=1e-2)
+    p.add_argument("--snr", type=finite, default=None, help="noise, dB")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--elements", type=int, default=None, help="cosserat only")
-    p.add_argument("--end-shortening", type=_finite("--end-shortening"), default=None)
-    p.add_argument("--slenderness", type=_finite("--slenderness"), default=None)
+    p.add_argument("--end-shortening", type=finite, default=None)
+    p.add_argument("--slenderness", type=finite, default=None)
     p.add_argument("--out", required=True, help="CSV file to write (header t,w)")
     add_json_flag(p)
     p.set_defaults(func=_simulate)

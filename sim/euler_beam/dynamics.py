@@ -101,6 +101,16 @@ def discretize(eq: Equilibrium, n: int = DEFAULT_N) -> Discrete:
     return Discrete(B, eq.mu, s, k4, k2, c0, a, float(lam))
 
 
+def kick_load(B: galerkin.Basis, position: float, width: float = 0.0) -> np.ndarray:
+    """Generalised load <phi_i, f> of a unit impulse: a point (width 0) or a normalised
+    Gaussian of that width (units of L), shape (n,)."""
+    if width > 0:
+        prof = np.exp(-0.5 * ((B.X - position) / width) ** 2)
+        prof /= np.sum(B.w * prof)
+        return B.phi.T @ (B.w * prof)
+    return B.eval(np.array([position]))[0]
+
+
 def _kick_velocity(
     D: Discrete, a: np.ndarray, kick: float, position: float, width: float
 ) -> np.ndarray:
@@ -111,14 +121,7 @@ def _kick_velocity(
     M^{-1} g (M-orthogonal projection), g = grad c / 2.
     """
     B = D.basis
-    if width > 0:
-        X = B.X
-        prof = np.exp(-0.5 * ((X - position) / width) ** 2)
-        prof /= np.sum(B.w * prof)
-        f = kick * (B.phi.T @ (B.w * prof))
-    else:
-        f = kick * B.eval(np.array([position]))[0]
-    v = np.linalg.solve(B.M, f)
+    v = np.linalg.solve(B.M, kick * kick_load(B, position, width))
     g = B.K2 @ a + D.k2
     Mig = np.linalg.solve(B.M, g)
     return v - Mig * (g @ v) / (g @ Mig)
@@ -190,12 +193,7 @@ def modal_response(
             idx = np.arange(1)
     B = galerkin.basis(n)
     modes_c = sp.coeffs[:, idx]
-    if kick_width > 0:
-        prof = np.exp(-0.5 * ((B.X - kick_position) / kick_width) ** 2)
-        prof /= np.sum(B.w * prof)
-        v0 = (B.phi.T @ (B.w * prof)) @ modes_c
-    else:
-        v0 = B.eval(np.array([kick_position]))[0] @ modes_c
+    v0 = kick_load(B, kick_position, kick_width) @ modes_c
     at_probe = B.eval(np.array([probe]))[0] @ modes_c
     amp = kick * v0 * at_probe
     out = np.empty_like(t, dtype=float)
