@@ -231,14 +231,17 @@ def _safe_bound(
 
 def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tuple[float, float]:
     """Record length and step for the next measurement, from the previous detection."""
-    if prev.regime == "overdamped":
-        # the slow pole sets the time scale; sigma^2 = -s1 s2 -> slow rate ~ |sigma^2| / xi
-        t_prev = prev.duration / 5.0
-        return 2.0 * prev.duration, prev.dt
-    omega_next = prev.omega
+    ratio = 0.5  # expected (mu* - mu_next) / (mu* - mu_prev) without a prediction
+    a = 0.5
     if pred is not None and math.isfinite(pred.mu_star) and pred.mu_star > mu_next:
-        ratio = (pred.mu_star - mu_next) / max(pred.mu_star - prev.mu, 1e-300)
-        omega_next = prev.omega * min(ratio, 1.0) ** pred.a
+        ratio = min((pred.mu_star - mu_next) / max(pred.mu_star - prev.mu, 1e-300), 1.0)
+        a = pred.a
+    if prev.regime == "overdamped":
+        # the slow pole sets the time scale: its rate ~ |sigma^2| / xi ~ (mu* - mu)^(2a), so the
+        # record grows by ratio^(-2a) (at most 4x a step); the step stays (the fast pole needs it)
+        duration = prev.duration * min(ratio ** (-2.0 * a), 4.0)
+        return duration, max(prev.dt, duration / MAX_SAMPLES)
+    omega_next = prev.omega * ratio**a
     t_prev = 2 * math.pi / prev.omega
     t_next = 2 * math.pi / max(omega_next, 1e-12)
     duration = PERIODS * t_next
