@@ -231,7 +231,7 @@ def _safe_bound(
 
 def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tuple[float, float]:
     """Record length and step for the next measurement, from the previous detection."""
-    ratio = 0.5  # expected (mu* - mu_next) / (mu* - mu_prev) without a prediction
+    ratio = 1.0  # expected (mu* - mu_next) / (mu* - mu_prev): unknown without a prediction
     a = 0.5
     if pred is not None and math.isfinite(pred.mu_star) and pred.mu_star > mu_next:
         ratio = min((pred.mu_star - mu_next) / max(pred.mu_star - prev.mu, 1e-300), 1.0)
@@ -239,7 +239,8 @@ def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tup
     if prev.regime == "overdamped":
         # the slow pole sets the time scale: its rate ~ |sigma^2| / xi ~ (mu* - mu)^(2a), so the
         # record grows by ratio^(-2a) (at most 4x a step); the step stays (the fast pole needs it)
-        duration = prev.duration * min(ratio ** (-2.0 * a), 4.0)
+        growth = ratio ** (-2.0 * a) if ratio < 1.0 else 2.0
+        duration = prev.duration * min(growth, 4.0)
         return duration, max(prev.dt, duration / MAX_SAMPLES)
     omega_next = prev.omega * ratio**a
     t_prev = 2 * math.pi / prev.omega
