@@ -490,7 +490,9 @@ def predict(
     # leading order near a fold, short of mu* near a pitchfork) and never more than
     # `max_step_growth` times the last step (a trust region: far from mu* the laws do not hold
     # yet and the interval can be confidently wrong)
-    bound = lo
+    # (an interval whose lower end is at the last point, wide from truncation far from mu*,
+    # leaves the model-free bound alone in charge)
+    bound = lo if lo > last else math.inf
     y1, y2 = float(sw0.y[-2]), float(sw0.y[-1])
     if y1 > y2:
         bound = min(bound, last + y2**2 * (last - float(sw0.mu[-2])) / (y1**2 - y2**2))
