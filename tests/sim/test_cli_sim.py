@@ -104,8 +104,8 @@ def test_cosserat_through_the_cli(capsys, tmp_path) -> None:
 def test_warn_on_the_cosserat_rod(capsys) -> None:
     doc = run_json(capsys, "warn", "--model", "cosserat", "--actuation", "asymmetric",
                    "--elements", "24", "--end-shortening", "1e-2", "--slenderness", "6.3e-3",
-                   "--max-measurements", "12", "--seed", "1", "--no-progress")  # fmt: skip
-    t = doc["truth"]
+                   "--max-measurements", "24", "--seed", "1", "--no-progress")  # fmt: skip
+    t = doc["truth"]  # the rod's own mu* (static Hessian), not the beam's
     assert t["max_mu_measured"] < t["mu_star"]
     assert doc["transition"] == "saddle-node"
-    assert abs(t["error"]) < 1e-2
+    assert abs(t["error"]) < 1e-5  # measured -9.8e-7 (the paper's rule: -1.3e-5)
