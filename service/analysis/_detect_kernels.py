@@ -66,6 +66,20 @@ def _ch_sh(D: float) -> tuple[float, float, float]:
     return ch, sh, dsh
 
 
+@njit(cache=True, inline="always")
+def _recurrence_step(A, B, Ap, Bp, Aq, a0, a1, b0, b1, a0p, a1p, a0q, a1q, b0p, b1p, b0q, b1q):
+    """One step of the pole-pair recurrence u[i] = A u[i-1] + B u[i-2] for both basis
+    sequences (a, b) and their derivatives in p and q (B does not depend on q).
+    Shared by ``pair_basis`` and ``model_gram``."""
+    a2 = A * a1 + B * a0
+    b2 = A * b1 + B * b0
+    a2p = A * a1p + B * a0p + Ap * a1 + Bp * a0
+    a2q = A * a1q + B * a0q + Aq * a1
+    b2p = A * b1p + B * b0p + Ap * b1 + Bp * b0
+    b2q = A * b1q + B * b0q + Aq * b1
+    return a2, b2, a2p, a2q, b2p, b2q
+
+
 @njit(cache=True)
 def pair_basis(n: int, p: np.ndarray, q: np.ndarray, out: np.ndarray, col0: int) -> None:
     """Fill the basis columns of ``len(p)`` modes and their ``(p, q)`` derivatives.
@@ -135,12 +149,9 @@ def pair_basis(n: int, p: np.ndarray, q: np.ndarray, out: np.ndarray, col0: int)
         b0q = 0.0
         b1q = out[1, c + 5]
         for i in range(2, n):
-            a2 = A * a1 + B * a0
-            b2 = A * b1 + B * b0
-            a2p = A * a1p + B * a0p + Ap * a1 + Bp * a0
-            a2q = A * a1q + B * a0q + Aq * a1
-            b2p = A * b1p + B * b0p + Ap * b1 + Bp * b0
-            b2q = A * b1q + B * b0q + Aq * b1
+            a2, b2, a2p, a2q, b2p, b2q = _recurrence_step(
+                A, B, Ap, Bp, Aq, a0, a1, b0, b1, a0p, a1p, a0q, a1q, b0p, b1p, b0q, b1q
+            )
             out[i, c] = a2
             out[i, c + 1] = b2
             out[i, c + 2] = a2p
@@ -386,12 +397,9 @@ def model_gram(
                         buf[1, jq] += c1 * a1q + c2 * b1q
                     i0 = 2
                 for i in range(i0, nr):
-                    a2 = A * a1 + B * a0
-                    b2 = A * b1 + B * b0
-                    a2p = A * a1p + B * a0p + Ap * a1 + Bp * a0
-                    a2q = A * a1q + B * a0q + Aq * a1
-                    b2p = A * b1p + B * b0p + Ap * b1 + Bp * b0
-                    b2q = A * b1q + B * b0q + Aq * b1
+                    a2, b2, a2p, a2q, b2p, b2q = _recurrence_step(
+                        A, B, Ap, Bp, Aq, a0, a1, b0, b1, a0p, a1p, a0q, a1q, b0p, b1p, b0q, b1q
+                    )
                     buf[i, ia] = a2
                     buf[i, ib] = b2
                     buf[i, jp] += c1 * a2p + c2 * b2p
