@@ -17,8 +17,10 @@ import os
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,10 +56,65 @@ class _Superseded(Exception):  # noqa: N818
     """This attempt no longer owns its job: stop working on it."""
 
 
+@dataclass(frozen=True)
+class JobContext:
+    """What a job handler gets: its parameters, the store, and a progress callback.
+
+    Attributes
+    ----------
+    job_id : str
+        The job's id.
+    kind : str
+        The job's kind (the key of its handler in :data:`JOB_HANDLERS`).
+    params : dict
+        The parameters stored with the job when it was created.
+    store : Store
+        The store of the runner's database (the handler may read and write resources).
+    progress : Callable[[float, str], None]
+        Report the fraction done (0..1) and a message; raises when the attempt was superseded
+        (the job was cancelled, failed or resumed elsewhere meanwhile), which ends the handler.
+    """
+
+    job_id: str
+    kind: str
+    params: dict[str, Any]
+    store: Store
+    progress: Callable[[float, str], None]
+
+
+JobHandler = Callable[[JobContext], dict[str, Any]]
+JOB_HANDLERS: dict[str, JobHandler] = {}
+"""Job kind -> handler. Each resource registers its kinds with :func:`job_handler` next to the
+router that creates them; :func:`load_handlers` imports those modules (also in worker
+processes)."""
+
+_HANDLER_MODULES = ("service.api.routers",)
+
+
+def job_handler(kind: str) -> Callable[[JobHandler], JobHandler]:
+    """Register ``fn`` as the handler of jobs of ``kind`` (a decorator)."""
+
+    def deco(fn: JobHandler) -> JobHandler:
+        JOB_HANDLERS[kind] = fn
+        return fn
+
+    return deco
+
+
+def load_handlers() -> dict[str, JobHandler]:
+    """Import every module that registers job handlers; returns the table."""
+    import importlib
+    import pkgutil
+
+    for name in _HANDLER_MODULES:
+        pkg = importlib.import_module(name)
+        for info in pkgutil.iter_modules(getattr(pkg, "__path__", [])):
+            importlib.import_module(f"{name}.{info.name}")
+    return JOB_HANDLERS
+
+
 def run_job(db_url: str, job_id: str, attempt: int) -> str:
     """Run one claimed job to its end (called in a worker process); returns its status."""
-    from service.api import numerics
-
     store = _store_for(db_url)
     job = store.get_job(job_id)
     if job is None or job.attempts != attempt or job.status != "running":
@@ -72,36 +129,13 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
                 raise _Superseded  # failed/cancelled meanwhile, or resumed elsewhere
 
     try:
-        params = job.params
-        if job.kind == "simulation":
-            progress(0.0, f"simulating ({params['model']})")
-            sim = numerics.simulate(params["scene"], params["model"])
-            row = store_simulated_signal(store, sim, params)
-            result: dict[str, Any] = {"signal_id": row.id}
-        elif job.kind == "sweep-simulated":
-            result = numerics.warn(params, progress)
-        elif job.kind == "sweep-signals":
-            items = []
-            for k, m in enumerate(params["measurements"]):
-                sig = store.get_signal(m["signal_id"])
-                if sig is None:
-                    raise ApiProblem(
-                        422,
-                        f"signal {m['signal_id']!r} was deleted",
-                        field=f"measurements[{k}].signal_id",
-                        value=m["signal_id"],
-                    )
-                items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
-                progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
-            progress(0.1, f"analysing {len(items)} signals")
-            names = [m["signal_id"] for m in params["measurements"]]
-            result = numerics.sweep_from_signals(
-                items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg)
-            )
-        elif job.kind == "diagnostic-sleep":
-            result = _diagnostic_sleep(params, progress)
-        else:
+        handler = load_handlers().get(job.kind)
+        if handler is None:
             raise ApiProblem(422, f"unknown job kind {job.kind!r}", field="kind", value=job.kind)
+        ctx = JobContext(
+            job_id=job_id, kind=job.kind, params=job.params, store=store, progress=progress
+        )
+        result = handler(ctx)
     except _Superseded:
         return "superseded"
     except Exception as exc:  # noqa: BLE001 - every failure is recorded on the job
@@ -110,9 +144,11 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
     return "succeeded" if store.finish_job(job_id, attempt, result) else "superseded"
 
 
-def _diagnostic_sleep(params: dict[str, Any], progress: Any) -> dict[str, Any]:
+@job_handler("diagnostic-sleep")
+def _diagnostic_sleep(ctx: JobContext) -> dict[str, Any]:
     """A job that only waits (no API creates it): exercises the job machinery in tests and
     deployments (``Store.create_job("diagnostic-sleep", {"seconds": 2})``)."""
+    params, progress = ctx.params, ctx.progress
     seconds = float(params.get("seconds", 1.0))
     steps = max(1, int(params.get("steps", 10)))
     if params.get("fail"):

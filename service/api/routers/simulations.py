@@ -9,7 +9,7 @@ from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
 from service.api import numerics
-from service.api.jobs import store_simulated_signal
+from service.api.jobs import JobContext, job_handler, store_simulated_signal
 from service.api.routers._common import problems
 from service.api.state import StateDep, job_doc, signal_meta
 from service.schemas import Job, SignalMeta, SimulationRequest, SimulationResult
@@ -55,3 +55,13 @@ async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResp
         status_code=201,
         headers={"Location": f"/v1/signals/{row.id}"},
     )
+
+
+@job_handler("simulation")
+def run_simulation_job(ctx: JobContext) -> dict[str, Any]:
+    """Simulate the stored scene and store the signal (the job behind a 202)."""
+    params = ctx.params
+    ctx.progress(0.0, f"simulating ({params['model']})")
+    sim = numerics.simulate(params["scene"], params["model"])
+    row = store_simulated_signal(ctx.store, sim, params)
+    return {"signal_id": row.id}

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
 
 from service.api import numerics, plots
+from service.api.jobs import JobContext, job_handler
 from service.api.problems import ApiProblem, invalid, not_found, too_large
 from service.api.routers._common import problems
 from service.api.state import AppState, StateDep, job_doc
@@ -178,3 +179,32 @@ async def plot_sweep_png(sweep_id: str, state: StateDep) -> Response:
 )
 async def plot_sweep_svg(sweep_id: str, state: StateDep) -> Response:
     return await _plot(sweep_id, state, "svg")
+
+
+@job_handler("sweep-simulated")
+def run_simulated_sweep_job(ctx: JobContext) -> dict[str, Any]:
+    """A simulated early-warning sweep (``warn``)."""
+    return numerics.warn(ctx.params, ctx.progress)
+
+
+@job_handler("sweep-signals")
+def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
+    """A sweep of stored recordings: detect each, then classify and predict."""
+    params, progress, store = ctx.params, ctx.progress, ctx.store
+    items = []
+    for k, m in enumerate(params["measurements"]):
+        sig = store.get_signal(m["signal_id"])
+        if sig is None:
+            raise ApiProblem(
+                422,
+                f"signal {m['signal_id']!r} was deleted",
+                field=f"measurements[{k}].signal_id",
+                value=m["signal_id"],
+            )
+        items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
+        progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
+    progress(0.1, f"analysing {len(items)} signals")
+    names = [m["signal_id"] for m in params["measurements"]]
+    return numerics.sweep_from_signals(
+        items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg)
+    )
