@@ -16,12 +16,13 @@ from anyio import to_thread
 from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
+from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_pool, warm_pool
 from service.api.jobs import JobRunner
 from service.api.routers import detections, health, jobs, signals, simulations, sweeps
 from service.api.settings import Settings
-from service.api.state import AppState, require_api_key
+from service.api.state import AppState
 from service.api.storage import Store
 from service.schemas import DetectionRequest, Problem, SignalIn
 
@@ -92,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_handlers(app)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.include_router(health.router)
-    guarded = [Depends(require_api_key)]
+    guarded = [Depends(get_caller)]
     for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
         app.include_router(r, dependencies=guarded)
     app.openapi = partial(_openapi, app)  # type: ignore[method-assign]

@@ -41,7 +41,18 @@ class Settings(BaseSettings):
         description="uvicorn event loop: 'auto' (uvloop if installed), 'uvloop' or 'asyncio'.",
     )
     api_key: str | None = Field(
-        default=None, description="If set, /v1 requires 'Authorization: Bearer <key>'."
+        default=None,
+        description="A single admin key from the environment (compared in constant time); "
+        "keys made with `snapwarn keys create` are stored hashed in the database.",
+    )
+    auth: Literal["auto", "on", "off"] = Field(
+        default="auto",
+        description="API keys on /v1: 'auto' requires them when the server listens beyond "
+        "loopback, 'on' always, 'off' never (explicit opt-out).",
+    )
+    cors_origins: list[str] = Field(
+        default_factory=list,
+        description="Origins allowed to call the API from a browser (CORS); none by default.",
     )
 
     # Limits (413 beyond them).

@@ -71,25 +71,6 @@ def get_state(request: Request) -> AppState:
     return st
 
 
-def require_api_key(request: Request) -> None:
-    """With ``SNAPWARN_API_KEY`` set, /v1 needs ``Authorization: Bearer <key>`` (or X-API-Key)."""
-    st = getattr(request.app.state, "snapwarn", None)
-    settings: Settings = st.settings if st else request.app.state.settings
-    key = settings.api_key
-    if not key:
-        return
-    auth = request.headers.get("authorization", "")
-    given = auth[7:] if auth.lower().startswith("bearer ") else request.headers.get("x-api-key")
-    if given != key:
-        raise ApiProblem(
-            401,
-            "missing or wrong API key (send 'Authorization: Bearer <key>')",
-            field="authorization",
-            value="<hidden>" if given else None,
-            headers={"WWW-Authenticate": "Bearer"},
-        )
-
-
 def signal_meta(row: SignalRow) -> dict[str, Any]:
     control = None
     if row.control_name is not None or row.control_value is not None:
@@ -119,6 +100,7 @@ def signal_meta(row: SignalRow) -> dict[str, Any]:
 def job_doc(row: JobRow) -> dict[str, Any]:
     return {
         "id": row.id,
+        "owner": row.owner,
         "kind": row.kind,
         "status": row.status,
         "progress": {"fraction": float(row.fraction or 0.0), "message": row.message or ""},
