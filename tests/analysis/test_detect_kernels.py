@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.analysis._detect_kernels import (
+from service.analysis.detect._kernels import (
     _ch_sh,
     hankel_gram,
     model_gram,

@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis._detect_kernels import model_values
 from service.analysis.crb import Overdamped, Underdamped, crb, synthesize
-from service.analysis.detect import _shifted_coefficients, detect
+from service.analysis.detect import detect
+from service.analysis.detect._flags import _shifted_coefficients
+from service.analysis.detect._kernels import model_values
 
 
 def _trials(modes_fn, n, dt, noise, trials, seed, **kw):

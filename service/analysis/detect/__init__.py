@@ -1,0 +1,116 @@
+"""Eigenfrequency detector: the poles of a damped multi-mode record, with uncertainties and flags.
+
+A record ``w`` (absolute position, uniformly sampled with step ``dt``) is modelled as::
+
+    w[n] = c + sum_k x_k(n dt) + noise,     x_k'' + p_k x_k' + q_k x_k = 0
+
+i.e. a static level ``c`` (the equilibrium deflection) plus the free responses of damped
+second-order modes. A mode's two poles are the roots of ``s^2 + p s + q = 0``; in the paper's
+notation ``p = xi`` and ``q = -sigma^2``, so ``sigma^2 = -s1 s2`` in both regimes:
+
+* underdamped (``p^2 < 4 q``): ``s = -gamma +- i omega``, ``gamma = p/2``,
+  ``sigma^2 = -(gamma^2 + omega^2)``;
+* overdamped (``p^2 > 4 q``): two real poles ``-r1, -r2``, ``sigma^2 = -r1 r2``, no FFT peak.
+
+Methods (``method=``)
+---------------------
+``"fft"``
+    The paper's baseline: the highest peak of the FFT magnitude of the mean-removed record,
+    at the resolution ``2 pi / (N dt)``; damping from the half-power width of the peak.
+``"fft-parabolic"``
+    The same with a parabola through the peak bin and its two neighbours (sub-bin frequency).
+``"esprit"``
+    Initialisation only: strided (decimated) Hankel covariance + ESPRIT poles, model order by
+    MDL on the linear amplitudes; no nonlinear refinement.
+``"varpro"`` (= ``"auto"``)
+    ESPRIT initialisation (whole record, plus its first eighth when the response decays
+    within the record, plus unexplained Hann-periodogram peaks), then variable-projection
+    (separable) Levenberg-Marquardt least squares on the poles ``(p_k, q_k)`` with the static
+    level and the amplitudes projected out; residual rounds (ESPRIT on the residual, whose
+    stride adapts to slow content) add missed modes, and refit checks undo two known local
+    minima (two modes on one spectral line, an overdamped pair split over two modes). The
+    parametrisation is smooth across critical damping, so an overdamped fundamental is
+    fitted as two real poles and ``sigma^2 = -q`` keeps its meaning. The model order is
+    chosen by MDL (backward elimination of modes whose removal costs less than
+    ``4 ln N`` in chi-square units, i.e. ``(1/2) ln N`` per real parameter). The fundamental
+    is the significant mode with the smallest ``|sigma^2|`` that is not a combination tone.
+    This is the maximum-likelihood estimator for white Gaussian noise, efficient (at the
+    Cramer-Rao bound) above threshold; standard errors come from the Gauss-Newton covariance
+    ``s^2 (J^T J)^-1`` of the fit.
+
+``common_damping=True`` imposes the same ``p`` (``= xi = 2 gamma``) on every mode, the beam
+model's damping; it lowers the variance when the model holds.
+
+``kind="ambient"`` analyses the biased autocorrelation of the mean-removed record (lags 1 to
+at most ``N/2``, cut where it sinks into its estimation noise): for a noise-driven linear
+structure it is a sum of damped modes with the same poles. Standard errors then come from the
+scatter of the fit over segments of the record (the autocorrelation's errors are correlated).
+
+Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
+--------------------------------------------------------
+``no_mode``            nothing above the noise (or a constant record): ``fundamental`` is None.
+``few_periods``        the record spans fewer than 2 periods ``2 pi / sqrt|sigma^2|``.
+``low_snr``            the fundamental's record-integrated SNR is below 20 dB.
+``overdamped``         a mode has two real poles (no FFT peak); ``sigma^2 = -s1 s2``.
+``unstable``           a mode has ``sigma^2 > 0`` (a growing real pole).
+``nonlinear``          the fundamental's ``sigma^2`` differs between the two halves of the
+                       record by more than 5 standard errors (amplitude-dependent frequency).
+``aliasing``           significant energy or a mode above 0.8 x Nyquist.
+``damping_unresolved`` (FFT methods) a peak no wider than the resolution.
+``ambient``            the result comes from an autocorrelation fit (units of variance).
+``numerical``          the static level could not be estimated.
+``combination_tone``   a mode's frequency is a sum or difference of stronger modes' frequencies
+                       (or twice one): a quadratic nonlinearity; it is marked
+                       (``Mode.combination``) and never chosen as the fundamental.
+
+Normalisation: the record is divided by a power of two (exact) and by its rms inside, and
+every computation runs in sample units, so the result is equivariant under ``w -> k w`` and
+``t -> c t`` (rates scale as ``1/c``, amplitudes as ``k``, flags unchanged), with no overflow at
+any finite magnitude. The noise level used for significance and standard errors is never
+below :data:`NOISE_FLOOR` times the record's rms: on a noise-free record, rounding is not a mode.
+
+Layout: ``_core`` (validation, normalisation, :func:`detect`), ``_methods`` (the method table
+:data:`METHOD_TABLE`: a new method is a function and a row), ``_spectral`` (periodogram,
+ESPRIT, FFT peak), ``_varpro`` (variable-projection Levenberg-Marquardt, MDL pruning),
+``_modes`` (physical modes, combination tones, the fundamental), ``_flags``, ``_results``
+(dataclasses, flag codes, thresholds). The hot loops are numba kernels in ``_kernels`` (fused
+basis recurrences + Gram matrices, strided Hankel covariance, small symmetric eigensolvers); no
+BLAS thread pool is involved in the fit itself.
+"""
+
+from service.analysis.detect._core import detect
+from service.analysis.detect._methods import METHOD_TABLE, METHODS
+from service.analysis.detect._results import (
+    ALIAS_FRACTION,
+    COMBINATION_BINS,
+    COMBINATION_Z,
+    FEW_PERIODS,
+    FLAG_CODES,
+    KINDS,
+    LOW_SNR_DB,
+    MIN_SAMPLES,
+    NOISE_FLOOR,
+    NONLINEAR_Z,
+    Detection,
+    Fundamental,
+    Mode,
+)
+
+__all__ = [
+    "METHODS",
+    "METHOD_TABLE",
+    "KINDS",
+    "FLAG_CODES",
+    "MIN_SAMPLES",
+    "FEW_PERIODS",
+    "LOW_SNR_DB",
+    "NONLINEAR_Z",
+    "ALIAS_FRACTION",
+    "COMBINATION_Z",
+    "COMBINATION_BINS",
+    "NOISE_FLOOR",
+    "Mode",
+    "Fundamental",
+    "Detection",
+    "detect",
+]

@@ -1,0 +1,205 @@
+"""Flags of a detection: the half-record linearity check and the flag block of :func:`detect`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from service.analysis.common import Flag
+from service.analysis.detect._kernels import _ch_sh
+from service.analysis.detect._linalg import _pinv_psd, _solve_gram
+from service.analysis.detect._results import (
+    ALIAS_FRACTION,
+    FEW_PERIODS,
+    LOW_SNR_DB,
+    MIN_SAMPLES,
+    NONLINEAR_Z,
+    Mode,
+)
+from service.analysis.detect._spectral import _Spectrum
+from service.analysis.detect._varpro import _Fit, _heavy_pass, _levenberg_marquardt, _mode_energy
+
+
+def _shifted_coefficients(p: np.ndarray, q: np.ndarray, c: np.ndarray, h: int) -> np.ndarray:
+    """Linear coefficients of the same modes with the time origin moved to sample ``h``."""
+    out = c.copy()
+    with np.errstate(all="ignore"):
+        _shift_into(p, q, c, h, out)
+    return out
+
+
+def _shift_into(p: np.ndarray, q: np.ndarray, c: np.ndarray, h: int, out: np.ndarray) -> None:
+    for k in range(p.size):
+        pk, qk = float(p[k]), float(q[k])
+        D = 0.25 * pk * pk - qk
+        vals = []
+        for n in (h, h + 1):
+            ch, sh, _ = _ch_sh(D * n * n)
+            e = math.exp(min(-0.5 * pk * n, 700.0))
+            vals.append(c[1 + 2 * k] * e * ch + c[2 + 2 * k] * e * n * sh)
+        ch1, sh1, _ = _ch_sh(D)
+        e1 = math.exp(-0.5 * pk)
+        c1 = vals[0]
+        c2 = (vals[1] - c1 * e1 * ch1) / (e1 * sh1)
+        out[1 + 2 * k], out[2 + 2 * k] = c1, c2
+
+
+def _one_step(y: np.ndarray, fit: _Fit, c: np.ndarray) -> tuple[float, float] | None:
+    """One Gauss-Newton step from the full-record poles on a part ``y`` of the record (one
+    pass); returns the fundamental's ``q`` and its variance (one-step estimator)."""
+    nth = fit.ntheta
+    B = _heavy_pass(y, fit.ev.p, fit.ev.q, c, fit.common)
+    if B is None:
+        return None
+    c_part, rss = _solve_gram(B[nth:, nth:])
+    A = B[:-1, :-1]
+    g = B[:-1, -1] - B[:-1, nth:-1] @ c_part
+    Ainv = _pinv_psd(A)
+    step = Ainv @ g
+    s2 = max(rss - float(g @ step), 0.0) / max(y.size - A.shape[0], 1)
+    jq = 1
+    return float(fit.ev.q[0] + step[jq]), float(Ainv[jq, jq] * s2)
+
+
+def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag | None:
+    """Compare the fundamental's sigma^2 fitted on the two halves of the record.
+
+    A chirp (frequency drifting with the decaying amplitude) is often absorbed by the full
+    record's fit into a cluster of modes at nearly the fundamental's frequency; the halves are
+    then fitted with the cluster reduced to its strongest member (Levenberg-Marquardt), else by
+    one Gauss-Newton step from the full fit.
+    """
+    N = y.shape[0]
+    h = N // 2
+    if h < MIN_SAMPLES:
+        return None
+    p, q = fit.ev.p, fit.ev.q
+    per = math.sqrt(abs(float(q[0]))) * h / (2 * math.pi)
+    if per < 1.0:
+        return None  # a half record too short to tell
+    om = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
+    cluster = np.flatnonzero(np.abs(om - om[0]) < 2.0 * (2 * math.pi / N))
+    if cluster.size > 1 and om[0] > 0:
+        e = _mode_energy(fit.ev)
+        keep_k = int(cluster[np.argmax(e[cluster])])
+        drop = set(cluster.tolist()) - {keep_k}
+        idx = [k for k in range(p.size) if k not in drop]
+        # the kept member first, so that index 0 is the fundamental
+        idx.remove(keep_k)
+        idx = [keep_k] + idx
+        res = []
+        for part in (y[:h], y[h:]):
+            f = _levenberg_marquardt(part, p[idx], q[idx], common=fit.common, max_iter=max_iter)
+            if f is None:
+                return None
+            res.append((float(f.ev.q[0]), float(f.cov[1, 1])))
+        a, b = res
+    else:
+        a = _one_step(y[:h], fit, fit.ev.c)
+        c_h = _shifted_coefficients(fit.ev.p, fit.ev.q, fit.ev.c, h)
+        b = _one_step(y[h:], fit, c_h) if np.all(np.isfinite(c_h)) else None
+        if a is None or b is None:
+            return None
+    (q1, v1), (q2, v2) = a, b
+    zval = abs(q1 - q2) / math.sqrt(max(v1 + v2, 1e-300))
+    if zval > NONLINEAR_Z:
+        s1, s2 = -q1 / dt**2, -q2 / dt**2
+        extra = (
+            f"; the full record needs {cluster.size} modes within 2 frequency bins of it"
+            if cluster.size > 1
+            else ""
+        )
+        return Flag(
+            "nonlinear",
+            f"the fundamental's sigma^2 drifts from {s1:.6g} (first half) to {s2:.6g} "
+            f"(second half), {zval:.1f} standard errors: the response is not linear "
+            f"(frequency depends on amplitude){extra}",
+        )
+    return None
+
+
+
+def _record_flags(
+    modes: list[Mode],
+    *,
+    n: int,
+    dt: float,
+    spec: _Spectrum,
+    static: float,
+    static_std: float,
+) -> list[Flag]:
+    """The flags that read the final modes: few_periods, low_snr, unstable, overdamped,
+    combination_tone, aliasing and numerical (``modes[0]`` is the fundamental)."""
+    flags: list[Flag] = []
+    T = n * dt
+    if modes:
+        m0 = modes[0]
+        root = math.sqrt(abs(m0.sigma2))
+        periods = T * root / (2 * math.pi)
+        if periods < FEW_PERIODS:
+            flags.append(
+                Flag(
+                    "few_periods",
+                    f"the record spans {periods:.3g} fundamental period(s) "
+                    f"(T = {T:.4g}, sqrt|sigma^2| = {root:.4g}); "
+                    f"at least {FEW_PERIODS:g} are advised",
+                )
+            )
+        if math.isfinite(m0.snr_db) and m0.snr_db < LOW_SNR_DB:
+            flags.append(
+                Flag(
+                    "low_snr",
+                    f"the fundamental's record SNR is {m0.snr_db:.1f} dB (< {LOW_SNR_DB:g} dB): "
+                    "estimates may be off the Cramer-Rao regime",
+                )
+            )
+        grow = [m for m in modes if m.sigma2 > 3.0 * m.sigma2_std]
+        if grow:
+            txt = ", ".join(f"{m.sigma2:.4g} +- {m.sigma2_std:.2g}" for m in grow)
+            flags.append(
+                Flag(
+                    "unstable",
+                    f"{len(grow)} mode(s) with sigma^2 > 0 ({txt}): a real pole grows, the "
+                    "equilibrium is unstable",
+                )
+            )
+        od = [m for m in modes if m.regime == "overdamped" and m.real_poles is not None]
+        if od:
+            txt = ", ".join(
+                f"sigma^2 = {m.sigma2:.4g} (poles {m.real_poles[0]:.4g}, {m.real_poles[1]:.4g})"
+                for m in od
+            )
+            flags.append(
+                Flag(
+                    "overdamped",
+                    f"{len(od)} overdamped mode(s): {txt}; no FFT peak, sigma^2 = -s1 s2",
+                )
+            )
+        comb = [(k, m) for k, m in enumerate(modes) if m.combination is not None]
+        if comb:
+            txt = ", ".join(f"omega[{k}] = {m.omega:.6g} = {m.combination}" for k, m in comb)
+            flags.append(
+                Flag(
+                    "combination_tone",
+                    f"{len(comb)} mode(s) are combination tones of stronger modes ({txt}): "
+                    "a nonlinear (quadratic) response; they are not eigenfrequencies",
+                )
+            )
+    # aliasing: energy in the top of the band, or a mode close to Nyquist
+    nyq = math.pi / dt
+    kb = int(ALIAS_FRACTION * (spec.hann.size - 1))
+    hot = int(np.sum(spec.significant[kb:])) if kb > 0 else 0
+    near = [m.omega for m in modes if m.omega > ALIAS_FRACTION * nyq]
+    if hot >= 2 or near:
+        flags.append(
+            Flag(
+                "aliasing",
+                f"energy above {ALIAS_FRACTION:g} x Nyquist ({nyq:.4g} rad/time): "
+                f"{hot} significant bin(s), {len(near)} mode(s) there; sample faster or "
+                f"low-pass filter before sampling",
+            )
+        )
+    if not (math.isfinite(static) and math.isfinite(static_std)):
+        flags.append(Flag("numerical", "the static level could not be estimated"))
+    return flags

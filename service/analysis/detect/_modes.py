@@ -1,0 +1,237 @@
+"""Conversion of a fit (sample units, normalised record) to physical modes; the ambient
+(segment-scatter) standard errors; combination tones and the choice of the fundamental."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from service.analysis.detect._kernels import _ch_sh
+from service.analysis.detect._results import (
+    COMBINATION_BINS,
+    COMBINATION_Z,
+    Fundamental,
+    Mode,
+)
+from service.analysis.detect._varpro import _Fit, _levenberg_marquardt
+
+
+def _modes_from_fit(
+    fit: _Fit, energies: np.ndarray, dt: float, scale: float
+) -> tuple[list[Mode], float, float]:
+    ev = fit.ev
+    K = ev.p.shape[0]
+    cov = fit.cov
+    nth = fit.ntheta
+    modes: list[Mode] = []
+    for k in range(K):
+        jp = 0 if fit.common else 2 * k
+        jq = 1 + k if fit.common else 2 * k + 1
+        p, q = float(ev.p[k]), float(ev.q[k])
+        vpp, vqq, vpq = cov[jp, jp], cov[jq, jq], cov[jp, jq]
+        c1 = float(ev.c[1 + 2 * k])
+        c2 = float(ev.c[2 + 2 * k])
+        ic1, ic2 = nth + 1 + 2 * k, nth + 2 + 2 * k
+        D = 0.25 * p * p - q
+        gamma = 0.5 * p / dt
+        gamma_std = 0.5 * math.sqrt(max(vpp, 0.0)) / dt
+        sigma2 = -q / dt**2
+        sigma2_std = math.sqrt(max(vqq, 0.0)) / dt**2
+        snr = 10.0 * math.log10(max(energies[k], 1e-300)) if energies.size else math.nan
+        if D < 0:
+            om = math.sqrt(-D)
+            # d om / d p = p / (4 om) ; d om / d q = -1 / (2 om)   (om^2 = q - p^2/4)
+            gp, gq = -p / (4.0 * om), 1.0 / (2.0 * om)
+            var_om = gp * gp * vpp + gq * gq * vqq + 2 * gp * gq * vpq
+            a_cos, a_sin = c1, -c2 / om  # A cos(phi), A sin(phi)
+            amp = math.hypot(a_cos, a_sin)
+            phase = math.atan2(a_sin, a_cos)
+            # amplitude std: gradient of |(c1, c2/om)| in (c1, c2) (om treated as exact)
+            if amp > 0:
+                g1, g2 = c1 / amp, (c2 / om**2) / amp
+                var_a = g1 * g1 * cov[ic1, ic1] + g2 * g2 * cov[ic2, ic2]
+                var_a += 2 * g1 * g2 * cov[ic1, ic2]
+            else:
+                var_a = 0.0
+            modes.append(
+                Mode(
+                    omega=om / dt,
+                    frequency=om / dt / (2 * math.pi),
+                    damping=gamma,
+                    sigma2=sigma2,
+                    amplitude=amp * scale,
+                    phase=phase,
+                    omega_std=math.sqrt(max(var_om, 0.0)) / dt,
+                    damping_std=gamma_std,
+                    sigma2_std=sigma2_std,
+                    amplitude_std=math.sqrt(max(var_a, 0.0)) * scale,
+                    regime="underdamped",
+                    snr_db=snr,
+                )
+            )
+        else:
+            lam = math.sqrt(D)
+            r1, r2 = 0.5 * p - lam, 0.5 * p + lam
+            if lam > 0:
+                b1 = 0.5 * (c1 + c2 / lam)
+                b2 = 0.5 * (c1 - c2 / lam)
+            else:  # critically damped: c1 + c2 t ; report as equal split
+                b1 = b2 = 0.5 * c1
+            amp = max(abs(b1), abs(b2))
+            modes.append(
+                Mode(
+                    omega=0.0,
+                    frequency=0.0,
+                    damping=gamma,
+                    sigma2=sigma2,
+                    amplitude=amp * scale,
+                    phase=0.0,
+                    omega_std=0.0,
+                    damping_std=gamma_std,
+                    sigma2_std=sigma2_std,
+                    amplitude_std=math.sqrt(max(cov[ic1, ic1], 0.0)) * scale,
+                    regime="overdamped",
+                    real_poles=(-r1 / dt, -r2 / dt),
+                    real_amplitudes=(b1 * scale, b2 * scale),
+                    snr_db=snr,
+                )
+            )
+    static_std = math.sqrt(max(cov[nth, nth], 0.0)) * scale
+    return modes, float(ev.c[0]), static_std
+
+
+def _model_at_lag0(fit: _Fit) -> float:
+    """Fitted autocorrelation extrapolated one step back (to lag 0), normalised units."""
+    ev = fit.ev
+    v = float(ev.c[0])
+    for k in range(ev.p.size):
+        D = 0.25 * ev.p[k] ** 2 - ev.q[k]
+        ch, sh, _ = _ch_sh(float(D))
+        e = math.exp(0.5 * ev.p[k])
+        v += ev.c[1 + 2 * k] * e * ch - ev.c[2 + 2 * k] * e * sh
+    return v
+
+
+def _ambient_errors(
+    x: np.ndarray,
+    fit: _Fit,
+    n_lags: int,
+    scale: float,
+    dt: float,
+    modes: list[Mode],
+    max_iter: int,
+) -> list[Mode]:
+    """Standard errors of an autocorrelation fit from the scatter over record segments.
+
+    The autocorrelation's estimation errors are strongly correlated across lags, so the
+    Gauss-Newton covariance (white residuals) is far too optimistic. The record is cut into
+    ``B`` segments (each at least 4 fitted lag ranges long), the fit is repeated on each
+    segment's autocorrelation from the full-record poles, and the standard error of the full
+    estimate is ``std(segment estimates) / sqrt(B)``.
+    """
+    N0 = x.size
+    B = int(min(8, N0 // (4 * n_lags)))
+    if B < 2:
+        return [
+            replace(m, omega_std=math.inf, damping_std=math.inf, sigma2_std=math.inf) for m in modes
+        ]
+    seg = N0 // B
+    ests = []
+    for b in range(B):
+        xs = x[b * seg : (b + 1) * seg]
+        xs = xs - xs.mean()
+        nfft = 1 << int(math.ceil(math.log2(2 * seg)))
+        F = np.fft.rfft(xs, nfft)
+        acf = np.fft.irfft(F * np.conj(F), nfft)[1 : n_lags + 1] / seg
+        f = _levenberg_marquardt(
+            acf / scale, fit.ev.p, fit.ev.q, common=fit.common, max_iter=max_iter
+        )
+        if f is None:
+            continue
+        ests.append((f.ev.p.copy(), f.ev.q.copy()))
+    if len(ests) < 2:
+        return [
+            replace(m, omega_std=math.inf, damping_std=math.inf, sigma2_std=math.inf) for m in modes
+        ]
+    P = np.array([e[0] for e in ests])
+    Q = np.array([e[1] for e in ests])
+    root = math.sqrt(len(ests))
+    out = []
+    for k, m in enumerate(modes):
+        om = np.sqrt(np.maximum(Q[:, k] - 0.25 * P[:, k] ** 2, 0.0)) / dt
+        out.append(
+            replace(
+                m,
+                omega_std=float(np.std(om, ddof=1) / root),
+                damping_std=float(np.std(0.5 * P[:, k] / dt, ddof=1) / root),
+                sigma2_std=float(np.std(-Q[:, k] / dt**2, ddof=1) / root),
+            )
+        )
+    return out
+
+
+def _combinations(modes: list[Mode], bin_w: float) -> dict[int, tuple[int, int, str]]:
+    """Modes whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or ``2 omega_i``
+    of two stronger modes (record SNR), within :data:`COMBINATION_Z` combined standard errors
+    or :data:`COMBINATION_BINS` frequency bins ``bin_w``: ``{k: (i, j, sign)}``."""
+    out: dict[int, tuple[int, int, str]] = {}
+    strength = [m.snr_db if math.isfinite(m.snr_db) else -math.inf for m in modes]
+    under = [k for k, m in enumerate(modes) if m.regime == "underdamped" and m.omega > 0]
+    for k in under:
+        mk = modes[k]
+        parents = [i for i in under if i != k and strength[i] > strength[k]]
+        best = math.inf
+        for a, i in enumerate(parents):
+            for j in parents[a:]:
+                mi, mj = modes[i], modes[j]
+                var = mk.omega_std**2 + mi.omega_std**2 + mj.omega_std**2
+                tol = max(COMBINATION_Z * math.sqrt(var), COMBINATION_BINS * bin_w)
+                for sign, target in (("+", mi.omega + mj.omega), ("-", abs(mi.omega - mj.omega))):
+                    if sign == "-" and i == j:
+                        continue
+                    d = abs(mk.omega - target)
+                    if d <= tol and d < best:
+                        best = d
+                        hi, lo = (i, j) if mi.omega >= mj.omega else (j, i)
+                        out[k] = (hi, lo, sign)
+    return out
+
+
+def _fundamental(modes: list[Mode], *, n: int, dt: float) -> list[Mode]:
+    """Mark combination tones and put the fundamental first: the first mode of the method's
+    order (by increasing ``|sigma^2|`` for the parametric methods) that is not a combination
+    tone; the others follow in that order."""
+    if not modes:
+        return []
+    comb = _combinations(modes, 2 * math.pi / (n * dt))
+    first = next(k for k in range(len(modes)) if k not in comb)
+    order = [first] + [k for k in range(len(modes)) if k != first]
+    pos = {k: i for i, k in enumerate(order)}
+    out = []
+    for k in order:
+        m = modes[k]
+        if k in comb:
+            i, j, sign = comb[k]
+            txt = f"2 omega[{pos[i]}]" if i == j else f"omega[{pos[i]}] {sign} omega[{pos[j]}]"
+            m = replace(m, combination=txt)
+        out.append(m)
+    return out
+
+
+def _scaled(m: Mode, f: float) -> Mode:
+    """The mode with its amplitudes multiplied by ``f`` (the record's power-of-two unit)."""
+    if f == 1.0:
+        return m
+    ra = m.real_amplitudes
+    return replace(
+        m,
+        amplitude=m.amplitude * f,
+        amplitude_std=m.amplitude_std * f,
+        real_amplitudes=None if ra is None else (ra[0] * f, ra[1] * f),
+    )
+
+
+def _as_fundamental(modes: list[Mode]) -> Fundamental | None:
+    return Fundamental(modes[0], 0) if modes else None

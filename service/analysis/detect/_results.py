@@ -1,0 +1,262 @@
+"""Results of the detector (frozen dataclasses), flag codes and thresholds."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from service.analysis.common import Flag
+
+KINDS = ("impulse", "ambient")
+FLAG_CODES = (
+    "no_mode",
+    "few_periods",
+    "low_snr",
+    "overdamped",
+    "unstable",
+    "nonlinear",
+    "aliasing",
+    "damping_unresolved",
+    "ambient",
+    "numerical",
+    "combination_tone",
+)
+MIN_SAMPLES = 16
+
+#: Thresholds of the flags (documented in the messages).
+FEW_PERIODS = 2.0  # fundamental periods in the record below which "few_periods" is raised
+LOW_SNR_DB = 20.0  # fundamental's record-integrated SNR (energy / noise variance) in dB
+NONLINEAR_Z = 5.0  # half-record frequency drift, in combined standard errors
+ALIAS_FRACTION = 0.8  # fraction of the Nyquist frequency above which energy is an alias risk
+#: Combination tones: |omega_k - (omega_i +- omega_j)| within COMBINATION_Z combined standard
+#: errors, or within COMBINATION_BINS frequency bins (2 pi / (N dt)) when the record is so clean
+#: that the standard errors are below the model error of a nonlinear response.
+COMBINATION_Z = 4.0
+COMBINATION_BINS = 0.5
+#: Relative numerical noise floor: the noise std is never taken below this fraction of the
+#: record's rms (float64 arithmetic on Gram matrices resolves residual energies to about
+#: ``1e-16 x`` the record's energy; a noise-free record must not make rounding significant).
+NOISE_FLOOR = 1e-7
+
+
+def _num(x: float | None) -> float | None:
+    """A plain float for JSON, ``None`` for missing / non-finite values."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One mode (a pair of poles) of the record.
+
+    Attributes
+    ----------
+    omega : float
+        Damped angular frequency, rad per time unit of the record (0 for an overdamped mode).
+    frequency : float
+        ``omega / (2 pi)``, cycles per time unit.
+    damping : float
+        Decay rate ``gamma = p/2`` (1 per time unit); poles ``s = -gamma +- i omega``. For an
+        overdamped mode, the mean of the two real decay rates.
+    sigma2 : float
+        Undamped eigenvalue ``-s1 s2`` (time^-2); negative for a stable mode.
+    amplitude : float
+        Initial amplitude (record units): ``A`` in ``A exp(-gamma t) cos(omega t + phase)``
+        with ``t = 0`` at the first sample; for an overdamped mode ``max(|b1|, |b2|)``.
+    phase : float
+        Phase at the first sample, rad (0 for an overdamped mode).
+    omega_std, damping_std, sigma2_std, amplitude_std : float
+        Standard errors (same units).
+    regime : str
+        ``"underdamped"`` or ``"overdamped"``.
+    real_poles : tuple of float or None
+        Overdamped mode: its two real poles ``(-r1, -r2)`` (slow first), 1 per time unit.
+    real_amplitudes : tuple of float or None
+        Overdamped mode: ``(b1, b2)`` in ``b1 exp(-r1 t) + b2 exp(-r2 t)``.
+    snr_db : float
+        Record SNR of this mode: ``10 log10(energy / noise variance)``, where the energy is the
+        rise of the residual sum of squares when the mode is removed (others re-fitted). For a
+        lone mode this is the per-sample SNR ``A^2 / (2 s^2)`` plus ``10 log10(N_eff)`` with
+        ``N_eff = sum_n exp(-2 gamma n dt)`` the effective number of samples.
+    combination : str or None
+        Set when the mode is a combination tone of stronger modes (its frequency is a sum or
+        difference of theirs, or twice one of them, within the tolerance of
+        :data:`COMBINATION_Z`), e.g. ``"omega[2] - omega[1]"`` with indices into
+        ``Detection.modes``. Such a mode is never the fundamental.
+    """
+
+    omega: float
+    frequency: float
+    damping: float
+    sigma2: float
+    amplitude: float
+    phase: float
+    omega_std: float
+    damping_std: float
+    sigma2_std: float
+    amplitude_std: float = math.nan
+    regime: str = "underdamped"
+    real_poles: tuple[float, float] | None = None
+    real_amplitudes: tuple[float, float] | None = None
+    snr_db: float = math.nan
+    combination: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "omega": _num(self.omega),
+            "frequency": _num(self.frequency),
+            "damping": _num(self.damping),
+            "sigma2": _num(self.sigma2),
+            "amplitude": _num(self.amplitude),
+            "phase": _num(self.phase),
+            "omega_std": _num(self.omega_std),
+            "damping_std": _num(self.damping_std),
+            "sigma2_std": _num(self.sigma2_std),
+            "amplitude_std": _num(self.amplitude_std),
+            "regime": self.regime,
+            "real_poles": None if self.real_poles is None else [_num(v) for v in self.real_poles],
+            "real_amplitudes": None
+            if self.real_amplitudes is None
+            else [_num(v) for v in self.real_amplitudes],
+            "snr_db": _num(self.snr_db),
+            "combination": self.combination,
+        }
+
+
+@dataclass(frozen=True)
+class Fundamental:
+    """The fundamental: a :class:`Mode` of ``Detection.modes`` and its index there.
+
+    The fundamental is the significant mode with the smallest ``|sigma^2|`` that is not a
+    combination tone of stronger modes. Its attributes are those of the mode (read through).
+
+    Attributes
+    ----------
+    mode : Mode
+        The mode itself.
+    index : int
+        Its position in ``Detection.modes`` (0: the fundamental is listed first).
+    omega, omega_std : float
+        Damped angular frequency (0 when overdamped) and its standard error, rad/time.
+    sigma2, sigma2_std : float
+        Undamped eigenvalue ``-s1 s2`` and its standard error, 1/time^2.
+    damping, damping_std : float
+        ``gamma = p/2`` and its standard error, 1/time.
+    regime : str
+        ``"underdamped"`` or ``"overdamped"``.
+    poles : tuple of float or None
+        For an overdamped fundamental, its two real poles ``(-r1, -r2)`` (1/time).
+    """
+
+    mode: Mode
+    index: int = 0
+
+    @property
+    def omega(self) -> float:
+        return self.mode.omega
+
+    @property
+    def omega_std(self) -> float:
+        return self.mode.omega_std
+
+    @property
+    def sigma2(self) -> float:
+        return self.mode.sigma2
+
+    @property
+    def sigma2_std(self) -> float:
+        return self.mode.sigma2_std
+
+    @property
+    def damping(self) -> float:
+        return self.mode.damping
+
+    @property
+    def damping_std(self) -> float:
+        return self.mode.damping_std
+
+    @property
+    def regime(self) -> str:
+        return self.mode.regime
+
+    @property
+    def poles(self) -> tuple[float, float] | None:
+        return self.mode.real_poles
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "omega": _num(self.omega),
+            "omega_std": _num(self.omega_std),
+            "sigma2": _num(self.sigma2),
+            "sigma2_std": _num(self.sigma2_std),
+            "damping": _num(self.damping),
+            "damping_std": _num(self.damping_std),
+            "regime": self.regime,
+            "poles": None if self.poles is None else [_num(v) for v in self.poles],
+            "index": self.index,
+        }
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Result of :func:`detect`.
+
+    Attributes
+    ----------
+    modes : tuple of Mode
+        Significant modes, sorted by increasing ``|sigma^2|`` (the fundamental first).
+    fundamental : Fundamental or None
+        ``None`` when no mode was found (flag ``"no_mode"``).
+    static_level, static_level_std : float
+        Equilibrium offset of the record and its standard error (record units).
+    flags : tuple of Flag
+    method : str
+        The method actually used (``"auto"`` resolves to ``"varpro"``).
+    noise_std : float
+        Estimated standard deviation of the additive noise (record units).
+    snr_db : float
+        Per-sample SNR of the fundamental at the first sample, ``10 log10(A^2 / (2 s^2))``
+        (``A`` its amplitude, ``s`` the noise std); NaN (flag ``"no_mode"``) without modes.
+    n_samples : int
+    dt : float
+    kind : str
+    iterations : int
+        Levenberg-Marquardt iterations of the final fit (0 for the non-iterative methods).
+    """
+
+    modes: tuple[Mode, ...]
+    fundamental: Fundamental | None
+    static_level: float
+    static_level_std: float
+    flags: tuple[Flag, ...]
+    method: str
+    noise_std: float
+    snr_db: float
+    n_samples: int = 0
+    dt: float = 1.0
+    kind: str = "impulse"
+    iterations: int = 0
+
+    @property
+    def flag_codes(self) -> tuple[str, ...]:
+        return tuple(f.code for f in self.flags)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The CLI document: plain floats, ``None`` for missing values."""
+        return {
+            "modes": [m.to_dict() for m in self.modes],
+            "fundamental": None if self.fundamental is None else self.fundamental.to_dict(),
+            "flags": [f.to_dict() for f in self.flags],
+            "static_level": _num(self.static_level),
+            "static_level_std": _num(self.static_level_std),
+            "method": self.method,
+            "noise_std": _num(self.noise_std),
+            "snr_db": _num(self.snr_db),
+            "n_samples": int(self.n_samples),
+            "dt": _num(self.dt),
+            "kind": self.kind,
+        }
+
