@@ -1,5 +1,18 @@
 """Wire models shared by the REST API and the SDK (pydantic + stdlib only)."""
 
+from service.schemas.analysis import (
+    Alarm,
+    Classification,
+    Flag,
+    Fundamental,
+    Measurement,
+    Mode,
+    PaperRule,
+    Prediction,
+    RecordDetection,
+    SweepResult,
+    Truth,
+)
 from service.schemas.common import (
     PROBLEM_MEDIA_TYPE,
     PROBLEM_TYPE_PREFIX,
@@ -15,6 +28,17 @@ from service.schemas.simulations import SimulationRequest, SimulationResult
 from service.schemas.sweeps import SimulatedSweep, Sweep, SweepMeasurement, SweepRequest
 
 __all__ = [
+    "Alarm",
+    "Classification",
+    "Flag",
+    "Fundamental",
+    "Measurement",
+    "Mode",
+    "PaperRule",
+    "Prediction",
+    "RecordDetection",
+    "SweepResult",
+    "Truth",
     "PROBLEM_MEDIA_TYPE",
     "PROBLEM_TYPE_PREFIX",
     "TERMINAL_STATUSES",

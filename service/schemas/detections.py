@@ -1,10 +1,12 @@
-"""Wire models of detections: the request and the `snapwarn detect --json` document."""
+"""Wire models of detections: the request (the document is ``analysis.Detection``)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from service.schemas.analysis import Detection, Flag
 
 
 class DetectionRequest(BaseModel):
@@ -16,21 +18,11 @@ class DetectionRequest(BaseModel):
     w: list[float] | None = None
     t: list[float] | None = None
     dt: float | None = None
-    method: str = Field(default="auto", max_length=50)
+    method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = Field(
+        default="auto", description="Detector method ('auto' resolves to 'varpro')."
+    )
 
 
-class DetectionFlag(BaseModel):
-    code: str
-    message: str
+DetectionFlag = Flag  # the flag of any result (kept under its older name)
 
-
-class Detection(BaseModel):
-    """The document of ``snapwarn detect --json`` (modes, fundamental, flags...)."""
-
-    model_config = ConfigDict(extra="allow")
-
-    modes: list[dict[str, Any]]
-    fundamental: dict[str, Any] | None = None
-    flags: list[DetectionFlag] = Field(default_factory=list)
-    static_level: float | None = None
-    method: str
+__all__ = ["Detection", "DetectionFlag", "DetectionRequest"]

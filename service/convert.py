@@ -1,0 +1,218 @@
+"""The one seam between the numerics' results and the wire models.
+
+The numerics (``service.analysis``) return frozen dataclasses; the API, the CLI's ``--json`` and
+the SDK share the pydantic models of :mod:`service.schemas.analysis`. This module is the only
+place that knows both: every document of a scientific result is built here, so that
+``snapwarn sweep --json``, ``snapwarn warn --json`` and ``/v1/sweeps`` print one document.
+
+Numbers that are missing or not finite become ``None`` (strict JSON). :data:`PARITY` lists, for
+each result dataclass, its wire model and the fields deliberately left out; a test checks that
+the two agree, so a field added to the numerics without its wire counterpart fails the tests
+(and the OpenAPI drift test sees the models).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from service.schemas import analysis as wire
+
+__all__ = [
+    "PARITY",
+    "alarm",
+    "classification",
+    "detection",
+    "flag",
+    "flags",
+    "measurement",
+    "mode",
+    "paper_rule",
+    "plain",
+    "prediction",
+    "sweep_result",
+]
+
+#: result dataclass ("module:Name") -> (wire model, numerics fields not on the wire,
+#: wire fields not on the dataclass). Checked by the tests in both directions.
+PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] = {
+    "service.analysis.common:Flag": (wire.Flag, frozenset(), frozenset()),
+    "service.analysis.detect:Mode": (wire.Mode, frozenset(), frozenset()),
+    "service.analysis.detect:Detection": (wire.Detection, frozenset(), frozenset()),
+    "service.analysis.pipeline:Measurement": (wire.Measurement, frozenset(), frozenset()),
+    "service.analysis.predict:PaperRule": (wire.PaperRule, frozenset(), frozenset()),
+    # the model fits are the engine's internals (profiles, windows): not a result
+    "service.analysis.classify:Classification": (
+        wire.Classification,
+        frozenset({"fits"}),
+        frozenset(),
+    ),
+    "service.analysis.alarm:Alarm": (wire.Alarm, frozenset(), frozenset()),
+    "service.analysis.predict:Prediction": (wire.Prediction, frozenset(), frozenset()),
+    "service.analysis.pipeline:WarnResult": (wire.SweepResult, frozenset(), frozenset()),
+}
+
+
+def plain(value: Any) -> Any:
+    """A result as plain JSON data: dataclasses as dicts, non-finite floats as ``None``."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int) and not hasattr(value, "dtype"):
+        return value
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    kind = getattr(getattr(value, "dtype", None), "kind", None)
+    if kind is not None and getattr(value, "ndim", 0) > 0:  # numpy array
+        return [plain(v) for v in value.tolist()]
+    if kind == "b":
+        return bool(value)
+    if kind in ("i", "u"):
+        return int(value)
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return value
+    return v if math.isfinite(v) else None
+
+
+def _fields(obj: Any, skip: Iterable[str] = ()) -> dict[str, Any]:
+    """The dataclass fields of ``obj`` (not ``skip``), as plain data."""
+    left_out = set(skip)
+    return {
+        f.name: plain(getattr(obj, f.name))
+        for f in dataclasses.fields(obj)
+        if f.name not in left_out
+    }
+
+
+# ------------------------------------------------------------------------------------ results
+def flag(f: Any) -> wire.Flag:
+    """A numerics ``Flag`` (or a ``{code, message}`` mapping)."""
+    if isinstance(f, Mapping):
+        return wire.Flag(code=str(f["code"]), message=str(f["message"]))
+    return wire.Flag(code=f.code, message=f.message)
+
+
+def flags(items: Iterable[Any]) -> list[wire.Flag]:
+    """Flags in order, each code once (the first message kept)."""
+    out: list[wire.Flag] = []
+    seen: set[tuple[str, str]] = set()
+    for f in items:
+        w = flag(f)
+        if (w.code, w.message) not in seen:
+            seen.add((w.code, w.message))
+            out.append(w)
+    return out
+
+
+def mode(m: Any) -> wire.Mode:
+    """A detected ``Mode``."""
+    return wire.Mode.model_validate(_fields(m))
+
+
+def detection(
+    det: Any,
+    *,
+    extra_flags: Iterable[Any] = (),
+    control: float | None = None,
+    name: str | None = None,
+) -> wire.Detection:
+    """A ``Detection``; ``extra_flags`` (e.g. the reader's) come first. With ``control`` or
+    ``name``, a :class:`~service.schemas.analysis.RecordDetection` (a record of a sweep)."""
+    if isinstance(det, Mapping):  # a document (the per-record detections of older sweeps)
+        return _detection_doc(det, control, name)
+    doc = _fields(det, skip=("modes", "fundamental", "flags"))
+    modes = [mode(m) for m in det.modes]
+    fund = None
+    if det.fundamental is not None:
+        i = int(det.fundamental.index)
+        fund = wire.Fundamental(**modes[i].model_dump(), index=i)
+    doc.update(
+        modes=modes, fundamental=fund, flags=flags([*extra_flags, *det.flags])
+    )
+    if control is not None or name is not None:
+        return wire.RecordDetection(**doc, control=plain(control), name=name)
+    return wire.Detection(**doc)
+
+
+def _detection_doc(doc: Mapping[str, Any], control: Any, name: str | None) -> wire.Detection:
+    d = dict(doc)
+    f, modes = d.get("fundamental"), d.get("modes") or []
+    if isinstance(f, Mapping) and "frequency" not in f:  # older documents: a flat summary
+        i = int(f.get("index") or 0)
+        d["fundamental"] = {**modes[i], "index": i} if i < len(modes) else None
+    if control is None and name is None and "control" not in d and "name" not in d:
+        return wire.Detection.model_validate(d)
+    d.setdefault("control", control)
+    d.setdefault("name", name)
+    return wire.RecordDetection.model_validate(d)
+
+
+def measurement(m: Any) -> wire.Measurement:
+    """A sweep's ``Measurement``."""
+    return wire.Measurement.model_validate(_fields(m))
+
+
+def paper_rule(p: Any) -> wire.PaperRule:
+    """The paper's rule (``PaperRule``)."""
+    return wire.PaperRule.model_validate(_fields(p))
+
+
+def classification(c: Any) -> wire.Classification:
+    """A ``Classification`` (without the engine's model fits)."""
+    return wire.Classification.model_validate(_fields(c, skip=("fits",)))
+
+
+def alarm(a: Any) -> wire.Alarm:
+    """An ``Alarm`` (or an older alarm mapping, completed by the alarm rule)."""
+    if isinstance(a, Mapping):
+        from service.analysis.alarm import alarm_for
+
+        nan = math.nan
+        lo, hi = a.get("mu_star_interval") or (nan, nan)
+        mu_star = a.get("mu_star")
+        a = alarm_for(
+            float(a.get("mu", nan) if a.get("mu") is not None else nan),
+            float(a.get("t_ratio", nan) if a.get("t_ratio") is not None else nan),
+            float(mu_star) if mu_star is not None else nan,
+            (float(lo if lo is not None else nan), float(hi if hi is not None else nan)),
+        )
+    return wire.Alarm.model_validate(_fields(a))
+
+
+def prediction(p: Any) -> wire.Prediction:
+    """A ``Prediction``, with its alarm, the paper's rule and the classification."""
+    doc = _fields(p, skip=("alarm", "baseline", "classification", "flags"))
+    return wire.Prediction(
+        **doc,
+        alarm=alarm(p.alarm) if p.alarm is not None else None,
+        baseline=paper_rule(p.baseline) if p.baseline is not None else None,
+        classification=classification(p.classification) if p.classification is not None else None,
+        flags=flags(p.flags),
+    )
+
+
+def sweep_result(r: Any) -> wire.SweepResult:
+    """A sweep (``WarnResult``: simulated or recorded) as the one sweep document."""
+    doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections"))
+    dets = []
+    for d in r.detections:
+        if isinstance(d, Mapping):
+            dets.append(_detection_doc(d, d.get("control"), d.get("name")))
+        else:  # a (detection, control, name) triple or a detection with those attributes
+            det, control, name = d if isinstance(d, tuple) else (d, None, None)
+            dets.append(detection(det, control=control, name=name))
+    return wire.SweepResult(
+        **doc,
+        measurements=[measurement(m) for m in r.measurements],
+        prediction=prediction(r.prediction) if r.prediction is not None else None,
+        alarm=[alarm(a) for a in r.alarm],
+        flags=flags(r.flags),
+        detections=dets,
+    )
