@@ -1,0 +1,407 @@
+"""The kinds of atlas cells: their parameters (validated) and the function that computes one.
+
+- ``bifurcation``: mu* and the transition of a backend (``euler-beam``, or the ``cosserat``
+  rod at its end-shortening dL/L, slenderness h/L, elements and clamp): the paper's Table 1.
+- ``warn``: one simulated early-warning sweep (``service.analysis.pipeline.warn``): the
+  prediction's error against the model's own mu*, whether the 95 % interval covers it, the
+  impulse responses used, and the paper's two-point rule on the same measurements.
+- ``sweep``: one lab campaign given as a manifest (CSV ``path,control``) analysed by
+  ``sweep_from_signals``; with ``mu_star_true`` (the snap the lab saw) also error and coverage.
+
+A cell never raises for a bad scene or a failed analysis: it returns a failed
+:class:`CellResult` whose ``error`` names the parameter and the value (errors are data; they
+are deterministic, so they are persisted and not retried). Only a lost worker makes the engine
+run a cell again.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+ACTUATIONS = ("asymmetric", "symmetric", "antisymmetric")
+WARN_MODELS = ("normal-form", "euler-beam", "cosserat", "auto")
+BIFURCATION_MODELS = ("euler-beam", "cosserat")
+DETECT_METHODS = ("auto", "varpro", "esprit", "fft", "fft-parabolic")
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of a kind: its type, domain and default.
+
+    ``kind`` is "float", "int", "choice" or "str"; ``lo``/``hi`` bound numbers (``open_lo``
+    makes the lower bound strict); ``nullable`` admits ``null`` (e.g. no noise).
+    """
+
+    kind: str
+    default: Any = None
+    required: bool = False
+    choices: tuple[Any, ...] = ()
+    lo: float | None = None
+    hi: float | None = None
+    open_lo: bool = False
+    nullable: bool = False
+    help: str = ""
+
+    def check(self, value: Any) -> Any:
+        """The value, normalised (ints as int, floats as float); ValueError naming the domain."""
+        if value is None:
+            if self.nullable:
+                return None
+            raise ValueError("must not be null")
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise ValueError(f"must be one of {list(self.choices)}, got {value!r}")
+            return value
+        if self.kind == "str":
+            if not isinstance(value, str) or not value or len(value) > 4096:
+                raise ValueError(f"must be a non-empty string, got {value!r}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"must be a number, got {value!r}")
+        if self.kind == "int":
+            if int(value) != value:
+                raise ValueError(f"must be an integer, got {value!r}")
+            value = int(value)
+        else:
+            value = float(value)
+            if not math.isfinite(value):
+                raise ValueError(f"must be finite, got {value!r}")
+        if self.lo is not None and (value <= self.lo if self.open_lo else value < self.lo):
+            raise ValueError(f"must be {'>' if self.open_lo else '>='} {self.lo:g}, got {value!r}")
+        if self.hi is not None and value > self.hi:
+            raise ValueError(f"must be <= {self.hi:g}, got {value!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class CellResult:
+    """The outcome of one cell (what is persisted, one row per cell).
+
+    Attributes
+    ----------
+    key : str
+        The cell's stable hash (see :func:`service.atlas.spec.cell_key`).
+    index : int
+        Position of the cell in its spec.
+    inputs : dict
+        The cell's complete inputs.
+    status : {"ok", "failed"}
+    results : dict
+        Flat scalar results of the kind (JSON values; non-finite numbers as None).
+    flags : tuple of dict
+        ``{"code", "message"}`` reasons to doubt the results.
+    error : dict or None
+        For a failed cell: ``type``, ``parameter``, ``value``, ``message``.
+    seconds : float
+        Wall time of the computation in the worker (s).
+    cpu_seconds : float
+        CPU time of the worker process during the computation (s).
+    worker : str
+        Which worker computed it (dask address, or host:pid when run serially).
+    """
+
+    key: str
+    index: int
+    inputs: dict[str, Any]
+    status: str
+    results: dict[str, Any] = field(default_factory=dict)
+    flags: tuple[dict[str, str], ...] = ()
+    error: dict[str, Any] | None = None
+    seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    worker: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "key": self.key, "index": self.index, "inputs": dict(self.inputs),
+            "status": self.status, "results": dict(self.results),
+            "flags": [dict(f) for f in self.flags], "error": self.error,
+            "seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "worker": self.worker,
+        }  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> CellResult:
+        return cls(key=d["key"], index=int(d["index"]), inputs=dict(d["inputs"]),
+                   status=d["status"], results=dict(d.get("results") or {}),
+                   flags=tuple(dict(f) for f in d.get("flags") or ()), error=d.get("error"),
+                   seconds=float(d.get("seconds") or 0.0),
+                   cpu_seconds=float(d.get("cpu_seconds") or 0.0),
+                   worker=str(d.get("worker") or ""))  # fmt: skip
+
+
+Runner = Callable[[dict[str, Any]], tuple[dict[str, Any], list[dict[str, str]]]]
+
+
+@dataclass(frozen=True)
+class KindSpec:
+    """A kind of cell: its parameters, a cross-field check and the computation."""
+
+    name: str
+    params: dict[str, ParamSpec]
+    run: Runner
+    cross_check: Callable[[dict[str, Any]], None] = lambda inputs: None
+    metrics: tuple[str, ...] = ()
+    doc: str = ""
+
+
+def _num(v: Any) -> Any:
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return v
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    if not math.isfinite(f):
+        return None
+    return int(v) if isinstance(v, int) else f
+
+
+# --------------------------------------------------------------------------- bifurcation
+def _rod_params() -> dict[str, ParamSpec]:
+    return {
+        "end_shortening": ParamSpec("float", 1e-2, lo=0.0, hi=0.49, open_lo=True,
+                                    help="dL/L (Cosserat rod)"),
+        "slenderness": ParamSpec("float", 1e-3, lo=0.0, hi=0.49, open_lo=True,
+                                 help="h/L of the rectangular strip (Cosserat rod)"),
+    }  # fmt: skip
+
+
+BIFURCATION_PARAMS = {
+    "actuation": ParamSpec("choice", required=True, choices=ACTUATIONS),
+    "model": ParamSpec("choice", "cosserat", choices=BIFURCATION_MODELS),
+    **_rod_params(),
+    "elements": ParamSpec("int", 200, lo=4, hi=4000, help="elements of the rod (even)"),
+    "clamp": ParamSpec("choice", "node", choices=("node", "element")),
+}
+
+
+def _bifurcation_check(inp: dict[str, Any]) -> None:
+    from service.analysis.errors import ParameterError
+
+    if inp["model"] == "cosserat" and inp["elements"] % 2:
+        raise ParameterError("elements", inp["elements"],
+                             f"elements must be even for the Cosserat rod, got {inp['elements']}")
+
+
+def _run_bifurcation(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    flags: list[dict[str, str]] = []
+    if inp["model"] == "euler-beam":
+        from sim.euler_beam import bifurcation
+
+        b = bifurcation(inp["actuation"])
+        info: dict[str, Any] = {}
+    else:
+        from sim import cosserat
+
+        b = cosserat.bifurcation(inp["actuation"], end_shortening=inp["end_shortening"],
+                                 slenderness=inp["slenderness"], elements=inp["elements"],
+                                 clamp=inp["clamp"])  # fmt: skip
+        info = dict(b.info)
+        if "note" in info:
+            flags.append({"code": "transition_changed", "message": str(info["note"])})
+    doc = b.to_dict()
+    sec = doc.get("secondary") or []
+    res = {
+        "mu_star": _num(doc["mu_star"]),
+        "lambda_star": _num(doc.get("lambda_star")),
+        "transition": doc["transition"],
+        "secondary_mu_star": _num(sec[0]["mu_star"]) if sec else None,
+        "newton_solves": _num(info.get("newton_solves")),
+    }
+    return res, flags
+
+
+# --------------------------------------------------------------------------- warn
+WARN_PARAMS = {
+    "actuation": ParamSpec("choice", required=True, choices=ACTUATIONS),
+    "model": ParamSpec("choice", "euler-beam", choices=WARN_MODELS),
+    "damping": ParamSpec("float", 2e-4, lo=0.0, hi=10.0, help="xi"),
+    "snr_db": ParamSpec("float", 40.0, lo=-20.0, hi=300.0, nullable=True,
+                        help="noise of every record (dB), null for none"),
+    "seed": ParamSpec("int", 0, lo=0, hi=2**31 - 1, nullable=True),
+    "max_measurements": ParamSpec("int", 30, lo=5, hi=200),
+    "kick": ParamSpec("float", 1e-2, lo=0.0, hi=1.0, open_lo=True),
+    **_rod_params(),
+    "elements": ParamSpec("int", 50, lo=4, hi=4000, help="elements of the rod (Cosserat)"),
+}
+
+
+def _run_warn(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    from service.analysis.pipeline import warn
+
+    opts = None
+    if inp["model"] in ("cosserat", "auto"):
+        opts = {k: inp[k] for k in ("end_shortening", "slenderness", "elements")}
+    res = warn(inp["actuation"], model=inp["model"], damping=inp["damping"],
+               snr_db=inp["snr_db"], seed=inp["seed"], max_measurements=inp["max_measurements"],
+               kick=inp["kick"], scene_options=opts)  # fmt: skip
+    doc = res.to_dict()
+    return _prediction_results(doc, doc.get("truth") or {}), list(doc.get("flags") or [])
+
+
+def _prediction_results(doc: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
+    lo, hi = doc.get("mu_star_interval") or (None, None)
+    base = (doc.get("baseline") or {}).get("mu_star")
+    true = truth.get("mu_star")
+    mu = doc.get("mu_star")
+    err = mu - true if mu is not None and true is not None else None
+    base_err = base - true if base is not None and true is not None else None
+    out = {
+        "mu_star": _num(mu), "mu_star_lo": _num(lo), "mu_star_hi": _num(hi),
+        "transition": doc.get("transition"), "a": _num(doc.get("a")),
+        "responses": _num(doc.get("n_measurements")), "stopped": doc.get("stopped"),
+        "mu_star_true": _num(true), "transition_true": truth.get("transition"),
+        "error": _num(err), "abs_error": _num(abs(err)) if err is not None else None,
+        "covered": (bool(lo <= true <= hi) if None not in (lo, hi, true) else None),
+        "transition_correct": (doc.get("transition") == truth["transition"]
+                               if truth.get("transition") else None),
+        "paper_mu_star": _num(base), "paper_error": _num(base_err),
+        "better_than_paper": (abs(err) <= abs(base_err)
+                              if err is not None and base_err is not None else None),
+    }  # fmt: skip
+    return out
+
+
+# --------------------------------------------------------------------------- sweep
+SWEEP_PARAMS = {
+    "manifest": ParamSpec("str", required=True,
+                          help="CSV with the header path,control (paths relative to it)"),
+    "method": ParamSpec("choice", "auto", choices=DETECT_METHODS),
+    "mu_star_true": ParamSpec("float", None, nullable=True,
+                              help="the control value where the strip was seen to snap"),
+    "transition_true": ParamSpec("choice", None, nullable=True,
+                                 choices=("saddle-node", "subcritical-pitchfork",
+                                          "supercritical-pitchfork")),
+}
+
+
+def _read_manifest(path: str) -> tuple[list[tuple[Any, float, float]], list[str]]:
+    """The records of a manifest (CSV ``path,control``), read with the service's parsers."""
+    import csv
+    from pathlib import Path
+
+    from service.analysis.errors import ParameterError
+
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError("manifest", path, f"manifest {path!r} is not a readable file")
+    with p.open(newline="") as fh:
+        rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    header = [h.strip() for h in rows[0]] if rows else []
+    if "path" not in header or "control" not in header:
+        raise ParameterError("manifest", path, f"manifest {path!r} needs the header "
+                             f"'path,control', got {header!r}")
+    ip, ic = header.index("path"), header.index("control")
+    records, names = [], []
+    for i, r in enumerate(rows[1:], start=2):
+        try:
+            control = float(r[ic])
+        except (ValueError, IndexError):
+            raise ParameterError("manifest", path, f"manifest {path!r} line {i}: control "
+                                 f"{r[ic] if ic < len(r) else None!r} is not a number") from None
+        rel = Path(r[ip].strip())
+        f = rel if rel.is_absolute() else p.resolve().parent / rel
+        w, dt = _read_record(f)
+        records.append((w, dt, control))
+        names.append(str(rel))
+    return records, names
+
+
+def _read_record(path: Any) -> tuple[Any, float]:
+    from service.analysis.errors import ParameterError
+
+    try:  # the service's one reader of lab files (CSV, NPY/NPZ, WAV, MAT)
+        from service.api.codec import clean_signal, guess_format, parse_upload
+    except ImportError:  # pragma: no cover - moved by the recordings refactor
+        from service.recordings import clean_signal, guess_format, parse_upload
+    try:
+        parsed = parse_upload(path.read_bytes(), guess_format(path.name, None, None))
+        given = parsed.t is None and math.isfinite(parsed.dt)
+        w, _, dt, _ = clean_signal(
+            w=parsed.w, t=parsed.t, dt=parsed.dt if given else None,
+            t0=parsed.t0 if given and math.isfinite(parsed.t0) else None,
+            max_samples=10_000_000, uniform_rtol=1e-6)  # fmt: skip
+    except OSError as exc:
+        raise ParameterError("manifest", str(path), f"record {str(path)!r}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - the reader's own problem types
+        raise ParameterError("manifest", str(path),
+                             f"record {str(path)!r}: {getattr(exc, 'detail', exc)}") from None
+    return w, dt
+
+
+def _run_sweep(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    from service.analysis.pipeline import sweep_from_signals
+
+    records, names = _read_manifest(inp["manifest"])
+    res = sweep_from_signals(records, names=names, method=inp["method"])
+    p = res.prediction
+    doc: dict[str, Any] = {"n_measurements": len(res.measurements), "stopped": res.stopped}
+    flags = [f.to_dict() for f in res.flags]
+    if p is not None:
+        pd = p.to_dict()
+        doc.update({k: pd.get(k) for k in ("mu_star", "mu_star_interval", "transition", "a")})
+        doc["baseline"] = pd.get("baseline")
+        flags += list(pd.get("flags") or [])
+    truth = {"mu_star": inp["mu_star_true"], "transition": inp["transition_true"]}
+    return _prediction_results(doc, truth), flags
+
+
+KINDS: dict[str, KindSpec] = {
+    "bifurcation": KindSpec("bifurcation", BIFURCATION_PARAMS, _run_bifurcation,
+                            _bifurcation_check, ("mu_star", "type"),
+                            "mu* and the transition of a backend"),
+    "warn": KindSpec("warn", WARN_PARAMS, _run_warn, metrics=(
+        "error", "coverage", "responses", "type", "paper_error"),
+        doc="a simulated early-warning sweep against the model's mu* and the paper's rule"),
+    "sweep": KindSpec("sweep", SWEEP_PARAMS, _run_sweep,
+                      metrics=("mu_star", "type", "responses", "error", "coverage"),
+                      doc="a recorded campaign (manifest) analysed"),
+}  # fmt: skip
+
+
+def worker_name() -> str:
+    """The dask worker's address, or ``host:pid`` outside a dask worker."""
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def run_cell(kind: str, key: str, index: int, inputs: dict[str, Any]) -> CellResult:
+    """Compute one cell (in a worker). Errors of the numerics come back as a failed result.
+
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`KINDS`.
+    key, index : str, int
+        The cell's stable hash and its position in the spec (carried into the result).
+    inputs : dict
+        The cell's complete, validated inputs.
+    """
+    spec = KINDS[kind]
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        results, flags = spec.run(dict(inputs))
+        status, error = "ok", None
+    except Exception as exc:  # noqa: BLE001 - every failure of a cell is recorded as data
+        results, flags, status = {}, [], "failed"
+        error = {
+            "type": type(exc).__name__, "parameter": getattr(exc, "parameter", None),
+            "value": _num(getattr(exc, "value", None)), "message": str(exc)[:2000],
+        }  # fmt: skip
+    return CellResult(
+        key=key, index=index, inputs=dict(inputs), status=status, results=results,
+        flags=tuple({"code": str(f.get("code")), "message": str(f.get("message"))}
+                    for f in flags),
+        error=error, seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0,
+        worker=worker_name(),
+    )  # fmt: skip
