@@ -82,7 +82,7 @@ from service.analysis.detect._core import detect
 from service.analysis.detect._methods import METHOD_TABLE, METHODS
 from service.analysis.detect._results import (
     ALIAS_FRACTION,
-    COMBINATION_BINS,
+    COMBINATION_REL,
     COMBINATION_Z,
     FEW_PERIODS,
     FLAG_CODES,
@@ -107,7 +107,7 @@ __all__ = [
     "NONLINEAR_Z",
     "ALIAS_FRACTION",
     "COMBINATION_Z",
-    "COMBINATION_BINS",
+    "COMBINATION_REL",
     "NOISE_FLOOR",
     "Mode",
     "Fundamental",

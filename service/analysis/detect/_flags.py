@@ -15,6 +15,7 @@ from service.analysis.detect._results import (
     LOW_SNR_DB,
     MIN_SAMPLES,
     NONLINEAR_Z,
+    S2_FLOOR,
     Mode,
 )
 from service.analysis.detect._spectral import _Spectrum
@@ -57,7 +58,7 @@ def _one_step(y: np.ndarray, fit: _Fit, c: np.ndarray) -> tuple[float, float] | 
     g = B[:-1, -1] - B[:-1, nth:-1] @ c_part
     Ainv = _pinv_psd(A)
     step = Ainv @ g
-    s2 = max(rss - float(g @ step), 0.0) / max(y.size - A.shape[0], 1)
+    s2 = max(max(rss - float(g @ step), 0.0) / max(y.size - A.shape[0], 1), S2_FLOOR)
     jq = 1
     return float(fit.ev.q[0] + step[jq]), float(Ainv[jq, jq] * s2)
 

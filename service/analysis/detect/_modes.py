@@ -10,7 +10,7 @@ import numpy as np
 
 from service.analysis.detect._kernels import _ch_sh
 from service.analysis.detect._results import (
-    COMBINATION_BINS,
+    COMBINATION_REL,
     COMBINATION_Z,
     Fundamental,
     Mode,
@@ -172,10 +172,10 @@ def _ambient_errors(
     return out
 
 
-def _combinations(modes: list[Mode], bin_w: float) -> dict[int, tuple[int, int, str]]:
+def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
     """Modes whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or ``2 omega_i``
     of two stronger modes (record SNR), within :data:`COMBINATION_Z` combined standard errors
-    or :data:`COMBINATION_BINS` frequency bins ``bin_w``: ``{k: (i, j, sign)}``."""
+    or a relative :data:`COMBINATION_REL`: ``{k: (i, j, sign)}``."""
     out: dict[int, tuple[int, int, str]] = {}
     strength = [m.snr_db if math.isfinite(m.snr_db) else -math.inf for m in modes]
     under = [k for k, m in enumerate(modes) if m.regime == "underdamped" and m.omega > 0]
@@ -187,10 +187,10 @@ def _combinations(modes: list[Mode], bin_w: float) -> dict[int, tuple[int, int, 
             for j in parents[a:]:
                 mi, mj = modes[i], modes[j]
                 var = mk.omega_std**2 + mi.omega_std**2 + mj.omega_std**2
-                tol = max(COMBINATION_Z * math.sqrt(var), COMBINATION_BINS * bin_w)
                 for sign, target in (("+", mi.omega + mj.omega), ("-", abs(mi.omega - mj.omega))):
                     if sign == "-" and i == j:
                         continue
+                    tol = max(COMBINATION_Z * math.sqrt(var), COMBINATION_REL * target)
                     d = abs(mk.omega - target)
                     if d <= tol and d < best:
                         best = d
@@ -205,7 +205,7 @@ def _fundamental(modes: list[Mode], *, n: int, dt: float) -> list[Mode]:
     tone; the others follow in that order."""
     if not modes:
         return []
-    comb = _combinations(modes, 2 * math.pi / (n * dt))
+    comb = _combinations(modes)
     first = next(k for k in range(len(modes)) if k not in comb)
     order = [first] + [k for k in range(len(modes)) if k != first]
     pos = {k: i for i, k in enumerate(order)}

@@ -30,14 +30,20 @@ LOW_SNR_DB = 20.0  # fundamental's record-integrated SNR (energy / noise varianc
 NONLINEAR_Z = 5.0  # half-record frequency drift, in combined standard errors
 ALIAS_FRACTION = 0.8  # fraction of the Nyquist frequency above which energy is an alias risk
 #: Combination tones: |omega_k - (omega_i +- omega_j)| within COMBINATION_Z combined standard
-#: errors, or within COMBINATION_BINS frequency bins (2 pi / (N dt)) when the record is so clean
-#: that the standard errors are below the model error of a nonlinear response.
+#: errors, or within COMBINATION_REL x (omega_i +- omega_j) when the record is so clean that the
+#: standard errors are below the model error of a nonlinear response (whose frequencies drift
+#: with the decaying amplitude).
 COMBINATION_Z = 4.0
-COMBINATION_BINS = 0.5
+COMBINATION_REL = 2e-3
 #: Relative numerical noise floor: the noise std is never taken below this fraction of the
 #: record's rms (float64 arithmetic on Gram matrices resolves residual energies to about
 #: ``1e-16 x`` the record's energy; a noise-free record must not make rounding significant).
 NOISE_FLOOR = 1e-7
+#: Relative resolution of a residual sum of squares computed from a Gram matrix (a few ulps of
+#: the record's energy ``sum y^2``): two fits whose RSS differ by less are equally good.
+RSS_TOL = 64 * 2.220446049250313e-16
+#: The same as a noise-variance floor in the normalised units of the record (rms 1).
+S2_FLOOR = NOISE_FLOOR * NOISE_FLOOR
 
 
 def _num(x: float | None) -> float | None:

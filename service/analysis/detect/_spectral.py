@@ -13,7 +13,7 @@ from scipy.signal import find_peaks
 from service.analysis.common import Flag
 from service.analysis.detect._kernels import hankel_gram, top_eigenpairs
 from service.analysis.detect._linalg import _pinv_psd
-from service.analysis.detect._results import Mode
+from service.analysis.detect._results import S2_FLOOR, Mode
 
 
 @dataclass
@@ -37,11 +37,13 @@ def _hann(n: int) -> tuple[np.ndarray, float]:
     return win, float(np.sum(win * win))
 
 
-def _spectrum(y: np.ndarray) -> _Spectrum:
+def _spectrum(y: np.ndarray, floor: float = S2_FLOOR) -> _Spectrum:
+    """Hann periodogram, its noise level (at least ``floor``) and its significant band."""
     win, norm = _hann(y.shape[0])
     H = np.abs(np.fft.rfft(win * y)) ** 2 / norm
     body = H[2:] if H.size > 3 else H[1:]
     noise = float(np.median(body) / math.log(2.0)) if body.size else 0.0
+    noise = max(noise, floor)
     thr = math.log(max(body.size, 2) / 1e-3)  # 0.1 % false alarm per record (chi2_2 / 2)
     sig = H > noise * thr
     sig[0] = False

@@ -13,6 +13,7 @@ import numpy as np
 
 from service.analysis.detect._kernels import model_gram
 from service.analysis.detect._linalg import _pinv_psd, _solve_gram
+from service.analysis.detect._results import RSS_TOL, S2_FLOOR
 
 
 @dataclass
@@ -22,6 +23,13 @@ class _Eval:
     G: np.ndarray  # Gram of [1, u1_0, u2_0, ..., y]
     c: np.ndarray  # linear coefficients [c0, c1_0, c2_0, c1_1, ...]
     rss: float
+
+
+def _rss_tol(ev: _Eval) -> float:
+    """Resolution of an RSS computed from a Gram matrix: ``RSS_TOL`` times the record's
+    energy ``sum y^2`` (the cancellation in ``y.y - c.Phi^T y``); RSS differences below it are
+    rounding, not signal."""
+    return RSS_TOL * float(ev.G[-1, -1])
 
 
 def _growth_ok(p: np.ndarray, q: np.ndarray, n: int) -> bool:
@@ -165,7 +173,7 @@ def _levenberg_marquardt(
         lam = max(lam / 10.0, 1e-9)
         # converged: an undamped step far below the statistical resolution, or no gain left
         # (a step shrunk by a large lambda says nothing about convergence)
-        s2 = max(rss, 1e-300) / max(N - nth - 1 - 2 * K, 1)
+        s2 = max(rss / max(N - nth - 1 - 2 * K, 1), S2_FLOOR)
         if lam_used <= 1e-2:
             cov_th = np.diag(_pinv_psd(A))[:nth] * s2
             small = bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(cov_th, 1e-300))))
@@ -183,7 +191,7 @@ def _levenberg_marquardt(
             B = B_fin
     A = B[:-1, :-1]
     npar = nth + 1 + 2 * K
-    s2 = rss / max(N - npar, 1)
+    s2 = max(rss / max(N - npar, 1), S2_FLOOR)
     cov = _pinv_psd(A) * s2
     ev = _Eval(p, q, np.ascontiguousarray(B[nth:, nth:]), c, rss)
     return _Fit(ev, cov, nth, s2, it, common)
@@ -242,7 +250,7 @@ def _prune(
             e[i] = float(c[j] @ _pinv_psd(Ginv[np.ix_(j, j)]) @ c[j])
         npar = 1 + 4 * len(active)
         s2 = rss / max(N - npar, 1)
-        s2 = max(s2, min(noise_var, s2), 1e-300)
+        s2 = max(s2, S2_FLOOR)
         i = int(np.argmin(e))
         if e[i] / s2 < thr or len(active) > max_modes:
             del active[i]
@@ -282,7 +290,7 @@ def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
         for k in sorted(suspects, key=lambda k: e[k]):
             keep = [i for i in range(K) if i != k]
             f = _levenberg_marquardt(y, p[keep], q[keep], common=fit.common, max_iter=max_iter)
-            if f is not None and (f.ev.rss - fit.ev.rss) < thr * fit.s2:
+            if f is not None and (f.ev.rss - fit.ev.rss) < thr * fit.s2 + _rss_tol(fit.ev):
                 if best is None or f.ev.rss < best.ev.rss:
                     best = f
         if best is None:
@@ -320,7 +328,8 @@ def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
                         pn = np.append(p[keep], -(a + b))
                         qn = np.append(q[keep], a * b)
                         f = _levenberg_marquardt(y, pn, qn, common=fit.common, max_iter=max_iter)
-                        if f is None or (f.ev.rss - fit.ev.rss) >= thr * fit.s2:
+                        cost = f.ev.rss - fit.ev.rss if f is not None else math.inf
+                        if cost >= thr * fit.s2 + _rss_tol(fit.ev):
                             continue
                         if best is None or f.ev.rss < best.ev.rss:
                             best = f
