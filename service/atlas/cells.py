@@ -314,25 +314,15 @@ def _read_manifest(path: str) -> tuple[list[tuple[Any, float, float]], list[str]
 
 
 def _read_record(path: Any) -> tuple[Any, float]:
+    """One lab file through the service's one reader (``service.recordings``)."""
     from service.analysis.errors import ParameterError
+    from service.recordings import RecordingError, read_file
 
-    try:  # the service's one reader of lab files (CSV, NPY/NPZ, WAV, MAT)
-        from service.api.codec import clean_signal, guess_format, parse_upload
-    except ImportError:  # pragma: no cover - moved by the recordings refactor
-        from service.recordings import clean_signal, guess_format, parse_upload
     try:
-        parsed = parse_upload(path.read_bytes(), guess_format(path.name, None, None))
-        given = parsed.t is None and math.isfinite(parsed.dt)
-        w, _, dt, _ = clean_signal(
-            w=parsed.w, t=parsed.t, dt=parsed.dt if given else None,
-            t0=parsed.t0 if given and math.isfinite(parsed.t0) else None,
-            max_samples=10_000_000, uniform_rtol=1e-6)  # fmt: skip
-    except OSError as exc:
+        rec = read_file(path)
+    except RecordingError as exc:
         raise ParameterError("manifest", str(path), f"record {str(path)!r}: {exc}") from None
-    except Exception as exc:  # noqa: BLE001 - the reader's own problem types
-        raise ParameterError("manifest", str(path),
-                             f"record {str(path)!r}: {getattr(exc, 'detail', exc)}") from None
-    return w, dt
+    return rec.w, rec.dt
 
 
 def _run_sweep(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:

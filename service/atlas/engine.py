@@ -20,6 +20,7 @@ import logging
 import math
 import os
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -162,10 +163,12 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     n = default_workers() if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 512:
         raise EngineError("workers", n, f"workers must be an integer in [1, 512], got {n!r}")
-    cluster = distributed.LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-        dashboard_address=None, silence_logs=logging.ERROR, env=dict(ONE_THREAD_ENV),
-    )  # fmt: skip
+    with warnings.catch_warnings():  # "Port 8787 is already in use": another cluster's
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+        cluster = distributed.LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None, silence_logs=logging.ERROR, env=dict(ONE_THREAD_ENV),
+        )  # fmt: skip
     client = distributed.Client(cluster)
     try:
         yield client
@@ -235,20 +238,20 @@ def run_atlas(
         if progress is not None:
             progress(len(rows), total, row)
 
-    if serial:
+    if not todo:
+        engine = "none (all cells resumed)"
+    elif serial:
         engine = "serial"
         deadline = t0 + spec.timeout_s
         for c in todo:
             if time.perf_counter() > deadline:
                 break
             record(run_cell(spec.kind, c.key, c.index, c.inputs))
-    elif todo and client is not None:
+    elif client is not None:
         engine = _run_dask(client, spec, todo, record, t0)
-    elif todo:
+    else:
         with dask_client(scheduler, workers) as cl:
             engine = _run_dask(cl, spec, todo, record, t0)
-    else:
-        engine = "none (all cells resumed)"
     wall = time.perf_counter() - t0
     ordered = tuple(sorted(rows.values(), key=lambda r: r.index))
     missing = tuple(c.key for c in spec.cells if c.key not in rows)

@@ -222,7 +222,8 @@ def parse_spec(doc: Any, *, base_dir: Path | None = None) -> AtlasSpec:
         raise SpecError("spec", doc, f"spec: must be a mapping, got {type(doc).__name__}")
     for k in doc:
         if k not in SPEC_KEYS:
-            raise SpecError(str(k), doc[k], f"{k}: unknown field; known: {', '.join(SPEC_KEYS)}")
+            raise SpecError(str(k), doc[k], f"{k}: unknown field (given {doc[k]!r}); known: "
+                           f"{', '.join(SPEC_KEYS)}")
     kind = doc.get("kind")
     if kind not in KINDS:
         raise SpecError("kind", kind, f"kind: must be one of {', '.join(KINDS)}, got {kind!r}")
