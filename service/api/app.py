@@ -16,6 +16,7 @@ from anyio import to_thread
 from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
+from service.api import pages
 from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_pool, warm_pool
@@ -87,6 +88,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description=DESCRIPTION,
         lifespan=_lifespan(settings),
         openapi_url="/openapi.json",
+        docs_url=None,  # /docs is served by service.api.pages from local assets (no CDN)
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.snapwarn = None
@@ -96,6 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     guarded = [Depends(get_caller)]
     for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
         app.include_router(r, dependencies=guarded)
+    pages.install(app)
     app.openapi = partial(_openapi, app)  # type: ignore[method-assign]
     return app
 

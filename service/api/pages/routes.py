@@ -1,0 +1,411 @@
+"""The page routes: ``/``, ``/sweeps/{id}``, ``/signals/{id}``, ``/jobs/{id}``, ``/login``.
+
+Each page reads the same rows as the API (the store, scoped to the caller) and the same
+documents (``sweep_doc``, ``job_doc``); charts are drawn in the analysis pool.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import jinja2
+from anyio import to_thread
+from fastapi import APIRouter, Form, Request, Response
+from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
+from fastapi.templating import Jinja2Templates
+
+from service.api.auth import Caller, get_caller
+from service.api.pages import _work
+from service.api.problems import ApiProblem
+from service.api.routers.sweeps import sweep_doc
+from service.api.state import AppState, get_state, job_doc, signal_meta
+from service.charts import MEDIA, NONDIM
+from service.convert import sweep_document
+from service.schemas import Sweep
+from service.schemas.analysis import SweepResult
+
+HERE = Path(__file__).parent
+COOKIE = "snapwarn_key"
+RECENT = 20
+
+router = APIRouter(include_in_schema=False)
+templates = Jinja2Templates(directory=HERE / "templates")
+
+
+def _num(x: Any, digits: int = 6) -> str:
+    """A number for a page: ``-`` when missing or not finite."""
+    if x is None:
+        return "-"
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if not math.isfinite(v):
+        return "-"
+    return f"{v:.{digits}g}"
+
+
+def _val(x: Any) -> str:
+    """A value as JSON text for a ``data-value`` attribute (escaped by the template): what the
+    API answers for the same field (``null`` for missing and non-finite numbers)."""
+    if isinstance(x, jinja2.Undefined) or x is None:
+        return "null"
+    if isinstance(x, float) and not math.isfinite(x):
+        return "null"
+    return json.dumps(x)
+
+
+templates.env.filters["num"] = _num
+templates.env.filters["val"] = _val
+templates.env.filters["pct"] = lambda x: f"{100 * float(x or 0):.0f} %"
+
+
+# ------------------------------------------------------------------------------ the caller
+def _with_cookie_key(request: Request) -> Request:
+    """The request with the cookie's key as a bearer token (when no header carries one)."""
+    key = request.cookies.get(COOKIE)
+    has_header = request.headers.get("authorization") or request.headers.get("x-api-key")
+    if not key or has_header:
+        return request
+    scope = dict(request.scope)
+    scope["headers"] = [
+        *request.scope["headers"],
+        (b"authorization", f"Bearer {key}".encode("latin-1", "replace")),
+    ]
+    return Request(scope)
+
+
+async def page_caller(request: Request) -> Caller | None:
+    """The caller, as the API sees it; None when a key is needed and missing or wrong."""
+    try:
+        return await get_caller(_with_cookie_key(request))
+    except ApiProblem as exc:
+        if exc.status == 401:
+            return None
+        raise
+
+
+def _page(
+    request: Request, template: str, context: dict[str, Any], status: int = 200
+) -> HTMLResponse:
+    return templates.TemplateResponse(request, template, context, status_code=status)
+
+
+def _error(request: Request, status: int, detail: str) -> HTMLResponse:
+    return _page(request, "error.html", {"status": status, "detail": detail}, status)
+
+
+def _login(request: Request) -> HTMLResponse:
+    nxt = request.url.path
+    return _page(request, "login.html", {"next": nxt, "failed": False}, 401)
+
+
+Handler = Callable[[Caller, AppState], Awaitable[Response]]
+
+
+async def _serve(request: Request, handler: Handler) -> Response:
+    """Resolve the caller (login page when needed), run ``handler``, map problems to pages."""
+    try:
+        state = get_state(request)
+        caller = await page_caller(request)
+        if caller is None:
+            return _login(request)
+        return await handler(caller, state)
+    except ApiProblem as exc:
+        return _error(request, exc.status, exc.detail)
+
+
+# ------------------------------------------------------------------------------ login
+@router.get("/login", response_class=HTMLResponse)
+async def login_form(request: Request, next: str = "/") -> HTMLResponse:
+    return _page(request, "login.html", {"next": _safe_next(next), "failed": False})
+
+
+def _safe_next(nxt: str) -> str:
+    """Only a path on this server (no scheme, no host) is followed after login."""
+    return nxt if nxt.startswith("/") and not nxt.startswith("//") else "/"
+
+
+@router.post("/login", response_class=HTMLResponse)
+async def login(request: Request, key: str = Form(...), next: str = Form("/")) -> Response:
+    scope = dict(request.scope)
+    scope["headers"] = [
+        (k, v) for k, v in request.scope["headers"] if k not in (b"authorization", b"x-api-key")
+    ] + [(b"authorization", f"Bearer {key}".encode("latin-1", "replace"))]
+    try:
+        await get_caller(Request(scope))
+    except ApiProblem:
+        return _page(request, "login.html", {"next": _safe_next(next), "failed": True}, 401)
+    resp = RedirectResponse(_safe_next(next), status_code=303)
+    resp.set_cookie(COOKIE, key, httponly=True, samesite="strict", path="/")
+    return resp
+
+
+@router.post("/logout")
+async def logout() -> Response:
+    resp = RedirectResponse("/login", status_code=303)
+    resp.delete_cookie(COOKIE, path="/")
+    return resp
+
+
+# ------------------------------------------------------------------------------ index
+@router.get("/", response_class=HTMLResponse)
+async def index(request: Request) -> Response:
+    async def handler(caller: Caller, state: AppState) -> Response:
+        store, scope = state.store, caller.scope
+        signals, n_signals = await to_thread.run_sync(
+            lambda: store.list_signals(RECENT, 0, scope=scope)
+        )
+        sweeps, n_sweeps = await to_thread.run_sync(
+            lambda: store.list_sweeps(RECENT, 0, scope=scope)
+        )
+        jobs, n_jobs = await to_thread.run_sync(
+            lambda: store.list_jobs(None, None, RECENT, 0, scope=scope)
+        )
+        atlases, n_atlases = [], 0
+        if hasattr(store, "list_atlases"):
+            atlases, n_atlases = await to_thread.run_sync(
+                lambda: store.list_atlases(RECENT, 0, scope=scope)
+            )
+        ctx = {
+            "caller": caller,
+            "signals": [signal_meta(r) for r in signals],
+            "n_signals": n_signals,
+            "sweeps": [_sweep_row(s, j) for s, j in sweeps],
+            "n_sweeps": n_sweeps,
+            "jobs": [job_doc(j) for j in jobs],
+            "n_jobs": n_jobs,
+            "atlases": [_atlas_row(a) for a in atlases],
+            "n_atlases": n_atlases,
+        }
+        return _page(request, "index.html", ctx)
+
+    return await _serve(request, handler)
+
+
+def _sweep_row(sweep: Any, job: Any) -> dict[str, Any]:
+    p = Sweep.model_validate(sweep_doc(sweep, job)).prediction
+    return {
+        "id": sweep.id,
+        "name": sweep.name,
+        "status": job.status,
+        "transition": p.transition if p else None,
+        "mu_star": p.mu_star if p else None,
+        "created_at": sweep.created_at,
+    }
+
+
+def _atlas_row(row: Any) -> dict[str, Any]:
+    """An atlas row, whatever its table holds beyond id, name, status and created_at."""
+    return {k: getattr(row, k, None) for k in ("id", "name", "status", "created_at")}
+
+
+# ------------------------------------------------------------------------------ jobs
+def _job_view(job: Any) -> dict[str, Any]:
+    doc = job_doc(job)
+    link = None
+    if job.kind.startswith("sweep"):
+        link = f"/sweeps/{job.id}"
+    return {**doc, "page_link": link, "done": job.status in ("succeeded", "failed", "cancelled")}
+
+
+@router.get("/jobs/{job_id}", response_class=HTMLResponse)
+async def job_page(request: Request, job_id: str) -> Response:
+    async def handler(caller: Caller, state: AppState) -> Response:
+        job = await to_thread.run_sync(lambda: state.store.get_job(job_id, scope=caller.scope))
+        if job is None:
+            return _error(request, 404, f"no job {job_id!r}")
+        return _page(request, "job.html", {"job": _job_view(job), "caller": caller})
+
+    return await _serve(request, handler)
+
+
+@router.get("/jobs/{job_id}/status.json")
+async def job_status(request: Request, job_id: str) -> Response:
+    """What the job page polls (the page's own cookie works here, unlike on /v1)."""
+
+    async def handler(caller: Caller, state: AppState) -> Response:
+        job = await to_thread.run_sync(lambda: state.store.get_job(job_id, scope=caller.scope))
+        if job is None:
+            return JSONResponse({"detail": f"no job {job_id!r}"}, status_code=404)
+        d = job_doc(job)
+        return JSONResponse(
+            {"status": d["status"], "progress": d["progress"], "done": _job_view(job)["done"]}
+        )
+
+    return await _serve(request, handler)
+
+
+# ------------------------------------------------------------------------------ signals
+async def _load_signal(state: AppState, caller: Caller, signal_id: str) -> Any:
+    sig = await to_thread.run_sync(lambda: state.store.get_signal(signal_id, scope=caller.scope))
+    if sig is None:
+        raise ApiProblem(404, f"no signal {signal_id!r}")
+    return sig
+
+
+@router.get("/signals/{signal_id}", response_class=HTMLResponse)
+async def signal_page(request: Request, signal_id: str) -> Response:
+    async def handler(caller: Caller, state: AppState) -> Response:
+        sig = await _load_signal(state, caller, signal_id)
+        row = sig.row
+        meta = signal_meta(row)
+        try:
+            det, svg = await state.run(
+                _work.signal_analysis, sig.t, row.n, row.dt, row.t0, sig.w,
+                row.unit, row.value_unit, row.name or row.id,
+            )  # fmt: skip
+        except ValueError as exc:  # the detector's validation (too short, constant...)
+            det, svg = None, None
+            meta["analysis_error"] = str(exc)
+        modes = []
+        for k, m in enumerate((det or {}).get("modes", [])):
+            modes.append({"k": k + 1, **m, "period": _work.period(m.get("sigma2"))})
+        ctx = {
+            "caller": caller,
+            "signal": meta,
+            "detection": det,
+            "modes": modes,
+            "chart": _work.inline_svg(svg) if svg else None,
+        }
+        return _page(request, "signal.html", ctx)
+
+    return await _serve(request, handler)
+
+
+# ------------------------------------------------------------------------------ sweeps
+async def _sweep_units(state: AppState, caller: Caller, sweep: Any) -> dict[str, Any]:
+    """The user's control name and unit and the records' time unit (from the stored signals);
+    the simulator's non-dimensional scales for a simulated sweep."""
+    req = sweep.request or {}
+    if req.get("simulate") is not None or not req.get("measurements"):
+        return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
+                "mixed": []}  # fmt: skip
+    names, cunits, tunits = set(), set(), set()
+    for m in req["measurements"]:
+        row = await to_thread.run_sync(
+            lambda sid=m["signal_id"]: state.store.get_signal_meta(sid, scope=caller.scope)
+        )
+        if row is None:
+            continue
+        names.add(row.control_name)
+        cunits.add(row.control_unit)
+        tunits.add(row.unit)
+    mixed = [what for what, s in (("control name", names), ("control unit", cunits),
+                                  ("time unit", tunits)) if len(s) > 1]  # fmt: skip
+
+    def one(s: set) -> str | None:
+        vals = sorted(v for v in s if v)
+        return vals[0] if len(vals) == 1 else None
+
+    return {
+        "control_name": one(names) or "control",
+        "control_unit": one(cunits),
+        "time_unit": one(tunits),
+        "mixed": mixed,
+    }
+
+
+def _records(result: SweepResult | None) -> list[dict[str, Any]]:
+    """One row per record: the stored detections (recorded sweeps) or the measurements."""
+    if result is None:
+        return []
+    rows = []
+    if result.detections:
+        for k, d in enumerate(result.detections):
+            f = d.fundamental
+            rows.append({
+                "k": k,
+                "control": d.control,
+                "signal_id": d.name,
+                "sigma2": f.sigma2 if f else None,
+                "sigma2_std": f.sigma2_std if f else None,
+                "period": _work.period(f.sigma2 if f else None),
+                "regime": f.regime if f else None,
+                "w_static": d.static_level,
+                "flags": d.flags,
+                "thumbnail": bool(d.name),
+            })  # fmt: skip
+        return rows
+    for k, m in enumerate(result.measurements):
+        rows.append({
+            "k": k,
+            "control": m.mu,
+            "signal_id": None,
+            "sigma2": m.sigma2,
+            "sigma2_std": m.sigma2_std,
+            "period": _work.period(m.sigma2),
+            "regime": m.regime,
+            "w_static": m.w_static,
+            "flags": m.flags,
+            "thumbnail": False,
+        })  # fmt: skip
+    return rows
+
+
+async def _get_sweep(state: AppState, caller: Caller, sweep_id: str) -> tuple[Any, Any]:
+    found = await to_thread.run_sync(lambda: state.store.get_sweep(sweep_id, scope=caller.scope))
+    if found is None:
+        raise ApiProblem(404, f"no sweep {sweep_id!r}")
+    return found
+
+
+@router.get("/sweeps/{sweep_id}", response_class=HTMLResponse)
+async def sweep_page(request: Request, sweep_id: str) -> Response:
+    async def handler(caller: Caller, state: AppState) -> Response:
+        sweep, job = await _get_sweep(state, caller, sweep_id)
+        doc = Sweep.model_validate(sweep_doc(sweep, job))
+        units = await _sweep_units(state, caller, sweep)
+        chart = None
+        if doc.result is not None and doc.result.measurements:
+            chart = await state.run(
+                _work.sweep_svg, doc.result.model_dump(mode="json"), units["control_name"],
+                units["control_unit"], units["time_unit"], sweep.name or sweep.id,
+            )  # fmt: skip
+        ctx = {
+            "caller": caller,
+            "sweep": doc,
+            "p": doc.prediction,
+            "alarm": doc.alarm,
+            "job": _job_view(job),
+            "units": units,
+            "records": _records(doc.result),
+            "chart": chart,
+        }
+        return _page(request, "sweep.html", ctx)
+
+    return await _serve(request, handler)
+
+
+@router.get("/sweeps/{sweep_id}/records/{k}.svg")
+async def sweep_record_thumbnail(request: Request, sweep_id: str, k: int) -> Response:
+    """Record ``k`` of a lab sweep with the detector's fit (stored detection) over it."""
+
+    async def handler(caller: Caller, state: AppState) -> Response:
+        sweep, job = await _get_sweep(state, caller, sweep_id)
+        dets = []
+        if job.status == "succeeded" and job.result:
+            dets = sweep_document(job.result).detections
+        if not 0 <= k < len(dets) or not dets[k].name:
+            raise ApiProblem(404, f"sweep {sweep_id!r} has no stored record {k}")
+        sig = await _load_signal(state, caller, dets[k].name)
+        row = sig.row
+        body = await state.run(
+            _work.record_thumbnail, sig.t, row.n, row.dt, row.t0, sig.w, dets[k],
+            row.unit, row.value_unit,
+        )  # fmt: skip
+        return Response(body, media_type=MEDIA["svg"])
+
+    return await _serve(request, handler)
+
+
+def quote_path(s: str) -> str:
+    return quote(s, safe="")
+
+
+templates.env.filters["q"] = quote_path

@@ -1,0 +1,157 @@
+"""``--plot FILE.{png,svg}`` of the CLI: one call per command, the chart chosen by the command.
+
+The commands pass the results they computed (their ``--json`` documents, or the numerics'
+results); only the branch diagram gathers its own points (the equilibria along mu).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from service.charts._base import NONDIM, figure, format_of, label, write
+from service.charts.detection import fit_figure, spectrum_figure
+from service.charts.sweep import SweepSeries, sweep_figure
+from service.schemas.analysis import Prediction, SweepResult
+
+BRANCH_COLORS = {"U_A": "tab:blue", "U_B": "tab:orange", "S_A": "tab:green",
+                 "S_B": "tab:red", "W_A": "tab:purple", "W_B": "tab:brown"}  # fmt: skip
+
+
+def check_path(path: str | None, option: str = "--plot") -> None:
+    """Fail early (before any computation) on a file name that is not .png or .svg."""
+    if path is not None:
+        format_of(path, option)
+
+
+def plot_detection(
+    path: str,
+    w: np.ndarray,
+    dt: float,
+    detection: Any,
+    *,
+    time_unit: str | None = None,
+    value_unit: str | None = None,
+    title: str | None = None,
+) -> Path:
+    """``snapwarn detect --plot``: the record, the fit over it, the residual."""
+    t = dt * np.arange(np.asarray(w).size)
+    fig = fit_figure(t, w, detection, time_unit=time_unit, value_unit=value_unit, title=title)
+    return write(fig, path)
+
+
+def plot_sweep(
+    path: str,
+    result: SweepResult,
+    *,
+    control_name: str = "mu",
+    control_unit: str | None = NONDIM,
+    time_unit: str | None = NONDIM,
+    title: str | None = None,
+) -> Path:
+    """``snapwarn warn --plot`` and ``snapwarn sweep --plot``: the three-panel sweep chart."""
+    s = SweepSeries.from_result(
+        result, control_name=control_name, control_unit=control_unit, time_unit=time_unit
+    )
+    return write(sweep_figure(s, title=title), path)
+
+
+def plot_prediction(
+    path: str,
+    mu: Sequence[float],
+    sigma2: Sequence[float],
+    sigma2_std: Sequence[float] | None,
+    prediction: Prediction,
+    *,
+    control_name: str = "mu",
+    control_unit: str | None = None,
+    time_unit: str | None = None,
+) -> Path:
+    """``snapwarn predict --plot``: the sweep chart of a table of measured points."""
+    s = SweepSeries.from_prediction(
+        mu, sigma2, sigma2_std, prediction,
+        control_name=control_name, control_unit=control_unit, time_unit=time_unit,
+    )  # fmt: skip
+    return write(sweep_figure(s, title="prediction from the table"), path)
+
+
+def plot_spectrum(path: str, doc: Mapping[str, Any], *, actuation: str, mu: float,
+                  branch: str) -> Path:  # fmt: skip
+    """``snapwarn spectrum --plot``: sigma^2 of the modes of one equilibrium."""
+    fig = spectrum_figure(doc["sigma2"], title=f"{branch} ({actuation}) at mu = {mu:g}",
+                          time_unit=NONDIM)  # fmt: skip
+    return write(fig, path)
+
+
+def branch_points(
+    actuation: str, mu_max: float = 2.6, n: int = 131, stride: int = 5
+) -> dict[str, list[tuple[float, float, bool]]]:
+    """(mu, W(1/2), stable) of every branch on a grid of mu in [0, mu_max] (Euler beam).
+
+    Stability (the sign of the spectrum, ``sim.euler_beam.is_stable``) is evaluated every
+    ``stride`` points of a branch and on every point between two evaluations that disagree, so
+    each change of stability is located to one grid step.
+    """
+    from sim.euler_beam import equilibria, is_stable
+
+    eqs: dict[str, list[Any]] = {}
+    for mu in np.linspace(0.0, mu_max, n):
+        for e in equilibria(actuation, float(mu)):
+            eqs.setdefault(e.branch, []).append(e)
+    out: dict[str, list[tuple[float, float, bool]]] = {}
+    for branch, es in eqs.items():
+        known: dict[int, bool] = {}
+        probe = sorted({*range(0, len(es), stride), len(es) - 1})
+        for i in probe:
+            known[i] = is_stable(es[i])
+        for a, b in zip(probe[:-1], probe[1:]):
+            if known[a] != known[b]:
+                for i in range(a + 1, b):
+                    known[i] = is_stable(es[i])
+            else:
+                for i in range(a + 1, b):
+                    known[i] = known[a]
+        out[branch] = [(float(e.mu), float(e.w_half), known[i]) for i, e in enumerate(es)]
+    return out
+
+
+def branch_figure(actuation: str, points: Mapping[str, Sequence[tuple[float, float, bool]]],
+                  *, mu: float | None = None) -> Any:  # fmt: skip
+    """The paper's Fig. 1 D-F: mid-point deflection W(1/2) of the six branches against mu,
+    stable parts solid, unstable parts dashed; the mu asked for as a vertical line."""
+    fig = figure(7.5, 4.8)
+    ax = fig.add_subplot()
+    for branch in sorted(points):
+        pts = np.array(points[branch], dtype=float)
+        color = BRANCH_COLORS.get(branch, "k")
+        x, y, st = pts[:, 0], pts[:, 1], pts[:, 2].astype(bool)
+        # split where the grid skips (branch absent) or the stability changes
+        gap = np.diff(x) > 1.5 * np.median(np.diff(x)) if x.size > 2 else np.zeros(0, bool)
+        cuts = np.flatnonzero(gap | (st[1:] != st[:-1])) + 1
+        first = True
+        for seg in np.split(np.arange(x.size), cuts):
+            if seg.size == 0:
+                continue
+            j = seg if seg[-1] + 1 >= x.size or gap[seg[-1]] else np.append(seg, seg[-1] + 1)
+            ax.plot(x[j], y[j], "-" if st[seg[0]] else "--", color=color, lw=1.4,
+                    label=branch if first else None)  # fmt: skip
+            first = False
+    if mu is not None and math.isfinite(mu):
+        ax.axvline(mu, color="0.4", lw=0.8, ls=":", label=f"mu = {mu:g}")
+    ax.set_xlabel(label("mu = alpha sqrt(L / dL)", NONDIM))
+    ax.set_ylabel(label("mid-point deflection W(1/2)", NONDIM))
+    ax.set_title(f"equilibria, {actuation} actuation (solid: stable, dashed: unstable)",
+                 fontsize=10)  # fmt: skip
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, ncols=2)
+    return fig
+
+
+def plot_equilibria(path: str, actuation: str, mu: float | None = None) -> Path:
+    """``snapwarn equilibria --plot``: the branch diagram, with the asked mu marked."""
+    top = max(2.6, 1.1 * mu) if mu is not None and math.isfinite(mu) else 2.6
+    return write(branch_figure(actuation, branch_points(actuation, top), mu=mu), path)
