@@ -27,6 +27,7 @@ __all__ = [
     "detection",
     "flag",
     "flags",
+    "live_update",
     "measurement",
     "mode",
     "paper_rule",
@@ -215,4 +216,47 @@ def sweep_result(r: Any) -> wire.SweepResult:
         alarm=[alarm(a) for a in r.alarm],
         flags=flags(r.flags),
         detections=dets,
+    )
+
+def live_update(
+    u: Any,
+    *,
+    sweep_id: str | None = None,
+    signal_id: str | None = None,
+    created_at: Any = None,
+    finished: bool = False,
+) -> Any:
+    """A live sweep's update (``service.analysis.live.LiveUpdate``) as its wire model
+    (:class:`service.schemas.live.LiveUpdate`)."""
+    from service.schemas.live import LiveUpdate
+
+    p, rec, nxt = u.prediction, u.record, u.next
+    return LiveUpdate(
+        sweep_id=sweep_id,
+        seq=rec.seq,
+        signal_id=signal_id,
+        control=rec.control,
+        record_flags=flags(rec.flags),
+        used_in_fit=u.used_in_fit,
+        measurement=measurement(rec.measurement) if rec.measurement is not None else None,
+        detection=detection(u.detection),
+        n_records=u.n_records,
+        n_used=u.n_used,
+        transition=p.transition if p is not None else "undetermined",
+        probabilities=plain(dict(p.probabilities)) if p is not None else {},
+        mu_star=plain(p.mu_star) if p is not None else None,
+        mu_star_interval=plain(tuple(p.mu_star_interval)) if p is not None else None,
+        prediction=prediction(p) if p is not None else None,
+        alarm=alarm(u.alarm),
+        next_control=plain(rec.next_control),
+        next_bound=plain(nxt.bound) if nxt is not None else None,
+        next_bound_source=nxt.source if nxt is not None else "none",
+        next_limited_by=nxt.limited_by if nxt is not None else "no_advice",
+        trusted=u.trusted,
+        converged=u.converged,
+        record_duration=plain(u.record_duration),
+        record_dt=plain(u.record_dt),
+        flags=flags(u.flags),
+        finished=finished,
+        created_at=created_at,
     )

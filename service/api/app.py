@@ -21,7 +21,7 @@ from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_pool, warm_pool
 from service.api.jobs import JobRunner
-from service.api.routers import detections, health, jobs, signals, simulations, sweeps
+from service.api.routers import detections, health, jobs, live, signals, simulations, sweeps
 from service.api.settings import Settings
 from service.api.state import AppState
 from service.api.storage import Store
@@ -99,6 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     guarded = [Depends(get_caller)]
     for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
         app.include_router(r, dependencies=guarded)
+    app.include_router(live.router, dependencies=guarded)
     pages.install(app)
     app.openapi = partial(_openapi, app)  # type: ignore[method-assign]
     return app

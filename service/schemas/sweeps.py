@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.jobs import Job
+from service.schemas.live import LiveControl, LiveOptions
 from service.schemas.simulations import Actuation, Model
 
 
@@ -34,13 +35,19 @@ class SimulatedSweep(BaseModel):
 
 
 class SweepRequest(BaseModel):
-    """Exactly one of ``measurements`` (recorded signals) or ``simulate``."""
+    """Exactly one of ``measurements`` (recorded signals) or ``simulate``; or ``"mode": "live"``
+    (an open sweep that records are added to one by one, see ``service.schemas.live``)."""
 
     model_config = ConfigDict(extra="forbid")
 
     measurements: list[SweepMeasurement] | None = Field(default=None, min_length=1)
     simulate: SimulatedSweep | None = None
     name: str | None = Field(default=None, max_length=500)
+    mode: Literal["batch", "live"] = Field(
+        default="batch", description="'live': an open sweep fed by POST /v1/sweeps/{id}/records."
+    )
+    control: LiveControl | None = Field(default=None, description="Live: the control stepped.")
+    live: LiveOptions | None = Field(default=None, description="Live: margin, step, budget...")
 
 
 class Sweep(BaseModel):

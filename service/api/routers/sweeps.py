@@ -10,6 +10,7 @@ from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
 
 from service.api import numerics, plots
+from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
 from service.api.problems import ApiProblem, invalid, not_found, too_large
 from service.api.routers._common import problems
@@ -92,8 +93,14 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
     summary="Start a sweep: recorded signals with their control values, or a simulated one",
     responses=problems(401, 413, 422, 501),
 )
-async def create_sweep(req: SweepRequest, state: StateDep) -> JSONResponse:
-    """Answers 202 with the sweep and its job; poll ``/v1/sweeps/{id}`` or ``/v1/jobs/{id}``."""
+async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
+    """Answers 202 with the sweep and its job; poll ``/v1/sweeps/{id}`` or ``/v1/jobs/{id}``.
+
+    With ``"mode": "live"`` answers 201 with an open sweep (``service.api.routers.live``)."""
+    if req.mode == "live":
+        from service.api.routers.live import create_live
+
+        return await create_live(req, state, caller)
     if (req.measurements is None) == (req.simulate is None):
         raise invalid("measurements", None, "give exactly one of 'measurements' or 'simulate'")
     if req.measurements is not None:

@@ -1,0 +1,540 @@
+"""A live sweep: a lab adds one record at a time and asks where it may go next.
+
+This is :func:`service.analysis.pipeline.warn` turned inside out. ``warn`` drives a simulator;
+here the experiment drives itself and every record arrives with its control value. Each update
+
+1. detects the new record (:func:`service.analysis.detect.detect`): its fundamental
+   ``sigma^2 = -s1 s2``, its error and the static level, with the detector's flags;
+2. classifies and predicts over every record measured so far
+   (:func:`service.analysis.predict.predict`, once four records with a fundamental exist):
+   the transition with its probabilities, ``mu*`` with its 95 % interval;
+3. raises the alarm (:func:`service.analysis.alarm.alarm_for`) and chooses the next safe control
+   value with the one policy of the project (:func:`service.analysis.alarm.next_measurement`):
+   a fraction of the way to the interval's lower end once the predictor can be trusted
+   (:func:`service.analysis.alarm.interval_trusted`: the slowdown has begun and two consecutive
+   intervals overlap), the model-free two-point ``sigma^4`` bound before that, minus the
+   sweep's margin. The value is never at or beyond ``mu*`` minus the margin.
+
+The lab may do something else than advised: a record at or below a control already measured
+(``out_of_order``, ``repeated_control``) or beyond the last advised value (``past_safe_value``)
+is accepted and flagged, never reordered in the record list. The fit itself needs distinct,
+increasing controls: it uses the records with a fundamental in increasing control order, the
+first of repeated controls only.
+
+The module is pure numerics (numpy, the detector and the predictor); storing records, streaming
+updates and the HTTP door live in ``service.api``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from service.analysis.alarm import (
+    Alarm,
+    NextMeasurement,
+    alarm_for,
+    interval_trusted,
+    next_measurement,
+)
+from service.analysis.common import Flag
+from service.analysis.detect import Detection, detect
+from service.analysis.errors import ParameterError
+from service.analysis.pipeline import (
+    Measurement,
+    WarnResult,
+    _sampling,
+    measurement_from_detection,
+)
+from service.analysis.predict import Prediction, predict
+
+__all__ = [
+    "LivePlan",
+    "LiveRecord",
+    "LiveUpdate",
+    "assess",
+    "finish",
+    "measure",
+    "measurement_from_dict",
+    "record_from_dict",
+    "record_to_dict",
+    "update",
+]
+
+#: Records with a fundamental needed before the predictor runs (as in ``warn``).
+MIN_PREDICT = 4
+#: The sigma^4 bound applies once the slowdown shows (T/T0 >= this) and MIN_PREDICT records exist
+#: (the first pairs, before the slowdown, can overshoot; as in ``warn``).
+SIGMA4_MIN_T_RATIO = 1.05
+#: Relative tolerance when comparing a control value with the advised one.
+_RTOL = 1e-12
+
+
+@dataclass(frozen=True)
+class LivePlan:
+    """How a live sweep advises (the sweep's options; control units throughout).
+
+    Attributes
+    ----------
+    step : float or None
+        Largest step of the control (the first steps, before any bound on mu* exists). Without
+        it the step never exceeds ``max_step_growth`` times the last one, and after the first
+        record no advice can be given.
+    margin : float
+        Distance kept below the safe bound on mu* (>= 0).
+    target_width : float or None
+        The sweep has converged once the trusted interval is narrower than this; default
+        ``1e-6 * max(|mu*|, span of the controls)``.
+    step_fraction : float
+        Fraction of the room to the bound that a step takes, in (0, 1).
+    max_step_growth : float
+        A step is at most this multiple of the previous one (trust region; ``inf``: none).
+    method : str
+        Detector method.
+    level : float
+        Confidence level of the interval.
+    """
+
+    step: float | None = None
+    margin: float = 0.0
+    target_width: float | None = None
+    step_fraction: float = 0.5
+    max_step_growth: float = 2.0
+    method: str = "auto"
+    level: float = 0.95
+
+    def __post_init__(self) -> None:
+        if self.step is not None and not (math.isfinite(self.step) and self.step > 0):
+            raise ParameterError("step", self.step, f"step must be > 0, got step={self.step!r}")
+        if not (math.isfinite(self.margin) and self.margin >= 0):
+            raise ParameterError(
+                "margin", self.margin, f"margin must be finite and >= 0, got margin={self.margin!r}"
+            )
+        tw = self.target_width
+        if tw is not None and not (math.isfinite(tw) and tw > 0):
+            raise ParameterError(
+                "target_width", tw, f"target_width must be > 0, got target_width={tw!r}"
+            )
+        if not 0 < self.step_fraction < 1:
+            raise ParameterError(
+                "step_fraction",
+                self.step_fraction,
+                f"step_fraction must be in (0, 1), got step_fraction={self.step_fraction!r}",
+            )
+        if not self.max_step_growth > 0:
+            raise ParameterError(
+                "max_step_growth",
+                self.max_step_growth,
+                f"max_step_growth must be > 0, got max_step_growth={self.max_step_growth!r}",
+            )
+        if not 0 < self.level < 1:
+            raise ParameterError(
+                "level", self.level, f"level must be in (0, 1), got level={self.level!r}"
+            )
+
+
+@dataclass(frozen=True)
+class LiveRecord:
+    """What a live sweep keeps of one record (enough to assess the next one).
+
+    Attributes
+    ----------
+    seq : int
+        Position in arrival order (1, 2, ...).
+    control : float
+        Control value the record was taken at (user unit).
+    measurement : Measurement or None
+        The record's fundamental and static level; None when the detector found no mode.
+    flags : tuple of Flag
+        Record flags (``out_of_order``, ``repeated_control``, ``past_safe_value``, ``no_mode``).
+    interval : tuple of float or None
+        The 95 % interval of mu* after this record (None without a prediction): the next
+        update's trust test compares its interval with it.
+    next_control : float
+        The control advised after this record (NaN: none).
+    """
+
+    seq: int
+    control: float
+    measurement: Measurement | None
+    flags: tuple[Flag, ...] = ()
+    interval: tuple[float, float] | None = None
+    next_control: float = math.nan
+
+
+@dataclass(frozen=True)
+class LiveUpdate:
+    """The warning after one more record.
+
+    Attributes
+    ----------
+    record : LiveRecord
+        The new record as kept (its flags, interval and advice included).
+    detection : Detection
+        The new record's detection.
+    n_records, n_used : int
+        Records so far, and those in the fit (a fundamental, distinct increasing controls).
+    prediction : Prediction or None
+        Classification (transition, probabilities) and mu* with its interval; None until
+        :data:`MIN_PREDICT` records with a fundamental exist or when the predictor fails.
+    alarm : Alarm
+        Level, T/T0, mu* and the distance to it in half-widths.
+    next : NextMeasurement or None
+        The advised next control value (``next.mu``; NaN when no safe step is left); None
+        when no advice is possible (one record and no ``step``).
+    trusted : bool
+        Whether the predictor's interval bounded the advice (else the model-free bound did).
+    converged : bool
+        The trusted interval is narrower than the plan's target width: the lab may stop.
+    record_duration, record_dt : float
+        Suggested length and sample step of the next record (the new record's time unit):
+        40 periods of the expected fundamental, 50 samples per period of the last one (as
+        ``warn`` samples); NaN without a fundamental.
+    flags : tuple of Flag
+        Flags of the update: the predictor's, ``no_safe_step``, ``predictor_failed``.
+    """
+
+    record: LiveRecord
+    detection: Detection
+    n_records: int
+    n_used: int
+    prediction: Prediction | None
+    alarm: Alarm
+    next: NextMeasurement | None
+    trusted: bool
+    converged: bool
+    record_duration: float = math.nan
+    record_dt: float = math.nan
+    flags: tuple[Flag, ...] = field(default=())
+
+    @property
+    def next_control(self) -> float:
+        """The advised next control value (NaN: none)."""
+        return self.record.next_control
+
+    @property
+    def used_in_fit(self) -> bool:
+        """The record has a fundamental and a control not measured before."""
+        return self.record.measurement is not None and not any(
+            f.code == "repeated_control" for f in self.record.flags
+        )
+
+
+# ----------------------------------------------------------------------------------- steps
+def measure(
+    w: Any, *, dt: float, control: float, method: str = "auto"
+) -> tuple[Detection, Measurement | None, tuple[Flag, ...]]:
+    """Detect one record and reduce it to the sweep's measurement.
+
+    Parameters
+    ----------
+    w : array_like, shape (N,)
+        The record (absolute position, any length unit), uniformly sampled.
+    dt : float
+        Sample step (the record's time unit).
+    control : float
+        Control value of the record (user unit), finite.
+    method : str
+        Detector method.
+
+    Returns
+    -------
+    detection, measurement, flags
+        ``measurement`` is None (flag ``no_mode``) when the detector found no fundamental.
+    """
+    c = float(control)
+    if not math.isfinite(c):
+        raise ParameterError("control", control, f"control must be finite, got {control!r}")
+    arr = np.asarray(w, dtype=float)
+    det = detect(arr, dt=float(dt), method=method)
+    try:
+        m = measurement_from_detection(c, det, (arr.size - 1) * float(dt), float(dt))
+    except ValueError as exc:
+        return det, None, (Flag("no_mode", str(exc)),)
+    return det, m, ()
+
+
+def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
+    """Measurements of the fit: a fundamental, increasing control, first of repeated ones."""
+    seen: set[float] = set()
+    out = []
+    for r in records:
+        if r.measurement is None or r.control in seen:
+            continue
+        seen.add(r.control)
+        out.append(r.measurement)
+    out.sort(key=lambda m: m.mu)
+    return out
+
+
+def _predict(ms: Sequence[Measurement], level: float) -> tuple[Prediction | None, list[Flag]]:
+    if len(ms) < MIN_PREDICT:
+        return None, []
+    names = ("mu", "sigma2", "sigma2_std", "w_static", "w_static_std")
+    col = {k: np.array([getattr(m, k) for m in ms]) for k in names}
+    s2_std = col["sigma2_std"]
+    try:
+        pred = predict(
+            col["mu"],
+            col["sigma2"],
+            sigma2_std=s2_std if np.all(np.isfinite(s2_std) & (s2_std > 0)) else None,
+            w_static=col["w_static"],
+            w_static_std=np.maximum(col["w_static_std"], 1e-15),
+            level=level,
+        )
+    except ValueError as exc:
+        return None, [Flag("predictor_failed", f"no prediction from {len(ms)} records: {exc}")]
+    return pred, []
+
+
+def _record_flags(
+    previous: Sequence[LiveRecord], control: float, m: Measurement | None, det_flags: tuple
+) -> tuple[Flag, ...]:
+    flags = list(det_flags)
+    done = [r.control for r in previous]
+    if control in done:
+        k = done.index(control) + 1
+        flags.append(
+            Flag(
+                "repeated_control",
+                f"control {control!r} was already measured (record {k}); this record is kept "
+                "but the fit uses the first one",
+            )
+        )
+    elif done and control < max(done):
+        flags.append(
+            Flag(
+                "out_of_order",
+                f"control {control!r} is below the largest already measured ({max(done)!r}); "
+                "the record is kept in arrival order and the fit sorts by control",
+            )
+        )
+    if previous:
+        advised = previous[-1].next_control
+        if math.isfinite(advised) and control > advised + _RTOL * max(1.0, abs(advised)):
+            flags.append(
+                Flag(
+                    "past_safe_value",
+                    f"control {control!r} is beyond the advised safe value {advised!r}",
+                )
+            )
+    return tuple(flags)
+
+
+def assess(
+    previous: Sequence[LiveRecord],
+    detection: Detection,
+    measurement: Measurement | None,
+    control: float,
+    *,
+    plan: LivePlan | None = None,
+    detection_flags: tuple[Flag, ...] = (),
+) -> LiveUpdate:
+    """The warning after adding one measured record to ``previous`` (in arrival order).
+
+    Parameters
+    ----------
+    previous : sequence of LiveRecord
+        The sweep's records so far, in arrival order.
+    detection, measurement : Detection, Measurement or None
+        The new record, from :func:`measure`.
+    control : float
+        Its control value.
+    plan : LivePlan, optional
+        The sweep's options.
+    detection_flags : tuple of Flag
+        Flags :func:`measure` returned (``no_mode``).
+
+    Returns
+    -------
+    LiveUpdate
+    """
+    plan = plan or LivePlan()
+    control = float(control)
+    rflags = _record_flags(previous, control, measurement, detection_flags)
+    seq = len(previous) + 1
+    provisional = LiveRecord(seq, control, measurement, rflags)
+    ms = _fit_set([*previous, provisional])
+    pred, uflags = _predict(ms, plan.level)
+    last = ms[-1] if ms else None
+    t_ratio = ms[0].omega / last.omega if last is not None and last.omega > 0 else math.nan
+    has_pred = pred is not None and math.isfinite(pred.mu_star)
+    interval = tuple(pred.mu_star_interval) if has_pred else None
+    alarm = alarm_for(
+        last.mu if last is not None else control,
+        t_ratio,
+        pred.mu_star if has_pred else math.nan,
+        interval or (math.nan, math.nan),
+    )
+    prev_interval = previous[-1].interval if previous else None
+    trusted = bool(
+        has_pred
+        and prev_interval is not None
+        and interval_trusted(interval, prev_interval, last.mu, t_ratio)
+    )
+    nxt = _advise(ms, pred if trusted else None, plan)
+    if nxt is not None and not math.isfinite(nxt.mu):
+        uflags.append(
+            Flag(
+                "no_safe_step",
+                f"no control value beyond {last.mu!r} stays below the safe bound "
+                f"{nxt.bound!r} minus the margin {plan.margin!r}",
+            )
+        )
+    converged = False
+    if trusted:
+        lo, hi = interval
+        width = plan.target_width
+        if width is None:
+            span = ms[-1].mu - ms[0].mu
+            width = 1e-6 * max(abs(pred.mu_star), span)
+        converged = bool(hi - lo < width)
+    if pred is not None:
+        uflags.extend(pred.flags)
+    duration = dt = math.nan
+    if last is not None:
+        target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
+        duration, dt = _sampling(last, target, pred)
+    record = LiveRecord(
+        seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan
+    )
+    return LiveUpdate(
+        record=record,
+        detection=detection,
+        n_records=seq,
+        n_used=len(ms),
+        prediction=pred,
+        alarm=alarm,
+        next=nxt,
+        trusted=trusted,
+        converged=converged,
+        record_duration=float(duration),
+        record_dt=float(dt),
+        flags=tuple(_dedupe(uflags)),
+    )
+
+
+def _advise(
+    ms: Sequence[Measurement], trusted: Prediction | None, plan: LivePlan
+) -> NextMeasurement | None:
+    """The next control value by :func:`service.analysis.alarm.next_measurement`."""
+    max_step = plan.step if plan.step is not None else math.inf
+    if not ms:
+        return None
+    if len(ms) == 1:
+        if plan.step is None:
+            return None
+        return NextMeasurement(ms[0].mu + plan.step, math.inf, "none", "max_step")
+    return next_measurement(
+        [m.mu for m in ms],
+        [abs(m.sigma2) for m in ms],
+        trusted_bound=trusted.mu_star_interval[0] if trusted is not None else None,
+        margin=plan.margin,
+        step_fraction=plan.step_fraction,
+        max_step_growth=plan.max_step_growth,
+        max_step=max_step,
+        min_t_ratio=SIGMA4_MIN_T_RATIO if len(ms) >= MIN_PREDICT else math.inf,
+    )
+
+
+def update(
+    previous: Sequence[LiveRecord],
+    w: Any,
+    *,
+    dt: float,
+    control: float,
+    plan: LivePlan | None = None,
+) -> LiveUpdate:
+    """Detect a new record and assess the sweep with it (:func:`measure` then :func:`assess`)."""
+    plan = plan or LivePlan()
+    det, m, fl = measure(w, dt=dt, control=control, method=plan.method)
+    return assess(previous, det, m, control, plan=plan, detection_flags=fl)
+
+
+def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
+           alarms: Sequence[dict] = (), stopped: str = "closed") -> WarnResult:  # fmt: skip
+    """The sweep's final result, in the shape of :func:`~service.analysis.pipeline.warn`'s.
+
+    Parameters
+    ----------
+    records : sequence of LiveRecord
+        All records, arrival order.
+    plan : LivePlan, optional
+    alarms : sequence of dict
+        The alarm after each record (as stored with each update).
+    stopped : str
+        Why the sweep ended: ``"closed"`` (by the lab) or ``"budget"``.
+    """
+    plan = plan or LivePlan()
+    ms = _fit_set(records)
+    pred, flags = _predict(ms, plan.level)
+    for r in records:
+        flags.extend(f for f in r.flags if f.code != "no_mode")
+    return WarnResult(None, None, tuple(ms), pred, tuple(alarms), stopped, None,
+                      tuple(_dedupe(flags)))  # fmt: skip
+
+
+def measurement_from_dict(d: dict[str, Any] | None) -> Measurement | None:
+    """Inverse of :meth:`Measurement.to_dict` (None and missing numbers become NaN)."""
+    if d is None:
+        return None
+
+    def num(k: str) -> float:
+        v = d.get(k)
+        return math.nan if v is None else float(v)
+
+    return Measurement(
+        mu=num("mu"),
+        omega=num("omega"),
+        sigma2=num("sigma2"),
+        sigma2_std=num("sigma2_std"),
+        w_static=num("w_static"),
+        w_static_std=num("w_static_std"),
+        regime=str(d.get("regime") or "underdamped"),
+        duration=num("duration"),
+        dt=num("dt"),
+        flags=tuple(Flag(f["code"], f["message"]) for f in d.get("flags") or ()),
+    )
+
+
+def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
+    seen: set[str] = set()
+    out = []
+    for f in flags:
+        if f.code not in seen:
+            seen.add(f.code)
+            out.append(f)
+    return out
+
+
+def record_to_dict(r: LiveRecord) -> dict[str, Any]:
+    """The stored form of a :class:`LiveRecord` (plain JSON types; NaN kept as float)."""
+    return {
+        "seq": r.seq,
+        "control": r.control,
+        "measurement": r.measurement.to_dict() if r.measurement is not None else None,
+        "flags": [f.to_dict() for f in r.flags],
+        "interval": list(r.interval) if r.interval is not None else None,
+        "next_control": r.next_control,
+    }
+
+
+def record_from_dict(d: dict[str, Any]) -> LiveRecord:
+    """Inverse of :func:`record_to_dict` (None numbers become NaN)."""
+    iv = d.get("interval")
+    interval = None
+    if iv is not None and all(v is not None for v in iv):
+        interval = (float(iv[0]), float(iv[1]))
+    nxt = d.get("next_control")
+    return LiveRecord(
+        seq=int(d["seq"]),
+        control=float(d["control"]),
+        measurement=measurement_from_dict(d.get("measurement")),
+        flags=tuple(Flag(f["code"], f["message"]) for f in d.get("flags") or ()),
+        interval=interval,
+        next_control=math.nan if nxt is None else float(nxt),
+    )

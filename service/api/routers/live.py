@@ -1,0 +1,491 @@
+"""Live sweeps: ``/v1/sweeps/{id}/records``, ``/close`` and ``/events`` (server-sent events).
+
+A live sweep is created by ``POST /v1/sweeps`` with ``"mode": "live"`` (:func:`create_live`,
+called by the sweeps router) and is an ordinary sweep resource: while it is open its status is
+``"open"``; once closed (or its budget spent) it is a finished sweep with the pipeline's
+document, for ``GET /v1/sweeps/{id}``, its charts, pages and listings.
+
+The numerics of an update live in :mod:`service.analysis.live` and run in the analysis pool;
+this module parses the record, stores it, serialises concurrent writers (see
+:mod:`service.api.storage.live`) and streams the stored updates.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import time
+from functools import partial
+from typing import Annotated, Any
+
+from anyio import to_thread
+from fastapi import APIRouter, Header, Query, Request
+from fastapi.responses import JSONResponse, StreamingResponse
+from pydantic import ValidationError
+
+from service import convert, recordings
+from service.analysis import live as numerics
+from service.api.auth import Caller, CallerDep
+from service.api.problems import ApiProblem, invalid, not_found
+from service.api.routers._common import body_validation_error, problems
+from service.api.routers.sweeps import sweep_doc
+from service.api.state import AppState, StateDep
+from service.api.storage import as_utc, utcnow
+from service.api.storage import live as store_live
+from service.schemas import Sweep
+from service.schemas.live import LiveRecordIn, LiveUpdate, LiveUpdatePage
+
+router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
+
+#: Attempts of the optimistic append before answering 503 (each loser recomputes).
+MAX_ATTEMPTS = 50
+#: How often an event stream looks for new stored updates (s), and its keep-alive comment.
+POLL_S = 0.1
+KEEPALIVE_S = 15.0
+
+RECORD_FORM_SCHEMA = {
+    "type": "object",
+    "required": ["file"],
+    "properties": {
+        "file": {
+            "type": "string",
+            "format": "binary",
+            "description": "CSV with a header, .npy, .npz, .wav or .mat",
+        },
+        "control": {"type": "number", "description": "Control value of the record."},
+        "format": {"type": "string", "enum": list(recordings.FORMATS)},
+        "dt": {"type": "number", "description": "Sampling step when the file has no time."},
+        "t0": {"type": "number"},
+        "unit": {"type": "string", "description": "Time unit."},
+        "column": {"type": "string"},
+        "time_column": {"type": "string"},
+        "channel": {"type": "integer"},
+        "name": {"type": "string"},
+    },
+}
+
+
+# ---------------------------------------------------------------------------------- creation
+async def create_live(req: Any, state: AppState, caller: Caller) -> JSONResponse:
+    """``POST /v1/sweeps`` with ``"mode": "live"``: answers 201 with the open sweep."""
+    if req.measurements is not None or req.simulate is not None:
+        raise invalid("mode", "live", "a live sweep takes no 'measurements' nor 'simulate'")
+    opts = req.live.model_dump() if req.live is not None else {}
+    control = req.control.model_dump() if req.control is not None else {"name": "mu"}
+    _plan(opts)  # validated once here (the options' own checks)
+    sweep, job, _ = await to_thread.run_sync(
+        lambda: store_live.create_live_sweep(
+            state.store,
+            name=req.name,
+            request=req.model_dump(mode="json", exclude_none=True),
+            control_name=control.get("name") or "mu",
+            control_unit=control.get("unit"),
+            options=opts,
+            owner=caller.owner,
+        )
+    )
+    doc = Sweep.model_validate(sweep_doc(sweep, job)).model_dump(mode="json")
+    return JSONResponse(doc, status_code=201, headers={"Location": f"/v1/sweeps/{sweep.id}"})
+
+
+def _plan(opts: dict[str, Any]) -> numerics.LivePlan:
+    try:
+        return numerics.LivePlan(
+            step=opts.get("step"),
+            margin=float(opts.get("margin") or 0.0),
+            target_width=opts.get("target_width"),
+            method=opts.get("method") or "auto",
+        )
+    except ValueError as exc:
+        raise invalid(f"live.{getattr(exc, 'parameter', 'options')}",
+                      getattr(exc, "value", None), str(exc)) from None  # fmt: skip
+
+
+async def _live_row(state: AppState, sweep_id: str, caller: Caller) -> Any:
+    row = await to_thread.run_sync(store_live.get_live, state.store, sweep_id, caller.scope)
+    if row is None:
+        raise not_found("live sweep", sweep_id)
+    return row
+
+
+# ---------------------------------------------------------------------------------- records in
+def _recording_problem(exc: recordings.RecordingError) -> ApiProblem:
+    status = 422
+    if isinstance(exc, recordings.UnsupportedFormat):
+        status = 415
+    elif isinstance(exc, recordings.RecordingTooLarge):
+        status = 413
+    return ApiProblem(status, str(exc), field=exc.field, value=exc.value)
+
+
+def _finite_control(value: Any, field: str = "control") -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise invalid(field, value, "is not a number") from None
+    if not math.isfinite(v):
+        raise invalid(field, value, "must be finite")
+    return v
+
+
+async def _record_from_json(request: Request, state: AppState, caller: Caller) -> dict[str, Any]:
+    try:
+        doc = LiveRecordIn.model_validate_json(await request.body())
+    except ValidationError as exc:
+        raise body_validation_error(exc) from None
+    if doc.signal_id is not None:
+        if doc.w is not None or doc.t is not None:
+            raise invalid("signal_id", doc.signal_id, "give a signal_id or samples, not both")
+        sig = await to_thread.run_sync(state.store.get_signal, doc.signal_id, caller.scope)
+        if sig is None:
+            raise invalid("signal_id", doc.signal_id, "is not a stored signal")
+        value = doc.control if doc.control is not None else sig.row.control_value
+        if value is None:
+            raise invalid("control", None, "is required: the signal has no control value")
+        return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
+                "signal_id": sig.row.id}  # fmt: skip
+    if doc.w is None:
+        raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
+    if doc.control is None:
+        raise invalid("control", None, "is required with inline samples")
+    control = _finite_control(doc.control)
+    limit = state.settings.max_samples
+
+    def read() -> recordings.Recording:
+        return recordings.from_arrays(doc.w, doc.t, doc.dt, doc.t0, max_samples=limit,
+                                      unit=doc.unit, source="json")  # fmt: skip
+
+    try:
+        rec = await to_thread.run_sync(read)
+    except recordings.RecordingError as exc:
+        raise _recording_problem(exc) from None
+    return {"recording": rec, "control": control, "name": doc.name}
+
+
+def _form_text(form: Any, name: str, limit: int = 200) -> str | None:
+    v = form.get(name)
+    if v is None or v == "":
+        return None
+    if not isinstance(v, str):
+        raise invalid(name, getattr(v, "filename", "<file>"), "must be a text field")
+    if len(v) > limit:
+        raise invalid(name, v, f"is longer than {limit} characters")
+    return v
+
+
+async def _record_from_form(request: Request, state: AppState) -> dict[str, Any]:
+    s = state.settings
+    form = await request.form(max_files=1, max_fields=16, max_part_size=s.max_body_bytes)
+    upload = form.get("file")
+    if upload is None or isinstance(upload, str):
+        raise invalid("file", None, "is required (a multipart file field named 'file')")
+    data = await upload.read()
+    text = _form_text(form, "control")
+    if text is None:
+        raise invalid("control", None, "is required (the record's control value)")
+    control = _finite_control(text)
+    nums = {}
+    for k in ("dt", "t0", "channel"):
+        t = _form_text(form, k)
+        nums[k] = None if t is None else _finite_control(t, k)
+    opts = {k: _form_text(form, k) for k in ("column", "time_column")}
+
+    def read() -> recordings.Recording:
+        fmt = recordings.guess_format(upload.filename, upload.content_type,
+                                      _form_text(form, "format", 10))  # fmt: skip
+        return recordings.read_bytes(data, fmt, dt=nums["dt"], t0=nums["t0"],
+                                     channel=int(nums["channel"] or 0), max_samples=s.max_samples,
+                                     **opts)  # fmt: skip
+
+    try:
+        rec = await to_thread.run_sync(read)
+    except recordings.RecordingError as exc:
+        raise _recording_problem(exc) from None
+    unit = _form_text(form, "unit", 100)
+    if unit:
+        rec = recordings.Recording(rec.w, rec.t, rec.dt, rec.t0, unit, rec.value_unit,
+                                   rec.source, rec.flags, rec.metadata)  # fmt: skip
+    name = _form_text(form, "name", 500) or (upload.filename or "")[:500] or None
+    return {"recording": rec, "control": control, "name": name,
+            "metadata": {"file": {"filename": upload.filename, **rec.metadata}}}  # fmt: skip
+
+
+async def _store_recording(
+    state: AppState, item: dict[str, Any], live_row: Any, caller: Caller
+) -> str:
+    rec: recordings.Recording = item["recording"]
+    control = {"name": live_row.control_name, "value": item["control"],
+               "unit": live_row.control_unit}  # fmt: skip
+    meta = dict(item.get("metadata") or {})
+    meta["live_sweep"] = live_row.id
+    if rec.flags:
+        meta["flags"] = [f.to_dict() for f in rec.flags]
+    row = await to_thread.run_sync(
+        lambda: state.store.add_signal(
+            w=rec.w, dt=rec.dt, t0=rec.t0, t=rec.t, source=rec.source, name=item.get("name"),
+            unit=rec.unit, value_unit=rec.value_unit, control=control, metadata=meta,
+            owner=caller.owner,
+        )
+    )  # fmt: skip
+    return row.id
+
+
+def _conflict(sweep_id: str, status: str) -> ApiProblem:
+    return ApiProblem(
+        409,
+        f"live sweep {sweep_id!r} is {status}: it takes no more records",
+        field="status",
+        value=status,
+    )
+
+
+@router.post(
+    "/{sweep_id}/records",
+    status_code=201,
+    response_model=LiveUpdate,
+    summary="Add one record to an open live sweep; answers the updated warning",
+    responses=problems(401, 404, 409, 413, 415, 422),
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": LiveRecordIn.model_json_schema()},
+                "multipart/form-data": {"schema": RECORD_FORM_SCHEMA},
+            },
+        }
+    },
+)
+async def add_record(
+    sweep_id: str, request: Request, state: StateDep, caller: CallerDep
+) -> JSONResponse:
+    """A stored ``signal_id``, inline ``w`` with ``t``/``dt``, or a multipart file, with its
+    ``control`` value. Answers 201: the record's detection, the classification, mu* with its
+    interval, the alarm and the next safe control value."""
+    t_start = time.perf_counter()
+    live_row = await _live_row(state, sweep_id, caller)
+    if live_row.status != store_live.OPEN:
+        raise _conflict(sweep_id, live_row.status)
+    ctype = request.headers.get("content-type", "").lower()
+    if ctype.startswith("multipart/form-data"):
+        item = await _record_from_form(request, state)
+    elif ctype.startswith("application/json") or ctype == "":
+        item = await _record_from_json(request, state, caller)
+    else:
+        raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
+                         field="content-type", value=ctype)  # fmt: skip
+    if "recording" in item:
+        item["signal_id"] = await _store_recording(state, item, live_row, caller)
+        item["w"], item["dt"] = item["recording"].w, item["recording"].dt
+    plan = _plan(live_row.options)
+    try:
+        det, meas, dflags = await state.run(
+            partial(numerics.measure, item["w"], dt=item["dt"], control=item["control"],
+                    method=plan.method)  # fmt: skip
+        )
+    except ValueError as exc:
+        raise invalid(getattr(exc, "parameter", "w"), getattr(exc, "value", None),
+                      str(exc)) from None  # fmt: skip
+    doc = await _append(state, sweep_id, item, det, meas, dflags, plan)
+    ms = 1e3 * (time.perf_counter() - t_start)
+    return JSONResponse(
+        {**doc, "server_ms": ms},
+        status_code=201,
+        headers={
+            "Location": f"/v1/sweeps/{sweep_id}/records/{doc['seq']}",
+            "Server-Timing": f"app;dur={ms:.2f}",
+        },
+    )
+
+
+async def _append(
+    state: AppState, sweep_id: str, item: dict[str, Any], det: Any, meas: Any, dflags: Any,
+    plan: numerics.LivePlan,
+) -> dict[str, Any]:  # fmt: skip
+    """Assess on the latest stored state and append; recompute and retry when another record
+    (or a close) came first."""
+    for _ in range(MAX_ATTEMPTS):
+        st = await to_thread.run_sync(store_live.live_state, state.store, sweep_id)
+        if st is None:
+            raise not_found("live sweep", sweep_id)
+        if st.sweep.status != store_live.OPEN:
+            raise _conflict(sweep_id, st.sweep.status)
+        previous = [numerics.record_from_dict(d) for d in st.records]
+        budget = st.sweep.options.get("budget")
+        finishing = budget is not None and len(previous) + 1 >= int(budget)
+        doc, record, final = await state.run(
+            partial(_assess, previous, det, meas, item["control"], plan, dflags, finishing,
+                    sweep_id, item["signal_id"])  # fmt: skip
+        )
+        append = partial(
+            store_live.append_record, state.store, sweep_id, st.sweep.version,
+            signal_id=item["signal_id"], control=item["control"], record=record, doc=doc,
+            finish_result=final,
+        )  # fmt: skip
+        row = await to_thread.run_sync(append)
+        if row is not None:
+            return row.doc
+    raise ApiProblem(503, f"live sweep {sweep_id!r} is too busy: retry the record",
+                     headers={"Retry-After": "1"})  # fmt: skip
+
+
+def _assess(
+    previous: list[numerics.LiveRecord], det: Any, meas: Any, control: float,
+    plan: numerics.LivePlan, dflags: Any, finishing: bool, sweep_id: str, signal_id: str | None,
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any] | None]:  # fmt: skip
+    """(the update's wire document, the record's stored state, the final sweep document when
+    the record spends the budget); runs in the analysis pool."""
+    u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags)
+    doc = convert.live_update(u, sweep_id=sweep_id, signal_id=signal_id,
+                              created_at=as_utc(utcnow()), finished=finishing)  # fmt: skip
+    final = None
+    if finishing:
+        final = _finish([*previous, u.record], plan, "budget")
+    return doc.model_dump(mode="json"), numerics.record_to_dict(u.record), final
+
+
+# ---------------------------------------------------------------------------------- reading
+@router.get(
+    "/{sweep_id}/records",
+    response_model=LiveUpdatePage,
+    summary="The updates of a live sweep, in arrival order",
+    responses=problems(401, 404),
+)
+async def list_records(
+    sweep_id: str,
+    state: StateDep,
+    caller: CallerDep,
+    after: Annotated[int, Query(ge=0, description="Only records with seq > after.")] = 0,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 1000,
+) -> dict[str, Any]:
+    await _live_row(state, sweep_id, caller)
+    row, recs = await to_thread.run_sync(store_live.records_after, state.store, sweep_id,
+                                         after, limit)  # fmt: skip
+    return {"items": [r.doc for r in recs], "total": row.version, "status": row.status}
+
+
+@router.get(
+    "/{sweep_id}/records/{seq}",
+    response_model=LiveUpdate,
+    summary="One update of a live sweep",
+    responses=problems(401, 404),
+)
+async def get_record(sweep_id: str, seq: int, state: StateDep, caller: CallerDep) -> Any:
+    await _live_row(state, sweep_id, caller)
+    _, recs = await to_thread.run_sync(store_live.records_after, state.store, sweep_id,
+                                       seq - 1, 1)  # fmt: skip
+    if not recs or recs[0].seq != seq:
+        raise not_found("record", f"{sweep_id}/{seq}")
+    return recs[0].doc
+
+
+@router.post(
+    "/{sweep_id}/close",
+    response_model=Sweep,
+    summary="Close a live sweep: it becomes a finished sweep with the pipeline's document",
+    responses=problems(401, 404),
+)
+async def close_sweep(sweep_id: str, state: StateDep, caller: CallerDep) -> dict[str, Any]:
+    """Idempotent: closing a closed (or finished) sweep answers it as it is."""
+    await _live_row(state, sweep_id, caller)
+    for _ in range(MAX_ATTEMPTS):
+        st = await to_thread.run_sync(store_live.live_state, state.store, sweep_id)
+        if st.sweep.status != store_live.OPEN:
+            break
+        plan = _plan(st.sweep.options)
+        previous = [numerics.record_from_dict(d) for d in st.records]
+        result = await state.run(partial(_finish, previous, plan))
+        done = await to_thread.run_sync(store_live.close_live, state.store, sweep_id,
+                                        st.sweep.version, result)  # fmt: skip
+        if done:
+            break
+    else:
+        raise ApiProblem(503, f"live sweep {sweep_id!r} is too busy: retry",
+                         headers={"Retry-After": "1"})  # fmt: skip
+    found = await to_thread.run_sync(state.store.get_sweep, sweep_id)
+    return sweep_doc(*found)
+
+
+def _finish(
+    records: list[numerics.LiveRecord], plan: numerics.LivePlan, stopped: str = "closed"
+) -> dict[str, Any]:
+    """The finished sweep's document (the one sweep document); runs in the analysis pool."""
+    r = numerics.finish(records, plan=plan, stopped=stopped)
+    return convert.sweep_result(r).model_dump(mode="json")
+
+
+# ---------------------------------------------------------------------------------- events
+def _sse(event: str, ident: int, data: Any) -> bytes:
+    body = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    return f"id: {ident}\nevent: {event}\ndata: {body}\n\n".encode()
+
+
+@router.get(
+    "/{sweep_id}/events",
+    summary="Server-sent events: each update of a live sweep, then 'closed'",
+    response_class=StreamingResponse,
+    responses={
+        200: {
+            "content": {"text/event-stream": {"schema": {"type": "string"}}},
+            "description": "'update' events (id = the record's seq, data = a LiveUpdate), "
+            "then one 'closed' event. Resume with the Last-Event-ID header (or ?after=).",
+        },
+        **problems(401, 404, 422),
+    },
+)
+async def events(
+    sweep_id: str,
+    request: Request,
+    state: StateDep,
+    caller: CallerDep,
+    after: Annotated[int | None, Query(ge=0, description="Resume after this seq.")] = None,
+    timeout: Annotated[
+        float, Query(gt=0, le=3600, description="The stream ends after this many seconds.")
+    ] = 300.0,
+    last_event_id: Annotated[str | None, Header(alias="Last-Event-ID")] = None,
+) -> StreamingResponse:
+    await _live_row(state, sweep_id, caller)
+    start = after or 0
+    if last_event_id:
+        try:
+            start = max(start, int(last_event_id))
+        except ValueError:
+            raise invalid("Last-Event-ID", last_event_id, "is not a record number") from None
+    return StreamingResponse(
+        _stream(request, state, sweep_id, start, timeout),
+        media_type="text/event-stream",
+        headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"},
+    )
+
+
+async def _stream(request: Request, state: AppState, sweep_id: str, last: int, timeout: float):  # noqa: ANN202
+    """Stored updates with seq > last, then new ones as they are stored (in any process)."""
+    deadline = time.monotonic() + timeout
+    quiet_since = time.monotonic()
+    yield b"retry: 1000\n\n"
+    known = -1
+    while True:
+        vs = await to_thread.run_sync(store_live.live_version, state.store, sweep_id)
+        if vs is None:
+            return
+        version, status = vs
+        if version > last and version != known:
+            _, recs = await to_thread.run_sync(store_live.records_after, state.store,
+                                               sweep_id, last, 500)  # fmt: skip
+            for r in recs:
+                yield _sse("update", r.seq, r.doc)
+                last = r.seq
+            known = version if last >= version else -1
+            quiet_since = time.monotonic()
+            continue
+        if status != store_live.OPEN and last >= version:
+            if last == version:
+                yield _sse("closed", version + 1, {"status": status, "n_records": version})
+            return
+        now = time.monotonic()
+        if now >= deadline or await request.is_disconnected():
+            return
+        if now - quiet_since >= KEEPALIVE_S:
+            yield b": keep-alive\n\n"
+            quiet_since = now
+        await asyncio.sleep(POLL_S)
