@@ -33,6 +33,7 @@ __all__ = [
     "paper_rule",
     "plain",
     "prediction",
+    "sweep_document",
     "sweep_result",
 ]
 
@@ -217,6 +218,32 @@ def sweep_result(r: Any) -> wire.SweepResult:
         flags=flags(r.flags),
         detections=dets,
     )
+
+
+def sweep_document(doc: Mapping[str, Any]) -> wire.SweepResult:
+    """A stored sweep document as the typed result: the current form, or the older flat one
+    (``WarnResult.to_dict()``: mu* at the top level, alarms without a level)."""
+    d = dict(doc)
+    d["alarm"] = [
+        wire.Alarm.model_validate(a) if isinstance(a, Mapping) and "level" in a else alarm(a)
+        for a in (d.get("alarm") or [])
+        if isinstance(a, Mapping)
+    ]
+    if d.get("prediction") is None and d.get("mu_star_interval") is not None:
+        keys = ("mu_star", "mu_star_interval", "mu_star_std", "a", "transition",
+                "probabilities", "baseline", "classification")  # fmt: skip
+        flat = {k: d[k] for k in keys if d.get(k) is not None}
+        if isinstance(flat.get("classification"), Mapping):
+            flat["classification"] = {"regime": "underdamped", **flat["classification"]}
+        d["prediction"] = flat
+    d.setdefault("stopped", "done")
+    d["detections"] = [
+        _detection_doc(x, x.get("control"), x.get("name"))
+        for x in (d.get("detections") or [])
+        if isinstance(x, Mapping)
+    ]
+    return wire.SweepResult.model_validate(d)
+
 
 def live_update(
     u: Any,

@@ -1,8 +1,9 @@
 """The REST API: ``create_app(settings)`` (FastAPI) and ``export_openapi(path)``.
 
-Imports point one way: this package calls ``sim`` and ``service.analysis`` only through
-``service.api.numerics``; the numerics never import it. Names are loaded lazily, so that a
-pool worker importing ``service.api.executor`` can configure itself before numpy loads.
+Imports point one way: the routers import ``sim`` and ``service.analysis`` plainly and turn
+their results into wire models through ``service.convert``; the numerics never import this
+package. Names are loaded lazily, so that a pool worker importing ``service.api.executor`` can
+configure itself before numpy loads.
 """
 
 from __future__ import annotations

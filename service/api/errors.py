@@ -11,8 +11,11 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from service.api.problems import ApiProblem, wire_value
+from service.analysis.errors import ParameterError as AnalysisParameterError
+from service.api.problems import ApiProblem, problem_from, wire_value
+from service.recordings import RecordingError
 from service.schemas.common import PROBLEM_MEDIA_TYPE
+from sim.errors import ParameterError as SimParameterError
 
 log = logging.getLogger("snapwarn.api")
 
@@ -59,6 +62,14 @@ async def _problem_handler(request: Request, exc: ApiProblem) -> JSONResponse:
     return problem_response(exc, request.url.path)
 
 
+async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """Errors carrying their field as data (recordings, numerics): 413/415/422."""
+    problem = problem_from(exc)
+    if problem is None:  # pragma: no cover - registered only for the classes it maps
+        return await _internal_handler(request, exc)
+    return problem_response(problem, request.url.path)
+
+
 async def _http_handler(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     if isinstance(exc, BodyTooLarge):
         return problem_response(exc.problem, request.url.path)
@@ -78,6 +89,8 @@ async def _internal_handler(request: Request, exc: Exception) -> JSONResponse:
 def install_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _validation_handler)
     app.add_exception_handler(ApiProblem, _problem_handler)
+    for cls in (RecordingError, SimParameterError, AnalysisParameterError):
+        app.add_exception_handler(cls, _data_error_handler)
     app.add_exception_handler(StarletteHTTPException, _http_handler)
     app.add_exception_handler(Exception, _internal_handler)
 

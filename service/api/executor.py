@@ -69,9 +69,9 @@ def warm_pool(
 
     ``on_ready`` receives which numerics entry points are installed.
     """
-    from service.api import numerics
+    from service.api import warm
 
-    futs = [pool.submit(numerics.warm) for _ in range(2 * workers)]
+    futs = [pool.submit(warm.warm) for _ in range(2 * workers)]
     for f in futs:
         try:
             avail = f.result(timeout=300)

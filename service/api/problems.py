@@ -1,15 +1,22 @@
 """The exception every layer of the service raises to answer with a problem document.
 
 Plain Python (no FastAPI), so that it can cross process boundaries (pickling) and be raised
-from parsers and job runners alike; ``service.api.errors`` turns it into RFC 9457 JSON.
+from job runners alike; ``service.api.errors`` turns it into RFC 9457 JSON. The errors of the
+layers below carry their field as data (``RecordingError``, the numerics' ``ParameterError``);
+:func:`problem_from` maps them, in this one place.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
+from service.analysis.errors import ParameterError as AnalysisParameterError
+from service.recordings import RecordingError, RecordingTooLarge, UnsupportedFormat
 from service.schemas.common import PROBLEM_TYPE_PREFIX
+from sim.errors import ParameterError as SimParameterError
 
 TITLES = {
     400: "Bad request",
@@ -126,3 +133,43 @@ def too_large(field: str, value: Any, why: str) -> ApiProblem:
 
 def not_found(kind: str, ident: str) -> ApiProblem:
     return ApiProblem(404, f"no {kind} with id {ident!r}", field="id", value=ident)
+
+
+def problem_from(exc: BaseException, default_field: str | None = None) -> ApiProblem | None:
+    """The problem answering an error that carries its field as data, else None.
+
+    - :class:`~service.recordings.RecordingError`: 415 (format), 413 (too large), else 422,
+      with its ``.field`` and ``.value``;
+    - ``sim.errors.ParameterError`` and ``service.analysis.errors.ParameterError`` (their
+      subclasses too: ``SimulationError``, ``SceneError``...): 422 with ``.parameter`` and
+      ``.value``;
+    - with ``default_field``, any other ``ValueError`` of the numerics: 422 naming the input
+      of the door that was called (never a word guessed from the message).
+    """
+    if isinstance(exc, ApiProblem):
+        return exc
+    if isinstance(exc, RecordingError):
+        status = 415 if isinstance(exc, UnsupportedFormat) else 422
+        status = 413 if isinstance(exc, RecordingTooLarge) else status
+        return ApiProblem(status, str(exc), field=exc.field, value=exc.value)
+    if isinstance(exc, (SimParameterError, AnalysisParameterError)):
+        return ApiProblem(422, str(exc), field=exc.parameter, value=exc.value)
+    if default_field is not None and isinstance(exc, ValueError):
+        return ApiProblem(422, str(exc), field=default_field, value=None)
+    return None
+
+
+@contextmanager
+def as_problems(default_field: str | None = None) -> Iterator[None]:
+    """Raise the errors of a numerics call as :class:`ApiProblem` (see :func:`problem_from`).
+
+    Used around calls that run in worker processes: a problem pickles, while the numerics'
+    errors (constructed with several arguments) do not cross a process boundary intact.
+    """
+    try:
+        yield
+    except Exception as exc:
+        problem = problem_from(exc, default_field)
+        if problem is None or problem is exc:
+            raise
+        raise problem from None

@@ -50,7 +50,7 @@ class AppState:
         if cached is None or time.monotonic() - cached[0] > max_age:
             if not self.extra.get("numerics_pending"):
                 self.extra["numerics_pending"] = True
-                from service.api import numerics
+                from service.api import warm
 
                 def done(fut: Any) -> None:
                     self.extra["numerics_pending"] = False
@@ -58,7 +58,7 @@ class AppState:
                         self.numerics_cache = (time.monotonic(), fut.result())
 
                 try:
-                    self.pool.submit(numerics.available).add_done_callback(done)
+                    self.pool.submit(warm.available).add_done_callback(done)
                 except Exception:  # noqa: BLE001 - a broken pool is replaced on next use
                     self.extra["numerics_pending"] = False
         return dict(cached[1]) if cached else {}

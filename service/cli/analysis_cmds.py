@@ -12,33 +12,33 @@ from typing import Any
 
 import numpy as np
 
-from service.cli._common import CliError, add_json_flag, bad, emit, finite
+from service import convert
+from service.cli._common import CliError, add_json_flag, bad, emit, error_from, finite
 
 
 # ------------------------------------------------------------------------------- file readers
-def read_signal(path: str, option: str = "FILE") -> tuple[np.ndarray, float]:
-    """Read a record (CSV with a header such as t,w; NPY/NPZ; WAV; .mat) -> (w, dt).
+def read_record(
+    path: str, option: str = "FILE", *, dt: float | None = None, resample: bool = False
+) -> Any:
+    """Read a record with :mod:`service.recordings`: the API's reader and rules.
 
-    The same parsers and validation as the REST API's uploads (``service.api.codec``): one
-    definition of what a valid recorded signal is.
+    ``dt`` supplies the step of a file without times (1-D .npy, one-column CSV) and is an error
+    for a file that has them; the uniform-sampling tolerance is ``SNAPWARN_UNIFORM_RTOL``.
     """
-    from service.api.codec import clean_signal, guess_format, parse_upload
-    from service.api.problems import ApiProblem
+    from service.recordings import RecordingError, read_file
 
-    p = Path(path)
-    if not p.is_file():
-        raise bad(option, path, "is not a readable file")
     try:
-        parsed = parse_upload(p.read_bytes(), guess_format(p.name, None, None))
-        given = parsed.t is None and math.isfinite(parsed.dt)
-        w, _, dt, _ = clean_signal(
-            w=parsed.w, t=parsed.t, dt=parsed.dt if given else None,
-            t0=parsed.t0 if given and math.isfinite(parsed.t0) else None,
-            max_samples=10_000_000, uniform_rtol=1e-6,
-        )  # fmt: skip
-    except ApiProblem as exc:
-        raise bad(option, path, exc.detail) from None
-    return w, dt
+        return read_file(path, dt=dt, resample=resample)
+    except RecordingError as exc:
+        err = error_from(exc, context=f"{option} {path!r}")
+        assert err is not None
+        raise err from None
+
+
+def read_signal(path: str, option: str = "FILE") -> tuple[np.ndarray, float]:
+    """``(w, dt)`` of a record (see :func:`read_record`)."""
+    rec = read_record(path, option)
+    return rec.w, rec.dt
 
 
 def _read_table(path: str, option: str) -> dict[str, np.ndarray]:
@@ -75,20 +75,15 @@ def _floats(table: dict, name: str, option: str, path: str) -> np.ndarray:
 def _detect(args: argparse.Namespace) -> int:
     from service.analysis.detect import detect
 
-    w, dt = read_signal(args.file)
-    if args.dt is not None:
-        dt = args.dt
-    try:
-        det = detect(w, dt=dt, method=args.method, kind=args.kind)
-    except ValueError as exc:
-        raise CliError(str(exc)) from None
-    doc = det.to_dict()
-    f = doc.get("fundamental") or {}
+    rec = read_record(args.file, dt=args.dt, resample=args.resample)
+    det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
+    doc = convert.detection(det, extra_flags=rec.flags)
+    f = doc.fundamental
     text = (
-        f"fundamental: omega = {f.get('omega')}, sigma2 = {f.get('sigma2')} "
-        f"+- {f.get('sigma2_std')} ({f.get('regime')}); {len(doc['modes'])} modes; "
-        f"flags: {[x['code'] for x in doc['flags']] or 'none'}"
-    )
+        f"fundamental: omega = {f.omega}, sigma2 = {f.sigma2} +- {f.sigma2_std} ({f.regime})"
+        if f is not None
+        else "no fundamental"
+    ) + f"; {len(doc.modes)} modes; flags: {[x.code for x in doc.flags] or 'none'}"
     emit(doc, json_mode=args.json, text=text)
     return 0
 
@@ -118,11 +113,12 @@ def _predict(args: argparse.Namespace) -> int:
     try:
         pred = predict(mu, **kw)
     except ValueError as exc:
-        raise CliError(f"SWEEP {args.file!r}: {exc}") from None
-    doc = pred.to_dict()
-    lo, hi = doc["mu_star_interval"]
+        raise error_from(exc, f"SWEEP {args.file!r}") or CliError(f"SWEEP {args.file!r}: {exc}",
+                                                                   field="SWEEP") from None
+    doc = convert.prediction(pred)
+    lo, hi = doc.mu_star_interval
     emit(doc, json_mode=args.json,
-         text=f"{doc['transition']}: mu* = {doc['mu_star']} (95%: [{lo}, {hi}])")  # fmt: skip
+         text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
     return 0
 
 
@@ -156,30 +152,35 @@ def _warn(args: argparse.Namespace) -> int:
         res = warn(args.actuation, model=args.model, damping=args.damping, snr_db=args.snr,
                    seed=args.seed, max_measurements=args.max_measurements,
                    scene_options=opts or None, progress=cb)  # fmt: skip
-    except ValueError as exc:
-        raise CliError(str(exc)) from None
     finally:
         if cb is not None:
             cb.close()
-    doc = res.to_dict()
+    doc = convert.sweep_result(res)
     emit(doc, json_mode=args.json, text=_warn_text(doc))
     return 0
 
 
-def _warn_text(doc: dict) -> str:
-    lo, hi = doc["mu_star_interval"] or (math.nan, math.nan)
+def _warn_text(doc: Any) -> str:
+    """The people's summary of a sweep document (:class:`~service.schemas.SweepResult`)."""
+    p = doc.prediction
+
+    def f9(x: float | None) -> str:
+        return "n/a" if x is None else f"{x:.9f}"
+
+    if p is None:
+        return f"{doc.actuation} ({doc.model}): no prediction ({doc.stopped})"
+    lo, hi = p.mu_star_interval
     lines = [
-        f"{doc['actuation']} ({doc['model']}): {doc['transition']}, a = {doc['a']}",
-        f"  mu* = {doc['mu_star']:.9f}  95%: [{lo:.9f}, {hi:.9f}]  "
-        f"from {doc['n_measurements']} impulse responses ({doc['stopped']})",
+        f"{doc.actuation} ({doc.model}): {p.transition}, a = {p.a}",
+        f"  mu* = {f9(p.mu_star)}  95%: [{f9(lo)}, {f9(hi)}]  "
+        f"from {len(doc.measurements)} impulse responses ({doc.stopped})",
     ]
-    if doc.get("baseline"):
-        lines.append(f"  paper's rule on the same data: mu* = {doc['baseline']['mu_star']:.9f}")
-    if doc.get("truth"):
-        t = doc["truth"]
-        lines.append(
-            f"  model's own mu* = {t['mu_star']:.9f}: error {t.get('error', math.nan):.2e}"
-        )
+    if p.baseline is not None:
+        lines.append(f"  paper's rule on the same data: mu* = {f9(p.baseline.mu_star)}")
+    if doc.truth is not None:
+        t = doc.truth
+        err = "n/a" if t.error is None else f"{t.error:.2e}"
+        lines.append(f"  model's own mu* = {f9(t.mu_star)}: error {err}")
     return "\n".join(lines)
 
 
@@ -190,27 +191,32 @@ def _sweep(args: argparse.Namespace) -> int:
     if "path" not in table or "control" not in table:
         raise bad("MANIFEST", args.manifest, "needs the header 'path,control'")
     control = _floats(table, "control", "MANIFEST", args.manifest)
+    steps = _floats(table, "dt", "MANIFEST", args.manifest) if "dt" in table else None
     base = Path(args.manifest).resolve().parent
     records, names = [], []
-    for rel, c in zip(table["path"], control):
+    for k, (rel, c) in enumerate(zip(table["path"], control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
-        w, dt = read_signal(str(p), option="MANIFEST entry")
-        records.append((w, dt, float(c)))
+        dt = args.dt if steps is None else float(steps[k])
+        rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample)
+        records.append((rec.w, rec.dt, float(c)))
         names.append(str(rel))
     cb = _progress_printer(not args.no_progress)
     try:
         res = sweep_from_signals(records, names=names, progress=cb)
     except ValueError as exc:
-        raise CliError(f"MANIFEST {args.manifest!r}: {exc}") from None
+        err = error_from(exc, f"MANIFEST {args.manifest!r}")
+        raise err or CliError(f"MANIFEST {args.manifest!r}: {exc}", field="MANIFEST") from None
     finally:
         if cb is not None:
             cb.close()
-    doc = res.prediction.to_dict() if res.prediction is not None else {}
-    doc["detections"] = list(res.detections)
-    doc["measurements"] = [m.to_dict() for m in res.measurements]
-    doc["flags"] = doc.get("flags", []) + [f.to_dict() for f in res.flags]
-    text = f"{doc.get('transition')}: mu* = {doc.get('mu_star')} {doc.get('mu_star_interval')}"
+    doc = convert.sweep_result(res)
+    p = doc.prediction
+    text = (
+        f"{p.transition}: mu* = {p.mu_star} {list(p.mu_star_interval)}"
+        if p is not None
+        else f"no prediction from {len(doc.measurements)} records"
+    )
     emit(doc, json_mode=args.json, text=text)
     return 0
 
@@ -223,7 +229,8 @@ def _warn_job(actuation: str, seed: int, queue: Any) -> dict:
         if queue is not None:
             queue.put((actuation, fraction, message))
 
-    return warn(actuation, seed=seed, max_measurements=30, progress=cb).to_dict()
+    res = warn(actuation, seed=seed, max_measurements=30, progress=cb)
+    return convert.sweep_result(res).model_dump(mode="json")
 
 
 def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
@@ -280,18 +287,28 @@ def _demo(args: argparse.Namespace) -> int:
         f"{'actuation':14} {'type found':24} {'true mu*':>12} {'paper rule':>12} {'ours':>14} "
         f"{'95% interval':>29} {'error':>9} {'N':>3}",
     ]
+    def num(x: float | None) -> float:
+        return math.nan if x is None else x
+
     for r in runs:
         t = r.get("truth") or {}
-        lo, hi = r["mu_star_interval"]
-        base = (r.get("baseline") or {}).get("mu_star", math.nan)
+        p = r.get("prediction") or {}
+        lo, hi = (num(v) for v in (p.get("mu_star_interval") or (None, None)))
+        base = num((p.get("baseline") or {}).get("mu_star"))
         rows.append(
-            f"{r['actuation']:14} {r['transition']:24} {t.get('mu_star', math.nan):12.8f} "
-            f"{base:12.8f} {r['mu_star']:14.10f} [{lo:.10f}, {hi:.10f}] "
-            f"{t.get('error', math.nan):9.1e} {r['n_measurements']:3d}"
+            f"{r['actuation']:14} {p.get('transition', 'undetermined'):24} "
+            f"{num(t.get('mu_star')):12.8f} {base:12.8f} {num(p.get('mu_star')):14.10f} "
+            f"[{lo:.10f}, {hi:.10f}] {num(t.get('error')):9.1e} {len(r['measurements']):3d}"
         )
     rows.append(f"({doc['seconds']:.1f} s)")
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
+
+
+def _resample_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--resample", action="store_true",
+                   help="interpolate non-uniform sample times onto a uniform grid (else an "
+                   "error naming the worst step)")  # fmt: skip
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -301,7 +318,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--method", default="auto",
                    choices=("auto", "varpro", "esprit", "fft", "fft-parabolic"))  # fmt: skip
     p.add_argument("--kind", default="impulse", choices=("impulse", "ambient"))
-    p.add_argument("--dt", type=finite, default=None, help="sample step if the file has none")
+    p.add_argument("--dt", type=finite, default=None,
+                   help="sample step of a file without times (1-D .npy, one-column CSV); an "
+                   "error for a file that has them")  # fmt: skip
+    _resample_flag(p)
     add_json_flag(p)
     p.set_defaults(func=_detect)
 
@@ -329,8 +349,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_json_flag(p)
     p.set_defaults(func=_warn)
 
-    p = sub.add_parser("sweep", help="detect recorded files then predict (header path,control)")
+    p = sub.add_parser("sweep", help="detect recorded files then predict "
+                       "(header path,control[,dt])")  # fmt: skip
     p.add_argument("manifest", metavar="MANIFEST")
+    p.add_argument("--dt", type=finite, default=None,
+                   help="sample step of the files without times (a 'dt' column overrides)")
+    _resample_flag(p)
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
     p.set_defaults(func=_sweep)

@@ -13,8 +13,10 @@ from service.schemas.common import Control
 class SignalIn(BaseModel):
     """A uniformly sampled record given inline: ``t`` (sample times) or ``dt``, and ``w``.
 
-    Values must be finite; ``t`` strictly increasing and uniformly spaced; ``t`` and ``w`` of
-    equal length. The server checks all of it and answers 422 naming the field and the value.
+    Values must be finite; ``t`` strictly increasing and uniformly spaced (timestamps rounded to
+    their written digits are accepted: ``dt`` is then their least-squares step); ``t`` and ``w``
+    of equal length. The server checks all of it and answers 422 naming the field and the
+    value.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -28,6 +30,10 @@ class SignalIn(BaseModel):
     control: Control | None = None
     metadata: dict[str, Any] = Field(default_factory=dict)
     name: str | None = Field(default=None, max_length=500)
+    resample: bool = Field(
+        default=False,
+        description="Interpolate non-uniform sample times onto a uniform grid (else 422).",
+    )
 
 
 class SignalMeta(BaseModel):

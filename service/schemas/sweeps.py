@@ -7,6 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.schemas.analysis import Alarm, Classification, Measurement, Prediction, SweepResult
 from service.schemas.jobs import Job
 from service.schemas.live import LiveControl, LiveOptions
 from service.schemas.simulations import Actuation, Model
@@ -51,10 +52,11 @@ class SweepRequest(BaseModel):
 
 
 class Sweep(BaseModel):
-    """A sweep, its job, and (once done) the pipeline's document and its main parts.
+    """A sweep, its job, and (once done) the sweep document and its main parts.
 
-    ``result`` is the ``snapwarn warn --json`` document; ``prediction`` gathers its mu*,
-    interval, exponent and transition; ``alarm`` is the alarm after the last measurement.
+    ``result`` is the document ``snapwarn warn --json`` and ``snapwarn sweep --json`` print;
+    ``measurements``, ``prediction``, ``classification`` and ``alarm`` (after the last
+    measurement) are its parts, repeated for convenience.
     """
 
     id: str
@@ -62,9 +64,9 @@ class Sweep(BaseModel):
     status: str
     request: dict[str, Any]
     job: Job
-    result: dict[str, Any] | None = None
-    measurements: list[Any] | None = None
-    classification: dict[str, Any] | None = None
-    prediction: dict[str, Any] | None = None
-    alarm: Any = None
+    result: SweepResult | None = None
+    measurements: list[Measurement] | None = None
+    classification: Classification | None = None
+    prediction: Prediction | None = None
+    alarm: Alarm | None = None
     created_at: datetime

@@ -136,8 +136,9 @@ class Browser:
                 raise RuntimeError(f"chromium did not start (exit code {self.proc.poll()})")
             time.sleep(0.1)
         port, path = port_file.read_text().splitlines()[:2]
-        self.ws = connect(f"ws://127.0.0.1:{port}{path}", max_size=256 * 1024 * 1024,
-                          open_timeout=30)  # fmt: skip
+        self._ws_context = connect(f"ws://127.0.0.1:{port}{path}", max_size=256 * 1024 * 1024,
+                                   open_timeout=30)  # fmt: skip
+        self.ws = self._ws_context.__enter__()
         self.ids = itertools.count(1)
         self.targets: dict[str, str] = {}
         self.tabs: dict[str, Tab] = {}
@@ -241,7 +242,7 @@ class Browser:
                 self.call("Browser.close", timeout=10)
             except Exception:  # noqa: BLE001 - the browser may already be gone
                 pass
-            ws.close()
+            self._ws_context.__exit__(None, None, None)
         try:
             self.proc.wait(timeout=15)
         except subprocess.TimeoutExpired:

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from _svc_helpers import numerics_has, require_numerics, test_settings
+from _svc_helpers import require_numerics, test_settings
 from _svc_signals import ringdown
 
 from service.api import create_app
@@ -97,7 +97,9 @@ async def test_detection_inline_and_stored(asgi) -> None:  # noqa: ANN001
 
     _, client = asgi
     t, w = ringdown(4000, dt=0.01)
-    expected = json.loads(json.dumps(detect(w, dt=0.01).to_dict()))
+    from service import convert
+
+    expected = convert.detection(detect(w, dt=0.01)).model_dump(mode="json")
     r = await client.post("/v1/detections", json={"dt": 0.01, "w": w.tolist()})
     assert r.status_code == 200, r.text
     doc = r.json()
@@ -110,7 +112,7 @@ async def test_detection_inline_and_stored(asgi) -> None:  # noqa: ANN001
     r = await client.post(
         "/v1/detections", json={"dt": 0.01, "w": w.tolist(), "method": "nonsense"}
     )
-    assert r.status_code == 422 and "method" in r.json()["detail"]
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "method", r.text
 
 
 # --- simulations -----------------------------------------------------------------------------
@@ -126,15 +128,6 @@ async def test_simulation_validation(asgi) -> None:  # noqa: ANN001
         r = await client.post("/v1/simulations", json=doc)
         assert r.status_code == 422, (doc, r.text)
         assert r.json()["errors"][0]["field"] == field, r.json()
-
-
-async def test_simulation_answers_501_until_the_simulator_exists(asgi) -> None:  # noqa: ANN001
-    if numerics_has("sim", "simulate"):
-        pytest.skip("sim.simulate exists: see test_simulation_runs")
-    _, client = asgi
-    r = await client.post("/v1/simulations", json={"mu": 1.0, "model": "euler-beam"})
-    assert r.status_code == 501 and r.headers["content-type"] == PROBLEM
-    assert r.json()["errors"][0]["value"] == "sim.simulate"
 
 
 async def test_simulation_runs(asgi) -> None:  # noqa: ANN001
@@ -196,15 +189,6 @@ async def test_sweep_validation(asgi) -> None:  # noqa: ANN001
     assert r.status_code == 404
 
 
-async def test_sweeps_answer_501_until_the_pipeline_exists(asgi) -> None:  # noqa: ANN001
-    if numerics_has("service.analysis.pipeline", "warn"):
-        pytest.skip("the pipeline exists: see the end-to-end tests")
-    _, client = asgi
-    r = await client.post("/v1/sweeps", json={"simulate": {"actuation": "symmetric"}})
-    assert r.status_code == 501, r.text
-    assert r.json()["errors"][0]["value"] == "service.analysis.pipeline.warn"
-
-
 async def test_sweep_plot_before_success_is_409(asgi) -> None:  # noqa: ANN001
     app, client = asgi
     store = app.state.snapwarn.store
@@ -229,12 +213,14 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
         await asyncio.sleep(0.05)
     store_row = store.get_job(job.id)
     assert store_row.status == "succeeded", claimed
-    doc = {
-        "measurements": [{"mu": m, "T": 1 / (2 - m) ** 0.5} for m in (0.5, 1.0, 1.5)],
-        "prediction": {"mu_star": 2.0, "interval": [1.98, 2.02]},
-        "classification": {"transition": "saddle-node"},
-        "alarm": False,
-    }
+    ms = [{"mu": m, "omega": (2 - m) ** 0.5, "sigma2": -(2 - m)} for m in (0.5, 1.0, 1.5)]
+    doc = {  # a sweep document (service.schemas.SweepResult) as the pipeline stores it
+        "measurements": ms,
+        "prediction": {"mu_star": 2.0, "mu_star_interval": [1.98, 2.02], "a": 0.5,
+                       "classification": {"transition": "saddle-node", "a": 0.25}},
+        "alarm": [{"level": "watch", "mu": 1.5, "t_ratio": 3.5}],
+        "stopped": "done",
+    }  # fmt: skip
     with store.session() as s:
         from service.api.storage import JobRow
 
@@ -243,7 +229,8 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
     assert r.status_code == 200
     got = r.json()
     assert got["status"] == "succeeded" and got["prediction"]["mu_star"] == 2.0
-    assert got["classification"] == {"transition": "saddle-node"} and got["alarm"] is False
+    assert got["classification"]["transition"] == "saddle-node"
+    assert got["alarm"]["level"] == "watch" and got["result"]["measurements"][2]["mu"] == 1.5
     png = await client.get(f"/v1/sweeps/{sweep.id}/plot.png")
     assert png.status_code == 200 and png.content[:4] == b"\x89PNG"
     svg = await client.get(f"/v1/sweeps/{sweep.id}/plot.svg")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from typing import Annotated, Any
 
 from anyio import to_thread
@@ -10,7 +11,8 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
-from service.api import codec, plots
+from service import convert, recordings
+from service.api import plots
 from service.api.problems import ApiProblem, invalid, not_found
 from service.api.routers._common import body_validation_error
 from service.api.state import AppState, StateDep, signal_meta
@@ -38,7 +40,7 @@ UPLOAD_FORM_SCHEMA = {
         },
         "format": {
             "type": "string",
-            "enum": list(codec.FORMATS),
+            "enum": list(recordings.FORMATS),
             "description": "Overrides the file extension.",
         },
         "dt": {"type": "number", "description": "Sampling step when the file has no time."},
@@ -48,6 +50,10 @@ UPLOAD_FORM_SCHEMA = {
         "column": {"type": "string", "description": "Column/variable holding w."},
         "time_column": {"type": "string", "description": "Column/variable holding t."},
         "channel": {"type": "integer", "description": "WAV channel (default 0)."},
+        "resample": {
+            "type": "boolean",
+            "description": "Interpolate non-uniform sample times onto a uniform grid.",
+        },
         "control_name": {"type": "string"},
         "control_value": {"type": "number"},
         "control_unit": {"type": "string"},
@@ -92,46 +98,57 @@ def _form_str(form: Any, name: str) -> str | None:
     return v
 
 
-async def _from_json(request: Request, state: AppState) -> codec.CleanSignal:
+@dataclass
+class CleanSignal:
+    """A validated recording on its way to the store (with the request's name and control)."""
+
+    w: Any
+    t: Any
+    dt: float
+    t0: float
+    unit: str | None
+    value_unit: str | None
+    source: str
+    metadata: dict[str, Any]
+
+    @classmethod
+    def of(cls, rec: recordings.Recording, metadata: dict[str, Any]) -> CleanSignal:
+        meta = dict(metadata)
+        if rec.flags:  # what the reader noticed (rounded timestamps...): detections repeat it
+            meta["recording_flags"] = [convert.plain(f) for f in rec.flags]
+        return cls(rec.w, rec.t, rec.dt, rec.t0, rec.unit, rec.value_unit, rec.source, meta)
+
+
+async def _from_json(request: Request, state: AppState) -> CleanSignal:
     body = await request.body()
     try:
         doc = SignalIn.model_validate_json(body)
     except ValidationError as exc:
         raise body_validation_error(exc) from None
     s = state.settings
-    w, t, dt, t0 = await to_thread.run_sync(
-        lambda: codec.clean_signal(
-            w=doc.w,
-            t=doc.t,
-            dt=doc.dt,
-            t0=doc.t0,
-            max_samples=s.max_samples,
-            uniform_rtol=s.uniform_rtol,
+    rec = await to_thread.run_sync(
+        lambda: recordings.from_arrays(
+            doc.w, doc.t, doc.dt, doc.t0, unit=doc.unit, value_unit=doc.value_unit,
+            source="json", max_samples=s.max_samples, uniform_rtol=s.uniform_rtol,
+            resample=doc.resample,
         )
-    )
-    clean = codec.CleanSignal(
-        w=w,
-        t=t,
-        dt=dt,
-        t0=t0,
-        unit=doc.unit,
-        value_unit=doc.value_unit,
-        source="json",
-        metadata=dict(doc.metadata),
-    )
+    )  # fmt: skip
+    clean = CleanSignal.of(rec, doc.metadata)
     clean.metadata.setdefault("_name", doc.name)
     clean.metadata.setdefault("_control", doc.control.model_dump() if doc.control else None)
     return clean
 
 
-async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
+async def _from_form(request: Request, state: AppState) -> CleanSignal:
     s = state.settings
     form = await request.form(max_files=1, max_fields=32, max_part_size=s.max_body_bytes)
     upload = form.get("file")
     if upload is None or isinstance(upload, str):
         raise invalid("file", None, "is required (a multipart file field named 'file')")
     data = await upload.read()
-    fmt = codec.guess_format(upload.filename, upload.content_type, _form_str(form, "format"))
+    fmt = recordings.guess_format(
+        upload.filename, upload.content_type, _form_str(form, "format")
+    )
     channel = _form_float(form, "channel")
     column, time_column = _form_str(form, "column"), _form_str(form, "time_column")
     dt, t0 = _form_float(form, "dt"), _form_float(form, "t0")
@@ -145,30 +162,23 @@ async def _from_form(request: Request, state: AppState) -> codec.CleanSignal:
         if not isinstance(metadata, dict):
             raise invalid("metadata", meta_text, "must be a JSON object")
 
-    def work() -> codec.CleanSignal:
-        parsed = codec.parse_upload(
-            data, fmt, column=column, time_column=time_column, channel=int(channel or 0)
-        )
-        use_dt = dt if dt is not None else (parsed.dt if parsed.dt == parsed.dt else None)
-        t_arr = parsed.t
-        if t_arr is not None and dt is not None:
-            raise invalid("dt", dt, "must not be given: the file has a time column")
-        w, t, step, first = codec.clean_signal(
-            w=parsed.w,
-            t=t_arr,
-            dt=use_dt,
-            t0=t0,
-            max_samples=s.max_samples,
-            uniform_rtol=s.uniform_rtol,
-        )
-        parsed.w, parsed.t, parsed.dt, parsed.t0 = w, t, step, first
-        return parsed
+    resample = (_form_str(form, "resample") or "false").lower() in ("1", "true", "yes", "on")
 
-    clean = await to_thread.run_sync(work)
+    def work() -> recordings.Recording:
+        return recordings.read_bytes(
+            data, fmt, dt=dt, t0=t0, column=column, time_column=time_column,
+            channel=0 if channel is None else channel, uniform_rtol=s.uniform_rtol,
+            resample=resample, max_samples=s.max_samples,
+        )  # fmt: skip
+
+    clean = CleanSignal.of(await to_thread.run_sync(work), {})
     clean.unit = _form_str(form, "unit") or clean.unit
     clean.value_unit = _form_str(form, "value_unit") or clean.value_unit
+    notes = clean.metadata.pop("recording_flags", None)
     file_meta = {"filename": upload.filename, **clean.metadata}
     clean.metadata = {**metadata, "file": file_meta}
+    if notes:
+        clean.metadata["recording_flags"] = notes
     cname, cval, cunit = (
         _form_str(form, "control_name"),
         _form_float(form, "control_value"),
@@ -307,9 +317,9 @@ async def get_signal_data(
             fmt = "json"
     sig = await _load(state, signal_id)
     row = sig.row
-    t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
+    t = recordings.time_axis(row.n, row.dt, row.t0, sig.t)
     if fmt == "csv":
-        body = await to_thread.run_sync(codec.to_csv, t, sig.w, row.unit, row.value_unit)
+        body = await to_thread.run_sync(recordings.to_csv, t, sig.w, row.unit, row.value_unit)
         return Response(
             body,
             media_type="text/csv",
@@ -317,7 +327,7 @@ async def get_signal_data(
         )
     if fmt == "npy":
         return Response(
-            codec.to_npy(t, sig.w),
+            recordings.to_npy(t, sig.w),
             media_type="application/x-npy",
             headers={"Content-Disposition": f'attachment; filename="{row.id}.npy"'},
         )
@@ -353,7 +363,7 @@ async def delete_signal(signal_id: str, state: StateDep) -> Response:
 async def plot_signal(signal_id: str, state: StateDep) -> Response:
     sig = await _load(state, signal_id)
     row = sig.row
-    t = codec.time_axis(row.n, row.dt, row.t0, sig.t)
+    t = recordings.time_axis(row.n, row.dt, row.t0, sig.t)
     static = (row.meta or {}).get("w_static")
     png = await state.run(_plot, t, sig.w, row.name or row.id, row.unit, row.value_unit, static)
     return Response(png, media_type="image/png")

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
+import numpy as np
 from anyio import to_thread
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from service.api import numerics
+import sim
+from service import convert
 from service.api.jobs import JobContext, job_handler, store_simulated_signal
+from service.api.problems import ApiProblem, as_problems
 from service.api.routers._common import problems
 from service.api.state import StateDep, job_doc, signal_meta
 from service.schemas import Job, SignalMeta, SimulationRequest, SimulationResult
@@ -26,13 +30,13 @@ _NOT_SCENE = {"model", "background", "name"}
     summary="Simulate an impulse response and store it as a signal",
     responses={
         202: {"description": "Became a job (see /v1/jobs/{id}).", "model": SimulationResult},
-        **problems(401, 413, 422, 501),
+        **problems(401, 413, 422),
     },
 )
 async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResponse:
     """201 with the stored signal, or 202 with the job that will store it."""
     scene = req.model_dump(exclude=_NOT_SCENE)
-    await to_thread.run_sync(numerics.check_scene, scene)
+    await to_thread.run_sync(check_scene, scene)
     background = req.background
     if background is None:
         background = req.model not in state.settings.sync_simulation_models
@@ -47,8 +51,8 @@ async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResp
             status_code=202,
             headers={"Location": f"/v1/jobs/{row.id}"},
         )
-    sim = await state.run(numerics.simulate, scene, req.model)
-    row = await to_thread.run_sync(store_simulated_signal, state.store, sim, params)
+    out = await state.run(simulate, scene, req.model)
+    row = await to_thread.run_sync(store_simulated_signal, state.store, out, params)
     meta = SignalMeta.model_validate(signal_meta(row))
     return JSONResponse(
         SimulationResult(signal=meta).model_dump(mode="json"),
@@ -62,6 +66,29 @@ def run_simulation_job(ctx: JobContext) -> dict[str, Any]:
     """Simulate the stored scene and store the signal (the job behind a 202)."""
     params = ctx.params
     ctx.progress(0.0, f"simulating ({params['model']})")
-    sim = numerics.simulate(params["scene"], params["model"])
-    row = store_simulated_signal(ctx.store, sim, params)
+    out = simulate(params["scene"], params["model"])
+    row = store_simulated_signal(ctx.store, out, params)
     return {"signal_id": row.id}
+
+def check_scene(params: dict[str, Any]) -> None:
+    """Validate scene parameters with ``sim.Scene`` (422 naming the field)."""
+    try:
+        with as_problems("scene"):
+            sim.Scene(**params)
+    except TypeError as exc:  # a field the scene does not have
+        raise ApiProblem(422, str(exc), field="scene", value=sorted(params)) from None
+
+
+def simulate(params: dict[str, Any], model: str) -> dict[str, Any]:
+    """Run ``sim.simulate(Scene(**params), model=model)`` (in the analysis pool): the arrays,
+    the static level and the simulator's notes."""
+    with as_problems("scene"):
+        out = sim.simulate(sim.Scene(**params), model=model)
+    w_static = float(out.w_static)
+    return {
+        "t": np.asarray(out.t, dtype=np.float64),
+        "w": np.asarray(out.w, dtype=np.float64),
+        "w_static": w_static if math.isfinite(w_static) else None,
+        "model": str(out.model),
+        "info": convert.plain(dict(out.info or {})),
+    }

@@ -2,60 +2,54 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
+from pydantic import ValidationError
 
-from service.api import numerics, plots
+from service import convert
+from service.analysis.pipeline import sweep_from_signals, warn
+from service.api import plots
 from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
-from service.api.problems import ApiProblem, invalid, not_found, too_large
+from service.api.problems import ApiProblem, as_problems, invalid, not_found, too_large
 from service.api.routers._common import problems
 from service.api.state import AppState, StateDep, job_doc
 from service.api.storage import as_utc
 from service.schemas import Sweep, SweepRequest
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
-
-
-_PREDICTION_KEYS = (
-    "mu_star",
-    "mu_star_interval",
-    "mu_star_std",
-    "a",
-    "transition",
-    "probabilities",
-    "stopped",
-    "n_measurements",
-)
+log = logging.getLogger("snapwarn.api")
 
 
 def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
-    """The sweep resource: the pipeline's document and its main parts, picked (not computed)."""
-    result = job.result if job.status == "succeeded" else None
-    r = result or {}
-    prediction = r.get("prediction")
-    if prediction is None and r.get("mu_star", None) is not None or "mu_star" in r:
-        prediction = {k: r[k] for k in _PREDICTION_KEYS if k in r}
-    alarm = r.get("alarm")
-    if isinstance(alarm, list):
-        alarm = alarm[-1] if alarm else None
-    return {
-        "id": sweep.id,
-        "name": sweep.name,
-        "status": job.status,
-        "request": sweep.request,
-        "job": job_doc(job),
-        "result": result,
-        "measurements": r.get("measurements"),
-        "classification": r.get("classification"),
-        "prediction": prediction,
-        "alarm": alarm,
-        "created_at": as_utc(sweep.created_at),
-    }
+    """The sweep resource: the typed sweep document (once succeeded) and its parts."""
+    result = None
+    if job.status == "succeeded" and job.result:
+        try:
+            result = convert.sweep_document(job.result)
+        except ValidationError:  # a document this version cannot read: the job still shows it
+            log.warning("sweep %s: stored result does not read as a sweep document", sweep.id)
+    pred = result.prediction if result is not None else None
+    alarms = result.alarm if result is not None else []
+    doc = Sweep(
+        id=sweep.id,
+        name=sweep.name,
+        status=job.status,
+        request=sweep.request,
+        job=job_doc(job),
+        result=result,
+        measurements=result.measurements if result is not None else None,
+        classification=pred.classification if pred is not None else None,
+        prediction=pred,
+        alarm=alarms[-1] if alarms else (pred.alarm if pred is not None else None),
+        created_at=as_utc(sweep.created_at),
+    )
+    return doc.model_dump(mode="json")
 
 
 async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict[str, Any]]:
@@ -91,7 +85,7 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
     status_code=202,
     response_model=Sweep,
     summary="Start a sweep: recorded signals with their control values, or a simulated one",
-    responses=problems(401, 413, 422, 501),
+    responses=problems(401, 413, 422),
 )
 async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
     """Answers 202 with the sweep and its job; poll ``/v1/sweeps/{id}`` or ``/v1/jobs/{id}``.
@@ -106,14 +100,11 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
     if req.measurements is not None:
         if len(req.measurements) < 2:
             raise invalid("measurements", len(req.measurements), "need at least 2 signals")
-        needed = "sweep_from_signals"
         kind = "sweep-signals"
         params: dict[str, Any] = {"measurements": await _resolve_measurements(req, state)}
     else:
-        needed = "warn"
         kind = "sweep-simulated"
         params = req.simulate.model_dump(exclude_none=True)
-    await state.run(numerics.load_ok, needed)
     sweep, job = await to_thread.run_sync(
         state.store.create_sweep,
         kind,
@@ -191,7 +182,10 @@ async def plot_sweep_svg(sweep_id: str, state: StateDep) -> Response:
 @job_handler("sweep-simulated")
 def run_simulated_sweep_job(ctx: JobContext) -> dict[str, Any]:
     """A simulated early-warning sweep (``warn``)."""
-    return numerics.warn(ctx.params, ctx.progress)
+    kwargs = {k: v for k, v in ctx.params.items() if v is not None}
+    with as_problems("simulate"):
+        res = warn(**kwargs, progress=ctx.progress)
+    return convert.sweep_result(res).model_dump(mode="json")
 
 
 @job_handler("sweep-signals")
@@ -212,6 +206,8 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
         progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
     progress(0.1, f"analysing {len(items)} signals")
     names = [m["signal_id"] for m in params["measurements"]]
-    return numerics.sweep_from_signals(
-        items, names, lambda f, msg: progress(0.1 + 0.9 * f, msg)
-    )
+    with as_problems("measurements"):
+        res = sweep_from_signals(
+            items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg)
+        )
+    return convert.sweep_result(res).model_dump(mode="json")

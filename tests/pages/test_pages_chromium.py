@@ -1,0 +1,223 @@
+"""The HTML pages in a real headless Chromium: each page loads with no console error and no
+failed request, a screenshot is taken, and the numbers on the page equal the API's.
+
+The server is a real uvicorn on loopback with keys required and two owners (see conftest):
+pages act as the API's caller (a key in an HTTP-only cookie set by /login) and another owner's
+resource answers 404, as on /v1.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import pytest
+from _pages_cdp import Browser, Tab
+from _pages_site import Site, wait_job
+
+COOKIE = "snapwarn_key"
+
+
+def _login_cookie(site: Site, key: str) -> list[dict[str, Any]]:
+    return [{"name": COOKIE, "value": key, "url": site.base, "httpOnly": True}]
+
+
+def _open(browser: Browser, site: Site, path: str, key: str | None) -> Tab:
+    browser.call("Storage.clearCookies", {})
+    return browser.open(site.base + path, cookies=_login_cookie(site, key) if key else None)
+
+
+def _values(tab: Tab) -> dict[str, list[dict[str, Any]]]:
+    out: dict[str, list[dict[str, Any]]] = {}
+    for d in tab.data_keys():
+        out.setdefault(d["key"], []).append(d)
+    return out
+
+
+def _shown(text: str) -> float:
+    """The number a page shows (first token; units follow)."""
+    return float(text.replace("%", "").split()[0])
+
+
+def _close_to_shown(api: float, text: str, digits: int) -> bool:
+    """The page's rounded number equals the API's value to the digits shown."""
+    return math.isclose(_shown(text), api, rel_tol=10.0 ** (1 - digits), abs_tol=1e-300)
+
+
+def _assert_clean(tab: Tab) -> None:
+    assert tab.errors() == [], f"{tab.url}: {tab.errors()}"
+
+
+def test_index_lists_the_callers_resources(browser: Browser, site: Site, shots) -> None:
+    tab = _open(browser, site, "/", site.key_a)
+    _assert_clean(tab)
+    tab.screenshot(shots / "index.png")
+    links = tab.evaluate("Array.from(document.querySelectorAll('main a')).map(a => a.pathname)")
+    assert f"/sweeps/{site.sweep_id}" in links
+    assert f"/jobs/{site.sweep_id}" in links
+    assert {f"/signals/{i}" for i in site.signals} <= set(links)
+    tab.close()
+    # another owner sees none of it
+    tab = _open(browser, site, "/", site.key_b)
+    _assert_clean(tab)
+    links = tab.evaluate("Array.from(document.querySelectorAll('main a')).map(a => a.pathname)")
+    assert not any(site.sweep_id in x or any(i in x for i in site.signals) for x in links)
+    tab.close()
+
+
+def test_sweep_page_shows_the_apis_warning(browser: Browser, site: Site, shots) -> None:
+    with site.client(site.key_a) as c:
+        api = c.get(f"/v1/sweeps/{site.sweep_id}").json()
+    p, alarm = api["prediction"], api["alarm"]
+    tab = _open(browser, site, f"/sweeps/{site.sweep_id}", site.key_a)
+    _assert_clean(tab)
+    tab.screenshot(shots / "sweep.png")
+    v = _values(tab)
+    one = {k: xs[0] for k, xs in v.items()}
+    # the exact values the API answers, and the rounded numbers the page shows
+    assert one["mu_star"]["value"] == p["mu_star"]
+    assert _close_to_shown(p["mu_star"], one["mu_star"]["text"], 10)
+    assert one["mu_star_lo"]["value"] == p["mu_star_interval"][0]
+    assert one["mu_star_hi"]["value"] == p["mu_star_interval"][1]
+    assert _close_to_shown(p["mu_star_interval"][1], one["mu_star_hi"]["text"], 10)
+    assert one["a"]["value"] == p["a"]
+    assert one["transition"]["value"] == p["transition"] == one["transition"]["text"]
+    assert one["alarm_level"]["value"] == alarm["level"] == one["alarm_level"]["text"]
+    assert one["t_ratio"]["value"] == alarm["t_ratio"]
+    assert one["baseline_mu_star"]["value"] == p["baseline"]["mu_star"]
+    probs = {d["name"]: d["value"] for d in v["probability"]}
+    assert probs == p["probabilities"]
+    # the sweep found the synthetic strip's transition
+    assert p["transition"] == "saddle-node"
+    assert p["mu_star_interval"][0] <= 30.0 <= p["mu_star_interval"][1]
+    # one row per record, in the API's order, with its control value and period
+    dets = api["result"]["detections"]
+    assert [d["value"] for d in v["control"]] == [d["control"] for d in dets]
+    periods = [2 * math.pi / math.sqrt(-d["fundamental"]["sigma2"]) for d in dets]
+    for shown, want in zip(v["period"], periods, strict=True):
+        assert math.isclose(shown["value"], want, rel_tol=1e-12)
+        assert _close_to_shown(want, shown["text"], 8)
+    # every thumbnail (fit over the record) loaded; the chart carries the user's names and units
+    n_img = tab.evaluate(
+        "Array.from(document.querySelectorAll('img.thumb')).filter(i => i.naturalWidth > 0).length"
+    )
+    assert n_img == len(dets)
+    svg_text = tab.evaluate("document.querySelector('#sweep-chart svg').textContent")
+    for label in ("theta [deg]", "period T = 2 pi / omega [ms]", "(T / T0)^(-1/a)",
+                  "95 % interval of mu*", "paper's rule", "mu* - theta [deg]"):  # fmt: skip
+        assert label in svg_text, label
+    tab.close()
+
+
+def test_signal_page_shows_the_apis_detection(browser: Browser, site: Site, shots) -> None:
+    sid = site.signals[-1]
+    with site.client(site.key_a) as c:
+        det = c.post("/v1/detections", json={"signal_id": sid}).json()
+        meta = c.get(f"/v1/signals/{sid}").json()
+    tab = _open(browser, site, f"/signals/{sid}", site.key_a)
+    _assert_clean(tab)
+    tab.screenshot(shots / "signal.png")
+    v = _values(tab)
+    assert [x["value"] for x in v["sigma2"]] == [m["sigma2"] for m in det["modes"]]
+    assert [x["value"] for x in v["omega"]] == [m["omega"] for m in det["modes"]]
+    assert [x["value"] for x in v["damping"]] == [m["damping"] for m in det["modes"]]
+    assert v["static_level"][0]["value"] == det["static_level"]
+    assert v["n"][0]["value"] == meta["n"]
+    assert v["dt"][0]["value"] == meta["dt"]
+    svg_text = tab.evaluate("document.querySelector('#fit-chart svg').textContent")
+    for label in ("t [ms]", "w [mm]", "residual [mm]", "detector's fit"):
+        assert label in svg_text, label
+    tab.close()
+
+
+def test_job_page_refreshes_while_the_job_runs(browser: Browser, site: Site, shots) -> None:
+    with site.client(site.key_a) as c:
+        r = c.post("/v1/sweeps", json={
+            "name": "second pass",
+            "measurements": [{"signal_id": i} for i in site.signals],
+        })  # fmt: skip
+        assert r.status_code == 202, r.text
+        job_id = r.json()["id"]
+        tab = _open(browser, site, f"/jobs/{job_id}", site.key_a)
+        first = tab.evaluate("document.querySelector('[data-key=status]').textContent.trim()")
+        if first in ("queued", "running"):  # the script polls, then reloads the finished page
+            assert tab.evaluate("!!document.getElementById('job-script')")
+        tab.wait_for(
+            "document.querySelector('[data-key=status]').textContent.trim() === 'succeeded'",
+            timeout=180,
+        )
+        job = wait_job(c, job_id)
+    browser.pump(0.5)
+    _assert_clean(tab)
+    v = _values(tab)
+    assert v["fraction"][0]["value"] == job["progress"]["fraction"] == 1.0
+    assert v["message"][0]["text"] == job["progress"]["message"]
+    tab.screenshot(shots / "job.png")
+    links = tab.evaluate("Array.from(document.querySelectorAll('main a')).map(a => a.pathname)")
+    assert f"/sweeps/{job_id}" in links
+    tab.close()
+
+
+def test_pages_respect_keys_and_owners(browser: Browser, site: Site, shots) -> None:
+    path = f"/sweeps/{site.sweep_id}"
+    # no key: the login form (401), nothing of the sweep
+    tab = _open(browser, site, path, None)
+    assert tab.evaluate("!!document.querySelector('form.login')")
+    assert not tab.evaluate("!!document.querySelector('[data-key=mu_star]')")
+    tab.screenshot(shots / "login.png")
+    # a wrong key is refused; owner A's key opens the page it was asked for
+    tab.evaluate(
+        "document.querySelector('input[name=key]').value = 'swk_wrong_key';"
+        "document.querySelector('form.login').requestSubmit(); true"
+    )
+    tab.wait_for("!!document.querySelector('[data-key=login-failed]')")
+    tab.evaluate(
+        f"document.querySelector('input[name=key]').value = {site.key_a!r};"
+        "document.querySelector('form.login').requestSubmit(); true"
+    )
+    tab.wait_for("!!document.querySelector('[data-key=mu_star]')")
+    assert tab.evaluate("location.pathname") == path
+    tab.close()
+    # owner B: 404, as on /v1
+    tab = _open(browser, site, path, site.key_b)
+    assert tab.evaluate("document.querySelector('h1').textContent") == "404"
+    assert not tab.evaluate("!!document.querySelector('[data-key=mu_star]')")
+    tab.close()
+    with site.client(site.key_b) as c:
+        assert c.get(f"/v1/sweeps/{site.sweep_id}").status_code == 404
+        assert c.get(f"/sweeps/{site.sweep_id}/records/0.svg").status_code in (401, 404)
+
+
+def test_api_docs_render_offline(browser: Browser, site: Site, shots) -> None:
+    tab = _open(browser, site, "/docs", None)
+    n = tab.wait_for("document.querySelectorAll('.opblock').length", timeout=60)
+    assert n >= 10
+    _assert_clean(tab)
+    urls = [
+        e["params"]["request"]["url"]
+        for e in browser.events
+        if e.get("sessionId") == tab.session and e["method"] == "Network.requestWillBeSent"
+    ]
+    assert urls and all(u.startswith(site.base) or u.startswith("data:") for u in urls), urls
+    tab.screenshot(shots / "docs.png")
+    tab.close()
+
+
+@pytest.mark.parametrize("path", ["/static/swagger-ui/swagger-ui-bundle.js", "/static/style.css"])
+def test_static_assets_come_from_the_package(site: Site, path: str) -> None:
+    import httpx2
+
+    r = httpx2.get(site.base + path, timeout=30)
+    assert r.status_code == 200 and len(r.content) > 1000
+
+
+def test_time_bound(site: Site) -> None:
+    """The sweep page answers within a few seconds (charts drawn server-side)."""
+    import httpx2
+
+    t0 = time.monotonic()
+    r = httpx2.get(site.base + f"/sweeps/{site.sweep_id}", cookies={COOKIE: site.key_a},
+                   timeout=60)  # fmt: skip
+    assert r.status_code == 200
+    assert time.monotonic() - t0 < 30
