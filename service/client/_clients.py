@@ -9,7 +9,9 @@ from typing import Any
 import httpx2
 
 from service.client import _core as core
+from service.client import live
 from service.client.errors import JobFailed, WaitTimeout
+from service.client.live import AsyncLiveSweep, LiveSweep
 from service.schemas import (
     Detection,
     Health,
@@ -132,6 +134,18 @@ class Client:
     def get_sweep(self, sweep_id: str) -> Sweep:
         """``GET /v1/sweeps/{id}``."""
         return self._run(core.get_sweep(sweep_id))
+
+    def live_sweep(
+        self, name: str | None = None, *, control: str = "mu", unit: str | None = None,
+        sweep_id: str | None = None, **options: Any,
+    ) -> LiveSweep:  # fmt: skip
+        """Open a live sweep (``POST /v1/sweeps``, mode live; ``margin=``, ``step=``,
+        ``budget=``, ``target_width=``), or attach to ``sweep_id``: ``add``, ``events``,
+        ``close``."""
+        if sweep_id is not None:
+            return LiveSweep(self, self.get_sweep(sweep_id))
+        call = live.create_live_sweep(name, control=control, unit=unit, **options)
+        return LiveSweep(self, self._run(call))
 
     def sweep_plot(self, sweep_id: str, *, format: str = "png") -> bytes:
         """The T(mu) chart of a finished sweep (PNG or SVG bytes)."""
@@ -257,6 +271,16 @@ class AsyncClient:
 
     async def get_sweep(self, sweep_id: str) -> Sweep:
         return await self._run(core.get_sweep(sweep_id))
+
+    async def live_sweep(
+        self, name: str | None = None, *, control: str = "mu", unit: str | None = None,
+        sweep_id: str | None = None, **options: Any,
+    ) -> AsyncLiveSweep:  # fmt: skip
+        """See :meth:`Client.live_sweep`."""
+        if sweep_id is not None:
+            return AsyncLiveSweep(self, await self.get_sweep(sweep_id))
+        call = live.create_live_sweep(name, control=control, unit=unit, **options)
+        return AsyncLiveSweep(self, await self._run(call))
 
     async def sweep_plot(self, sweep_id: str, *, format: str = "png") -> bytes:
         return await self._run(core.sweep_plot(sweep_id, format=format))

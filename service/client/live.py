@@ -1,0 +1,288 @@
+"""Live sweeps in the SDK: add records one by one, read the warning, follow the event stream.
+
+>>> with Client("http://127.0.0.1:8000") as c:                       # doctest: +SKIP
+...     live = c.live_sweep("strip 7", control="angle", unit="deg", step=0.2)
+...     u = live.add(t=t, w=w, control=0.0)          # or live.add("run_000.csv", control=0.0)
+...     while not u.converged and u.next_control is not None:
+...         u = live.add(t=t, w=w, control=u.next_control)   # measure there next
+...     live.close()
+
+``events()`` iterates over the server-sent events of the sweep (``LiveEvent``: ``update`` with
+its :class:`~service.schemas.live.LiveUpdate`, then one ``closed``), resuming with
+``Last-Event-ID`` when the connection drops or the server ends a long stream. The same exists
+for :class:`~service.client.AsyncClient` (``AsyncLiveSweep``, ``async for ev in
+live.events()``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import AsyncIterator, Iterator
+from typing import Any
+
+from service.client import _core as core
+from service.schemas import Sweep
+from service.schemas.live import LiveEvent, LiveUpdate, LiveUpdatePage
+
+__all__ = ["AsyncLiveSweep", "LiveSweep", "SseParser"]
+
+
+# ---------------------------------------------------------------------------------- calls
+def create_live_sweep(
+    name: str | None,
+    *,
+    control: str = "mu",
+    unit: str | None = None,
+    margin: float | None = None,
+    step: float | None = None,
+    budget: int | None = None,
+    target_width: float | None = None,
+    method: str | None = None,
+) -> core.Call:
+    live = {k: v for k, v in (("margin", margin), ("step", step), ("budget", budget),
+            ("target_width", target_width), ("method", method)) if v is not None}  # fmt: skip
+    doc: dict[str, Any] = {"mode": "live", "control": {"name": control}, "live": live}
+    if unit is not None:
+        doc["control"]["unit"] = unit
+    if name is not None:
+        doc["name"] = name
+    return core.Call("POST", "/v1/sweeps", content=core.dumps(doc),
+                     headers=dict(core.JSON_HEADERS), parse=core._model(Sweep))  # fmt: skip
+
+
+def add_record(
+    sweep_id: str,
+    file: str | os.PathLike | bytes | None = None,
+    *,
+    control: float | None = None,
+    w: Any = None,
+    t: Any = None,
+    dt: float | None = None,
+    signal_id: str | None = None,
+    filename: str | None = None,
+    **fields: Any,
+) -> core.Call:
+    """``POST /v1/sweeps/{id}/records``: a file (path or bytes, multipart), inline samples or a
+    stored signal, with the control value."""
+    path = f"/v1/sweeps/{sweep_id}/records"
+    parse = core._model(LiveUpdate)
+    if file is not None:
+        if isinstance(file, (bytes, bytearray)):
+            data, fname = bytes(file), filename or "record.csv"
+        else:
+            with open(file, "rb") as fh:
+                data = fh.read()
+            fname = filename or os.path.basename(os.fspath(file))
+        form = {k: str(v) for k, v in {"control": control, "dt": dt, **fields}.items()
+                if v is not None}  # fmt: skip
+        return core.Call("POST", path, files={"file": (fname, data)}, data=form, parse=parse)
+    doc: dict[str, Any] = {}
+    for k, v in (("control", control), ("signal_id", signal_id), ("w", core.as_list(w, "w")),
+                 ("t", core.as_list(t, "t")), ("dt", dt), *fields.items()):  # fmt: skip
+        if v is not None:
+            doc[k] = v
+    return core.Call("POST", path, content=core.dumps(doc), headers=dict(core.JSON_HEADERS),
+                     parse=parse)  # fmt: skip
+
+
+def close(sweep_id: str) -> core.Call:
+    return core.Call("POST", f"/v1/sweeps/{sweep_id}/close", parse=core._model(Sweep))
+
+
+def records(sweep_id: str, *, after: int = 0) -> core.Call:
+    return core.Call("GET", f"/v1/sweeps/{sweep_id}/records", params={"after": after},
+                     parse=core._model(LiveUpdatePage))  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------- events
+class SseParser:
+    """Server-sent events from lines (sans I/O): ``feed(line)`` returns a :class:`LiveEvent`
+    when a blank line ends one; comments and ``retry:`` are skipped."""
+
+    def __init__(self) -> None:
+        self._id: str | None = None
+        self._event = "message"
+        self._data: list[str] = []
+        self.last_id: int | None = None
+
+    def feed(self, line: str) -> LiveEvent | None:
+        line = line.rstrip("\r\n")
+        if line == "":
+            return self._dispatch()
+        if line.startswith(":"):
+            return None
+        name, _, value = line.partition(":")
+        value = value[1:] if value.startswith(" ") else value
+        if name == "id":
+            self._id = value
+        elif name == "event":
+            self._event = value
+        elif name == "data":
+            self._data.append(value)
+        return None
+
+    def _dispatch(self) -> LiveEvent | None:
+        if not self._data:
+            self._event = "message"
+            return None
+        doc = json.loads("\n".join(self._data))
+        ident = int(self._id) if self._id is not None else (self.last_id or 0)
+        kind = self._event
+        self._id, self._event, self._data = None, "message", []
+        self.last_id = ident
+        if kind == "update":
+            return LiveEvent(id=ident, event="update", update=LiveUpdate.model_validate(doc))
+        if kind == "closed":
+            return LiveEvent(id=ident, event="closed", data=doc)
+        return None  # an event kind this SDK does not know
+
+
+def _stream_params(after: int | None, timeout: float) -> dict[str, Any]:
+    params: dict[str, Any] = {"timeout": timeout}
+    if after is not None:
+        params["after"] = after
+    return params
+
+
+class LiveSweep:
+    """An open live sweep of a blocking :class:`~service.client.Client`.
+
+    Attributes
+    ----------
+    id : str
+        The sweep's id (``/v1/sweeps/{id}``).
+    sweep : Sweep
+        The sweep as created (or as closed, after :meth:`close`).
+    """
+
+    def __init__(self, client: Any, sweep: Sweep) -> None:
+        self._client = client
+        self.sweep = sweep
+        self.id = sweep.id
+
+    def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> LiveUpdate:
+        """Add one record: a file (path or bytes), ``w=`` with ``t=``/``dt=``, or
+        ``signal_id=``; always ``control=`` (its control value). Returns the updated warning."""
+        return self._client._run(add_record(self.id, file, **kw))
+
+    def records(self, *, after: int = 0) -> LiveUpdatePage:
+        """Every update so far (arrival order)."""
+        return self._client._run(records(self.id, after=after))
+
+    def close(self) -> Sweep:
+        """Close the sweep (idempotent): it becomes a finished sweep."""
+        self.sweep = self._client._run(close(self.id))
+        return self.sweep
+
+    def get(self) -> Sweep:
+        """``GET /v1/sweeps/{id}``."""
+        self.sweep = self._client.get_sweep(self.id)
+        return self.sweep
+
+    def events(
+        self, *, after: int | None = None, timeout: float = 300.0, reconnect: bool = True
+    ) -> Iterator[LiveEvent]:
+        """The sweep's events in order from ``after`` (default: the first), until ``closed``.
+
+        A stream the server ends (its ``timeout``) or a dropped connection is resumed with
+        ``Last-Event-ID`` when ``reconnect`` is true; nothing is lost or repeated.
+        """
+        import httpx2
+
+        last = after
+        while True:
+            parser = SseParser()
+            headers = {"accept": "text/event-stream"}
+            if last is not None:
+                headers["last-event-id"] = str(last)
+            try:
+                with self._client._http.stream(
+                    "GET", f"/v1/sweeps/{self.id}/events", params=_stream_params(last, timeout),
+                    headers=headers, timeout=httpx2.Timeout(30.0, read=60.0),
+                ) as r:  # fmt: skip
+                    if r.status_code >= 400:
+                        r.read()
+                        core.raise_for_problem(r)
+                    for line in r.iter_lines():
+                        ev = parser.feed(line)
+                        if ev is None:
+                            continue
+                        last = ev.id
+                        yield ev
+                        if ev.event == "closed":
+                            return
+            except (httpx2.ReadTimeout, httpx2.RemoteProtocolError, httpx2.ReadError):
+                if not reconnect:
+                    raise
+            if not reconnect:
+                return
+
+    def __enter__(self) -> LiveSweep:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class AsyncLiveSweep:
+    """An open live sweep of an :class:`~service.client.AsyncClient` (see :class:`LiveSweep`)."""
+
+    def __init__(self, client: Any, sweep: Sweep) -> None:
+        self._client = client
+        self.sweep = sweep
+        self.id = sweep.id
+
+    async def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> LiveUpdate:
+        return await self._client._run(add_record(self.id, file, **kw))
+
+    async def records(self, *, after: int = 0) -> LiveUpdatePage:
+        return await self._client._run(records(self.id, after=after))
+
+    async def close(self) -> Sweep:
+        self.sweep = await self._client._run(close(self.id))
+        return self.sweep
+
+    async def get(self) -> Sweep:
+        self.sweep = await self._client.get_sweep(self.id)
+        return self.sweep
+
+    async def events(
+        self, *, after: int | None = None, timeout: float = 300.0, reconnect: bool = True
+    ) -> AsyncIterator[LiveEvent]:
+        """See :meth:`LiveSweep.events`."""
+        import httpx2
+
+        last = after
+        while True:
+            parser = SseParser()
+            headers = {"accept": "text/event-stream"}
+            if last is not None:
+                headers["last-event-id"] = str(last)
+            try:
+                async with self._client._http.stream(
+                    "GET", f"/v1/sweeps/{self.id}/events", params=_stream_params(last, timeout),
+                    headers=headers, timeout=httpx2.Timeout(30.0, read=60.0),
+                ) as r:  # fmt: skip
+                    if r.status_code >= 400:
+                        await r.aread()
+                        core.raise_for_problem(r)
+                    async for line in r.aiter_lines():
+                        ev = parser.feed(line)
+                        if ev is None:
+                            continue
+                        last = ev.id
+                        yield ev
+                        if ev.event == "closed":
+                            return
+            except (httpx2.ReadTimeout, httpx2.RemoteProtocolError, httpx2.ReadError):
+                if not reconnect:
+                    raise
+            if not reconnect:
+                return
+
+    async def __aenter__(self) -> AsyncLiveSweep:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()

@@ -1,0 +1,233 @@
+"""Live sweeps over HTTP against a real uvicorn: records, flags, concurrency, events, close.
+
+The records are closed-form damped oscillations ``w = c + A exp(-g t) sin(W t)``, whose
+undamped eigenvalue is ``sigma^2 = -(W^2 + g^2)``; along the sweep ``|sigma^2| = k (mu* -
+mu)^(2a)`` with the saddle-node's ``a = 1/4`` and ``mu* = 1.8``, so the detections and the
+prediction have exact references.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import anyio
+import httpx2
+import numpy as np
+import pytest
+
+from service.client import AsyncClient, Client, InvalidInput
+from service.client.errors import ApiError
+
+MU_STAR = 1.8
+K = 400.0
+GAMMA = 0.02
+DT = 2e-3
+N = 4000
+
+
+def sigma2_of(mu: float) -> float:
+    return -K * (MU_STAR - mu) ** 0.5
+
+
+def record(mu: float, *, n: int = N, dt: float = DT) -> tuple[np.ndarray, np.ndarray]:
+    """(t, w) of a noise-free impulse response at ``mu`` (closed form)."""
+    t = np.arange(n) * dt
+    omega = np.sqrt(-sigma2_of(mu) - GAMMA**2)
+    w = 0.05 * (MU_STAR - mu) ** 0.5 + 1e-2 * np.exp(-GAMMA * t) * np.sin(omega * t)
+    return t, w
+
+
+@pytest.fixture(scope="module")
+def client(server) -> Client:  # noqa: ANN001
+    with Client(server.url, timeout=120.0) as c:
+        yield c
+
+
+def test_create_add_and_close_is_an_ordinary_sweep(client: Client) -> None:
+    live = client.live_sweep("bench strip", control="angle", unit="deg", step=0.3)
+    assert live.sweep.status == "open"
+    assert live.sweep.request["control"] == {"name": "angle", "unit": "deg"}
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2]
+    updates = []
+    for mu in controls:
+        t, w = record(mu)
+        u = live.add(t=t, w=w, control=mu)
+        updates.append(u)
+        # the record's detection against the closed form
+        s2 = u.detection.fundamental.sigma2
+        assert s2 == pytest.approx(sigma2_of(mu), rel=1e-6)
+        assert u.measurement.mu == mu
+        assert not u.record_flags
+    assert [u.seq for u in updates] == [1, 2, 3, 4, 5]
+    assert updates[0].next_control == pytest.approx(0.3)  # the step, before any bound
+    assert updates[2].prediction is None  # fewer than four records
+    last = updates[-1]
+    assert last.transition == "saddle-node"
+    lo, hi = last.mu_star_interval
+    assert lo <= MU_STAR <= hi
+    assert abs(last.mu_star - MU_STAR) < 1e-4
+    # the next control value stays below the safe bound, and below mu*
+    assert 1.2 < last.next_control < MU_STAR
+    assert last.next_bound is None or last.next_control < last.next_bound
+    assert last.alarm.level in ("none", "watch", "warning", "critical")
+    # the open sweep is a sweep
+    got = client.get_sweep(live.id)
+    assert got.status == "open"
+    closed = live.close()
+    assert closed.status == "succeeded"
+    assert closed.result is not None
+    assert len(closed.result.measurements) == 5
+    assert closed.result.prediction.mu_star == pytest.approx(last.mu_star, abs=1e-12)
+    assert closed.result.stopped == "closed"
+    # closing again answers the same sweep; adding is refused
+    assert live.close().status == "succeeded"
+    t, w = record(1.4)
+    with pytest.raises(ApiError) as err:
+        live.add(t=t, w=w, control=1.4)
+    assert err.value.status == 409
+    page = live.records()
+    assert page.total == 5 and page.status == "closed"
+    assert [u.seq for u in page.items] == [1, 2, 3, 4, 5]
+
+
+def test_flags_out_of_order_repeated_and_past_the_safe_value(client: Client) -> None:
+    live = client.live_sweep("flags", step=0.2)
+    t, w = record(0.0)
+    live.add(t=t, w=w, control=0.0)
+    t, w = record(0.5)
+    u = live.add(t=t, w=w, control=0.5)  # advised 0.2
+    assert [f.code for f in u.record_flags] == ["past_safe_value"]
+    t, w = record(0.25)
+    u = live.add(t=t, w=w, control=0.25)
+    assert "out_of_order" in [f.code for f in u.record_flags]
+    assert u.used_in_fit and u.n_used == 3
+    t, w = record(0.5)
+    u = live.add(t=t, w=w, control=0.5)
+    assert "repeated_control" in [f.code for f in u.record_flags]
+    assert not u.used_in_fit and u.n_used == 3
+    # the record list keeps the arrival order
+    assert [x.control for x in live.records().items] == [0.0, 0.5, 0.25, 0.5]
+    live.close()
+
+
+def test_stored_signal_and_multipart_file(client: Client, tmp_path) -> None:  # noqa: ANN001
+    live = client.live_sweep("doors", control="load", unit="N", step=0.3)
+    t, w = record(0.0)
+    sig = client.upload_signal(w, dt=DT, control={"name": "load", "value": 0.0, "unit": "N"})
+    u1 = live.add(signal_id=sig.id, control=None)
+    assert u1.control == 0.0 and u1.signal_id == sig.id
+    # a lab file: CSV with a header and rounded timestamps, time in milliseconds
+    t, w = record(0.3)
+    path = tmp_path / "run_0.3.csv"
+    lines = ["time [ms],w"] + [f"{1e3 * a:.6g},{b:.9g}" for a, b in zip(t, w)]
+    path.write_text("\n".join(lines) + "\n")
+    u2 = live.add(path, control=0.3)
+    assert u2.seq == 2
+    # the same eigenvalue in 1/ms^2
+    assert u2.detection.fundamental.sigma2 == pytest.approx(sigma2_of(0.3) * 1e-6, rel=1e-4)
+    stored = client.get_signal(u2.signal_id)
+    assert stored.control.value == 0.3 and stored.control.unit == "N"
+    live.close()
+
+
+def test_bad_input_names_the_field(client: Client, server) -> None:  # noqa: ANN001
+    live = client.live_sweep("bad", step=0.1)
+    t, w = record(0.0)
+    with pytest.raises(InvalidInput) as err:
+        live.add(t=t, w=w)
+    assert err.value.problem.errors[0].field == "control"
+    with pytest.raises(InvalidInput) as err:
+        live.add(t=t, w=w, control=float("nan"))
+    assert err.value.problem.errors[0].field == "control"
+    r = httpx2.post(f"{server.url}/v1/sweeps/{live.id}/records", content=b"x",
+                    headers={"content-type": "text/plain"})  # fmt: skip
+    assert r.status_code == 415
+    r = httpx2.post(f"{server.url}/v1/sweeps/nope/records", json={"control": 0, "w": [0, 1]})
+    assert r.status_code == 404
+    r = httpx2.post(f"{server.url}/v1/sweeps",
+                    json={"mode": "live", "live": {"margin": -1}})  # fmt: skip
+    assert r.status_code == 422
+    r = httpx2.post(f"{server.url}/v1/sweeps", json={"mode": "live", "simulate": {}})
+    assert r.status_code == 422
+    live.close()
+
+
+def test_two_clients_at_once_lose_nothing(server) -> None:  # noqa: ANN001
+    """Two clients add four records each to one sweep at the same time: eight records, seq
+    1..8, each answer computed on exactly the records before it, each client's order kept."""
+    with Client(server.url, timeout=120.0) as c:
+        live = c.live_sweep("race", step=0.1)
+    answers: dict[str, list] = {"a": [], "b": []}
+    plan = {"a": [0.0, 0.2, 0.4, 0.6], "b": [0.1, 0.3, 0.5, 0.7]}
+    barrier = threading.Barrier(2)
+
+    def lab(name: str) -> None:
+        with Client(server.url, timeout=120.0) as c:
+            mine = c.live_sweep(sweep_id=live.id)
+            barrier.wait()
+            for mu in plan[name]:
+                t, w = record(mu, n=2000)
+                answers[name].append(mine.add(t=t, w=w, control=mu))
+
+    threads = [threading.Thread(target=lab, args=(k,)) for k in plan]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(300)
+    assert all(len(v) == 4 for v in answers.values())
+    with Client(server.url, timeout=120.0) as c:
+        page = c.live_sweep(sweep_id=live.id).records()
+    assert [u.seq for u in page.items] == list(range(1, 9))
+    assert sorted(u.control for u in page.items) == sorted(plan["a"] + plan["b"])
+    for name, ups in answers.items():
+        seqs = [u.seq for u in ups]
+        assert seqs == sorted(seqs)  # a client's records keep its order
+        assert [u.control for u in ups] == plan[name]
+    for u in page.items:
+        assert u.n_records == u.seq  # computed on exactly the records before it
+    with Client(server.url, timeout=120.0) as c:
+        c.live_sweep(sweep_id=live.id).close()
+
+
+def test_events_in_order_across_processes_and_resume(server, server_factory, live_db) -> None:  # noqa: ANN001
+    """Records go to one uvicorn, the stream is read from another on the same database."""
+    other = server_factory(live_db, workers=1)
+    with Client(server.url, timeout=120.0) as writer, Client(other.url, timeout=120.0) as reader:
+        live = writer.live_sweep("stream", step=0.3)
+        follow = reader.live_sweep(sweep_id=live.id)
+        got: list = []
+
+        def listen() -> None:
+            for ev in follow.events():
+                got.append(ev)
+
+        th = threading.Thread(target=listen)
+        th.start()
+        controls = [0.0, 0.3, 0.6]
+        for mu in controls:
+            t, w = record(mu, n=2000)
+            live.add(t=t, w=w, control=mu)
+        live.close()
+        th.join(60)
+        assert not th.is_alive()
+        assert [e.event for e in got] == ["update", "update", "update", "closed"]
+        assert [e.id for e in got] == [1, 2, 3, 4]
+        assert [e.update.control for e in got[:3]] == controls
+        assert got[-1].data["status"] == "closed"
+        # resume after the second event: the rest, nothing repeated
+        rest = list(follow.events(after=2))
+        assert [e.id for e in rest] == [3, 4]
+        # the raw stream: media type and event ids
+        with httpx2.stream("GET", f"{other.url}/v1/sweeps/{live.id}/events",
+                           headers={"Last-Event-ID": "1"}) as r:  # fmt: skip
+            assert r.headers["content-type"].startswith("text/event-stream")
+            ids = [ln for ln in r.iter_lines() if ln.startswith("id:")]
+        assert ids == ["id: 2", "id: 3", "id: 4"]
+
+    async def follow_async() -> list:
+        async with AsyncClient(other.url, timeout=120.0) as ac:
+            s = await ac.live_sweep(sweep_id=live.id)
+            return [ev async for ev in s.events()]
+
+    evs = anyio.run(follow_async)
+    assert [e.id for e in evs] == [1, 2, 3, 4]
