@@ -1,4 +1,5 @@
-"""Charts of stored numbers (matplotlib, Agg). No physics: only what the documents hold."""
+"""Charts of the API's routes (matplotlib, Agg), drawn by ``service.charts``: no physics, only
+what the documents hold."""
 
 from __future__ import annotations
 
@@ -58,115 +59,25 @@ def signal_plot(
     return _save(fig, fmt)
 
 
-def _num(x: Any) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
+def sweep_plot(
+    doc: dict[str, Any],
+    *,
+    title: str,
+    fmt: str = "png",
+    control_name: str = "mu",
+    control_unit: str | None = None,
+    time_unit: str | None = None,
+) -> bytes:
+    """The sweep chart of a stored sweep document (``service.charts``): the period T(mu), the
+    T^(-1/a) collapse with the extrapolation, the 95 % interval, the paper's rule and a zoom
+    near mu*, labelled with the user's control name and units and the records' time unit."""
+    from service.charts import SweepSeries, sweep_chart
+    from service.convert import sweep_document
 
-
-def _first(d: dict[str, Any], keys: tuple[str, ...]) -> Any:
-    for k in keys:
-        if k in d and d[k] is not None:
-            return d[k]
-    return None
-
-
-def sweep_series(doc: dict[str, Any]) -> dict[str, Any]:
-    """Pick the plotted numbers out of a sweep document.
-
-    Measurements give the control value (``mu``) and the time scale ``T`` (or ``omega`` =
-    1/T, as the warn document holds it); the prediction gives mu*, its interval and the
-    exponent ``a`` of the law T^(-1/a) ~ (mu* - mu) that the predictor extrapolated.
-    """
-    meas = doc.get("measurements") or []
-    xs, ys = [], []
-    for m in meas:
-        if not isinstance(m, dict):
-            continue
-        x = _num(_first(m, ("mu", "control", "control_value", "x")))
-        y = _num(_first(m, ("T", "time_scale", "timescale", "period")))
-        if y is None:
-            om = _num(m.get("omega"))
-            y = 1.0 / om if om else None
-        if x is not None and y is not None:
-            xs.append(x)
-            ys.append(y)
-    pred = doc.get("prediction") or doc
-    mu_star = _num(_first(pred, ("mu_star", "mu_c", "critical")))
-    interval = _first(pred, ("mu_star_interval", "interval", "ci"))
-    lo = hi = None
-    if isinstance(interval, (list, tuple)) and len(interval) == 2:
-        lo, hi = _num(interval[0]), _num(interval[1])
-    elif isinstance(interval, dict):
-        lo, hi = (
-            _num(_first(interval, ("low", "lo", "lower"))),
-            _num(_first(interval, ("high", "hi", "upper"))),
-        )
-    return {
-        "x": xs,
-        "y": ys,
-        "mu_star": mu_star,
-        "lo": lo,
-        "hi": hi,
-        "a": _num(pred.get("a")),
-        "transition": pred.get("transition"),
-        "control_name": doc.get("control_name") or "mu",
-    }
-
-
-def sweep_plot(doc: dict[str, Any], *, title: str, fmt: str = "png") -> bytes:
-    """Left: T versus the control, mu* and its interval. Right: T^(-1/a) versus the control,
-    where the predictor's law is a straight line to zero at mu*: the extrapolation is drawn
-    from the last measurement to mu* (and to the interval's ends)."""
-    s = sweep_series(doc)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(10.0, 4.2), dpi=110, layout="constrained")
-    ax, bx = fig.subplots(1, 2)
-    x = np.asarray(s["x"], dtype=float)
-    y = np.asarray(s["y"], dtype=float)
-    if x.size:
-        ax.plot(x, y, "o", ms=4, label="measured T")
-    for a_ in (ax, bx):
-        if s["lo"] is not None and s["hi"] is not None:
-            a_.axvspan(s["lo"], s["hi"], color="tab:red", alpha=0.15, label="95% interval")
-        if s["mu_star"] is not None:
-            a_.axvline(s["mu_star"], color="tab:red", lw=1.0, label=f"mu* = {s['mu_star']:.8g}")
-        a_.set_xlabel(s["control_name"])
-        a_.grid(alpha=0.3)
-    ax.set_ylabel("T")
-    if y.size and (y > 0).all():
-        ax.set_yscale("log")
-    a = s["a"]
-    if a and x.size and (y > 0).all():
-        z = y ** (-1.0 / a)
-        bx.plot(x, z, "o", ms=4, label=f"T^(-1/a), a = {a:.3g}")
-        if s["mu_star"] is not None:
-            for end, style in ((s["mu_star"], "-"), (s["lo"], ":"), (s["hi"], ":")):
-                if end is not None:
-                    bx.plot([x[-1], end], [z[-1], 0.0], style, color="tab:blue", lw=1.0)
-        bx.set_ylabel("T^(-1/a)")
-        bx.set_ylim(bottom=0.0)
-    else:
-        bx.text(0.5, 0.5, "no exponent in the result", ha="center", transform=bx.transAxes)
-    if s["mu_star"] is not None and s["lo"] is not None and s["hi"] is not None:
-        bx.text(
-            0.02,
-            0.02,
-            f"mu* = {s['mu_star']:.10g}\n95%: [{s['lo']:.10g}, {s['hi']:.10g}]",
-            transform=bx.transAxes,
-            fontsize=8,
-            va="bottom",
-            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
-        )
-    ax.set_title(title)
-    bx.set_title(f"extrapolation ({s['transition'] or 'undetermined'})")
-    for a_ in (ax, bx):
-        if a_.get_legend_handles_labels()[0]:
-            a_.legend(loc="upper right" if a_ is bx else "upper left", fontsize=8)
-    return _save(fig, fmt)
+    s = SweepSeries.from_result(
+        sweep_document(doc),
+        control_name=control_name,
+        control_unit=control_unit,
+        time_unit=time_unit,
+    )
+    return sweep_chart(s, fmt, title=title)

@@ -279,9 +279,10 @@ async def signal_page(request: Request, signal_id: str) -> Response:
 
 
 # ------------------------------------------------------------------------------ sweeps
-async def _sweep_units(state: AppState, caller: Caller, sweep: Any) -> dict[str, Any]:
-    """The user's control name and unit and the records' time unit (from the stored signals);
-    the simulator's non-dimensional scales for a simulated sweep."""
+async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[str, Any]:
+    """The user's control name and unit and the records' time unit (from the stored signals of
+    ``sweep``, read with ``scope``); the simulator's non-dimensional scales for a simulated
+    sweep. ``mixed`` names what the records disagree on (then a neutral name is used)."""
     req = sweep.request or {}
     if req.get("simulate") is not None or not req.get("measurements"):
         return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
@@ -289,7 +290,7 @@ async def _sweep_units(state: AppState, caller: Caller, sweep: Any) -> dict[str,
     names, cunits, tunits = set(), set(), set()
     for m in req["measurements"]:
         row = await to_thread.run_sync(
-            lambda sid=m["signal_id"]: state.store.get_signal_meta(sid, scope=caller.scope)
+            lambda sid=m["signal_id"]: state.store.get_signal_meta(sid, scope=scope)
         )
         if row is None:
             continue
@@ -360,7 +361,7 @@ async def sweep_page(request: Request, sweep_id: str) -> Response:
     async def handler(caller: Caller, state: AppState) -> Response:
         sweep, job = await _get_sweep(state, caller, sweep_id)
         doc = Sweep.model_validate(sweep_doc(sweep, job))
-        units = await _sweep_units(state, caller, sweep)
+        units = await sweep_units(state, caller.scope, sweep)
         chart = None
         if doc.result is not None and doc.result.measurements:
             chart = await state.run(
