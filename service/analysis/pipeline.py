@@ -26,6 +26,7 @@ import numpy as np
 
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
+from service.analysis.errors import ParameterError
 from service.analysis.predict import Prediction, paper_rule, predict
 
 Progress = Callable[[float, str], None]
@@ -87,7 +88,9 @@ def measurement_from_detection(
     """Reduce a detection to the sweep's measurement (fundamental, static level, flags)."""
     f = det.fundamental
     if f is None or not math.isfinite(f.sigma2):
-        raise ValueError(f"no fundamental mode found in the record at mu={mu!r}")
+        raise ParameterError(
+            "record", float(mu), f"record at mu={mu!r}: no fundamental mode found in it"
+        )
     return Measurement(
         mu=float(mu),
         omega=math.sqrt(abs(f.sigma2)),
@@ -301,11 +304,15 @@ def warn(
     from sim.scene import Scene
 
     if max_measurements < 5:
-        raise ValueError(
-            f"max_measurements must be >= 5, got max_measurements={max_measurements!r}"
+        raise ParameterError(
+            "max_measurements",
+            max_measurements,
+            f"max_measurements must be >= 5, got max_measurements={max_measurements!r}",
         )
     if not (math.isfinite(first_step) and first_step > 0):
-        raise ValueError(f"first_step must be > 0, got first_step={first_step!r}")
+        raise ParameterError(
+            "first_step", first_step, f"first_step must be > 0, got first_step={first_step!r}"
+        )
     base = Scene(actuation=actuation, mu=0.0, damping=damping, kick=kick, snr_db=snr_db,
                  **(scene_options or {}))  # fmt: skip
     ms: list[Measurement] = []
@@ -406,7 +413,9 @@ def sweep_from_signals(
         Detector method.
     """
     if len(records) < 3:
-        raise ValueError(f"records must hold at least 3 signals, got {len(records)}")
+        raise ParameterError(
+            "records", len(records), f"records must hold at least 3 signals, got {len(records)}"
+        )
     order = np.argsort([float(r[2]) for r in records], kind="stable")
     ms: list[Measurement] = []
     dets: list[dict] = []
@@ -428,7 +437,7 @@ def sweep_from_signals(
             progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
     mus = [m.mu for m in ms]
     if len(set(mus)) != len(mus):
-        raise ValueError("control values must be distinct, got duplicates")
+        raise ParameterError("control", mus, "control values must be distinct, got duplicates")
     pred = _predict(ms, None) if len(ms) >= 4 else None
     if pred is None and len(ms) >= 3:
         arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
