@@ -430,7 +430,10 @@ def _validate(
     t_name: str = "t",
     dt_conflict: bool = True,
 ) -> Recording:
-    n_hint = len(raw.w) if hasattr(raw.w, "__len__") else None
+    try:
+        n_hint: int | None = len(raw.w)
+    except TypeError:  # a scalar or an unsized object: to_f64 names it
+        n_hint = None
     if max_samples is not None and n_hint is not None and n_hint > max_samples:
         raise RecordingTooLarge(
             w_name,
