@@ -95,11 +95,12 @@ def fit_figure(
     if small:
         fig = figure(3.2, 1.5, dpi=80)
         ax = fig.add_subplot()
-        td, wd = _decimate(t, w, points=600)
-        ax.plot(td, wd, lw=0.5, color="0.45")
+        keep = _first_periods(t, detection, 6)
+        td, wd = _decimate(t[keep], w[keep], points=600)
+        ax.plot(td, wd, ".", ms=1.5, color="0.35")
         if fit is not None:
-            td, fd = _decimate(t, fit, points=600)
-            ax.plot(td, fd, lw=0.7, color="tab:red")
+            td, fd = _decimate(t[keep], fit[keep], points=600)
+            ax.plot(td, fd, lw=0.8, color="tab:red")
         ax.tick_params(labelsize=6)
         ax.set_xlabel(tlabel, fontsize=6, labelpad=1)
         ax.set_ylabel(wlabel, fontsize=6, labelpad=1)
@@ -146,6 +147,17 @@ def fit_figure(
     for a_ in (ax, rx):
         a_.grid(alpha=0.3)
     return fig
+
+
+def _first_periods(t: np.ndarray, detection: Any, periods: float) -> slice:
+    """The samples of the first ``periods`` periods of the fundamental (all without one)."""
+    f = _get(detection, "fundamental") if _has(detection, "fundamental") else None
+    s2 = _get(f, "sigma2") if f is not None else None
+    if s2 is None or not math.isfinite(s2) or s2 >= 0:
+        return slice(None)
+    span = periods * 2 * math.pi / math.sqrt(-s2)
+    n = int(np.searchsorted(t, t[0] + span)) + 1
+    return slice(0, max(n, 20))
 
 
 def _has(obj: Any, name: str) -> bool:

@@ -168,11 +168,12 @@ def _band(ax: Any, s: SweepSeries) -> None:
     if s.has_interval:
         lo, hi = s.interval
         ax.axvspan(lo, hi, facecolor="tab:red", alpha=0.25, hatch="///", edgecolor="tab:red",
-                   lw=0.0, label="95 % interval of mu*")  # fmt: skip
+                   lw=0.0, label=f"95 % interval of {s.control_name}*")  # fmt: skip
         for v in (lo, hi):
             ax.axvline(v, color="tab:red", lw=0.6, ls=":")
     if s.has_prediction:
-        ax.axvline(s.mu_star, color="tab:red", lw=1.2, label=f"mu* = {fmt_num(s.mu_star, 9)}")
+        name = f"{s.control_name}* = {fmt_num(s.mu_star, 9)}"
+        ax.axvline(s.mu_star, color="tab:red", lw=1.2, label=name)
     if math.isfinite(s.baseline_mu_star):
         ax.axvline(s.baseline_mu_star, color="0.35", lw=1.0, ls="--",
                    label=f"paper's rule: {fmt_num(s.baseline_mu_star, 9)}")  # fmt: skip
@@ -209,7 +210,7 @@ def draw_collapse(ax: Any, s: SweepSeries) -> None:
         return
     ax.plot(mu, z, "o", ms=4, color="tab:blue", label=f"(T/T0)^(-1/a), a = {fmt_num(s.a, 3)}")
     if s.has_prediction:
-        ends = [(s.mu_star, "-", "extrapolation to mu*")]
+        ends = [(s.mu_star, "-", f"extrapolation to {s.control_name}*")]
         if s.has_interval:
             ends += [(s.interval[0], ":", None), (s.interval[1], ":", None)]
         for end, style, name in ends:
@@ -221,9 +222,37 @@ def draw_collapse(ax: Any, s: SweepSeries) -> None:
     _band(ax, s)
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_ylim(bottom=min(0.0, float(np.nanmin(z))) - 0.03, top=max(1.05, float(np.nanmax(z))))
+    if s.has_prediction and s.has_interval and s.mu_star > mu[-1]:
+        _collapse_inset(ax, s, float(mu[-1]), float(z[-1]))
     ax.set_xlabel(_xlabel(s))
     ax.set_ylabel("(T / T0)^(-1/a)")
     ax.grid(alpha=0.3)
+
+
+def _collapse_inset(ax: Any, s: SweepSeries, mu_last: float, z_last: float) -> None:
+    """An inset around mu* (a few interval widths) where the 95 % band is visible whatever
+    its width: the extrapolated line crosses zero inside it. Its abscissa is mu - mu*."""
+    lo, hi = s.interval
+    c = s.mu_star
+    half = max(4.0 * (hi - lo), 1e-12 * max(1.0, abs(c)))
+    xs = np.array([-half, half])
+    slope = z_last / (c - mu_last)
+    top = max(slope * half, 1e-300)
+    ins = ax.inset_axes((0.5, 0.5, 0.47, 0.38))
+    ins.axvspan(lo - c, hi - c, facecolor="tab:red", alpha=0.25, hatch="///", edgecolor="tab:red",
+                lw=0)  # fmt: skip
+    for end, style in ((c, "-"), (lo, ":"), (hi, ":")):
+        ins.plot(xs, z_last * (end - c - xs) / (end - mu_last), style, color="tab:red", lw=1.0)
+    if math.isfinite(s.baseline_mu_star) and abs(s.baseline_mu_star - c) <= half:
+        ins.axvline(s.baseline_mu_star - c, color="0.35", lw=1.0, ls="--")
+    ins.axhline(0.0, color="k", lw=0.6)
+    ins.set_xlim(-half, half)
+    ins.set_ylim(-0.6 * top, top)
+    ins.tick_params(labelsize=6)
+    ins.set_xlabel(label(f"{s.control_name} - {s.control_name}*", s.control_unit), fontsize=6,
+                   labelpad=1)  # fmt: skip
+    ins.set_title("zoom: the 95 % interval", fontsize=7)
+    ins.grid(alpha=0.3)
 
 
 def draw_zoom(ax: Any, s: SweepSeries) -> None:
@@ -231,7 +260,7 @@ def draw_zoom(ax: Any, s: SweepSeries) -> None:
     mu = np.asarray(s.mu)
     T = s.period
     if not s.has_prediction:
-        ax.text(0.5, 0.5, "no mu* in the result", ha="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, "no prediction in the result", ha="center", transform=ax.transAxes)
         return
     d = s.mu_star - mu
     ok = d > 0
@@ -253,7 +282,7 @@ def draw_zoom(ax: Any, s: SweepSeries) -> None:
                 label=f"slope -a = -{fmt_num(s.a, 3)}")  # fmt: skip
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel(label(f"distance to mu*: mu* - {s.control_name}", s.control_unit))
+    ax.set_xlabel(label(f"distance {s.control_name}* - {s.control_name}", s.control_unit))
     ax.set_ylabel(label("period T", s.time_unit))
     ax.grid(alpha=0.3, which="both")
 
@@ -267,10 +296,10 @@ def sweep_figure(s: SweepSeries, *, title: str | None = None) -> Any:
     draw_zoom(cx, s)
     ax.set_title(title or "critical slowing down")
     bx.set_title(f"extrapolation ({s.transition})")
-    cx.set_title("near mu* (log of the distance)")
-    for a_ in (ax, bx, cx):
+    cx.set_title(f"near {s.control_name}* (log of the distance)")
+    for a_, where in ((ax, "upper left"), (bx, "lower left"), (cx, "upper right")):
         if a_.get_legend_handles_labels()[0]:
-            a_.legend(fontsize=7, loc="best")
+            a_.legend(fontsize=7, loc=where)
     if s.time_unit == NONDIM:
         fig.suptitle("simulated: time and control in the paper's non-dimensional scales",
                      fontsize=8)  # fmt: skip

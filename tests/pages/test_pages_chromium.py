@@ -105,7 +105,8 @@ def test_sweep_page_shows_the_apis_warning(browser: Browser, site: Site, shots) 
     assert n_img == len(dets)
     svg_text = tab.evaluate("document.querySelector('#sweep-chart svg').textContent")
     for label in ("theta [deg]", "period T = 2 pi / omega [ms]", "(T / T0)^(-1/a)",
-                  "95 % interval of mu*", "paper's rule", "mu* - theta [deg]"):  # fmt: skip
+                  "95 % interval of theta*", "paper's rule", "distance theta* - theta [deg]",
+                  "theta - theta* [deg]"):  # fmt: skip
         assert label in svg_text, label
     tab.close()
 
