@@ -100,6 +100,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
         app.include_router(r, dependencies=guarded)
     app.include_router(live.router, dependencies=guarded)
+    from service.api.routers import atlases
+
+    app.include_router(atlases.router, dependencies=guarded)
     pages.install(app)
     app.openapi = partial(_openapi, app)  # type: ignore[method-assign]
     return app

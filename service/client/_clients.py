@@ -10,6 +10,7 @@ import httpx2
 
 from service.client import _core as core
 from service.client import live
+from service.client.atlases import AsyncAtlasMethods, AtlasMethods
 from service.client.errors import JobFailed, WaitTimeout
 from service.client.live import AsyncLiveSweep, LiveSweep
 from service.schemas import (
@@ -32,7 +33,7 @@ def _headers(api_key: str | None, extra: dict[str, str] | None) -> dict[str, str
     return h
 
 
-class Client:
+class Client(AtlasMethods):
     """Blocking SDK client.
 
     >>> with Client("http://127.0.0.1:8000") as c:       # doctest: +SKIP
@@ -189,7 +190,7 @@ class Client:
         return self.get_sweep(job.id) if isinstance(job, Sweep) else j
 
 
-class AsyncClient:
+class AsyncClient(AsyncAtlasMethods):
     """asyncio SDK client; the same methods as :class:`Client`, awaitable."""
 
     def __init__(
