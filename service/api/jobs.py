@@ -13,20 +13,21 @@ A job that succeeded is never touched again: nothing completed is lost.
 from __future__ import annotations
 
 import logging
+import multiprocessing as mp
 import os
 import threading
 import time
-import traceback
+import uuid
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from service.api.problems import ApiProblem
 from service.api.settings import Settings
-from service.api.storage import Store, runner_identity
+from service.api.storage import DEFAULT_OWNER, Store, runner_identity
+from service.api.storage.jobs import time_limit_error
 
 log = logging.getLogger("snapwarn.jobs")
 
@@ -40,16 +41,34 @@ def _store_for(db_url: str) -> Store:
     return st
 
 
-def _problem_dict(exc: BaseException) -> dict[str, Any]:
+def _problem_dict(exc: BaseException, job_id: str | None = None) -> dict[str, Any]:
+    """The error stored on a failed job: the reason, never a traceback or a server path.
+
+    Problems and parameter errors (``ParameterError``: ``parameter``, ``value``) are shown as
+    they are; anything else is logged here with its traceback under a correlation id, and the
+    client sees only the exception's class and that id.
+    """
     if isinstance(exc, ApiProblem):
-        return exc.to_dict()
+        return {**exc.to_dict(), "reason": "invalid-input" if exc.status < 500 else "error"}
+    if isinstance(exc, ValueError) and hasattr(exc, "parameter"):
+        field = str(exc.parameter)
+        p = ApiProblem(422, str(exc)[:2000], field=field, value=getattr(exc, "value", None))
+        return {**p.to_dict(), "reason": "invalid-input"}
+    cid = uuid.uuid4().hex[:12]
+    log.error("job %s failed [correlation id %s]", job_id, cid, exc_info=exc)
     return {
         "type": "urn:snapwarn:problem:internal-error",
         "title": "Internal error",
         "status": 500,
-        "detail": f"{type(exc).__name__}: {exc}",
-        "traceback": traceback.format_exception(exc)[-5:],
+        "detail": f"the job failed on an internal error ({type(exc).__name__}); the server "
+        f"log has the details under correlation id {cid}",
+        "reason": "internal-error",
+        "correlation_id": cid,
     }
+
+
+class _TimeLimit(Exception):  # noqa: N818
+    """The job passed its time limit (noticed at a progress report)."""
 
 
 class _Superseded(Exception):  # noqa: N818
@@ -80,6 +99,7 @@ class JobContext:
     params: dict[str, Any]
     store: Store
     progress: Callable[[float, str], None]
+    owner: str = DEFAULT_OWNER
 
 
 JobHandler = Callable[[JobContext], dict[str, Any]]
@@ -120,9 +140,13 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
     if job is None or job.attempts != attempt or job.status != "running":
         return "superseded"
     last = [0.0]
+    t_start = time.monotonic()
+    budget = None if job.time_limit_s is None else job.time_limit_s - float(job.run_s or 0.0)
 
     def progress(fraction: float, message: str = "") -> None:
         now = time.monotonic()
+        if budget is not None and now - t_start > budget:
+            raise _TimeLimit
         if now - last[0] >= 0.2 or fraction >= 1.0:
             last[0] = now
             if not store.job_progress(job_id, attempt, fraction, message):
@@ -133,13 +157,22 @@ def run_job(db_url: str, job_id: str, attempt: int) -> str:
         if handler is None:
             raise ApiProblem(422, f"unknown job kind {job.kind!r}", field="kind", value=job.kind)
         ctx = JobContext(
-            job_id=job_id, kind=job.kind, params=job.params, store=store, progress=progress
+            job_id=job_id,
+            kind=job.kind,
+            params=job.params,
+            store=store,
+            progress=progress,
+            owner=job.owner or DEFAULT_OWNER,
         )
         result = handler(ctx)
     except _Superseded:
         return "superseded"
+    except _TimeLimit:
+        elapsed = float(job.run_s or 0.0) + time.monotonic() - t_start
+        store.fail_job(job_id, attempt, time_limit_error(job, elapsed))
+        return "failed"
     except Exception as exc:  # noqa: BLE001 - every failure is recorded on the job
-        store.fail_job(job_id, attempt, _problem_dict(exc))
+        store.fail_job(job_id, attempt, _problem_dict(exc, job_id))
         return "failed"
     return "succeeded" if store.finish_job(job_id, attempt, result) else "superseded"
 
@@ -159,7 +192,9 @@ def _diagnostic_sleep(ctx: JobContext) -> dict[str, Any]:
     return {"slept": seconds, "pid": os.getpid(), "echo": params.get("echo")}
 
 
-def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, Any]) -> Any:
+def store_simulated_signal(
+    store: Store, sim: dict[str, Any], params: dict[str, Any], owner: str = DEFAULT_OWNER
+) -> Any:
     """Store a simulated signal with its scene (no physics: just the numbers)."""
     scene = params["scene"]
     t = sim["t"]
@@ -181,36 +216,106 @@ def store_simulated_signal(store: Store, sim: dict[str, Any], params: dict[str, 
             "w_static": sim["w_static"],
             "info": sim["info"],
         },
+        owner=owner,
     )
 
 
-def _terminate_workers(pool: Executor) -> None:
-    """End the worker processes of a process pool now (their jobs were handed back)."""
-    procs = getattr(pool, "_processes", None) or {}
-    for p in list(procs.values()):
-        try:
-            p.terminate()
-        except Exception:  # noqa: BLE001
-            pass
+def _job_process(db_url: str, job_id: str, attempt: int, parent: int) -> None:
+    """The body of a job's own process (forked from the preloaded fork server)."""
+    import signal
+
+    from service.api.executor import _ONE_THREAD
+
+    for var in _ONE_THREAD:
+        os.environ.setdefault(var, "1")
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:  # our parent is the fork server: watch the runner's process itself
+        while True:
+            time.sleep(0.25)
+            try:
+                os.kill(parent, 0)
+            except ProcessLookupError:
+                os._exit(70)
+            except PermissionError:
+                pass
+
+    threading.Thread(target=watch, name="snapwarn-parent-watch", daemon=True).start()
+    run_job(db_url, job_id, attempt)
+
+
+_MP_CONTEXT: Any = None
+_PRELOAD = ["numpy", "service.api.jobs", "service.api.routers"]
+
+
+def _mp_context() -> Any:
+    """``forkserver`` (modules preloaded once: a job starts in milliseconds) or ``spawn``."""
+    global _MP_CONTEXT
+    if _MP_CONTEXT is None:
+        if "forkserver" in mp.get_all_start_methods():
+            ctx = mp.get_context("forkserver")
+            ctx.set_forkserver_preload(_PRELOAD)
+        else:  # pragma: no cover - platforms without fork
+            ctx = mp.get_context("spawn")
+        _MP_CONTEXT = ctx
+    return _MP_CONTEXT
+
+
+def _noop() -> None:
+    return None
+
+
+def _warm_fork_server() -> None:
+    try:
+        p = _mp_context().Process(target=_noop, daemon=True)
+        p.start()
+        p.join(120)
+    except Exception:  # noqa: BLE001 - an optimisation only
+        log.debug("could not warm the fork server", exc_info=True)
+
+
+@dataclass
+class _Running:
+    attempt: int
+    deadline: float | None  # time.monotonic() at which the job is stopped
+    time_limit_s: float | None
+    run_s: float
+    proc: Any = None  # a multiprocessing.Process (executor "process")
+    fut: Future | None = None  # a thread-pool future (executor "thread")
 
 
 class JobRunner:
-    """Claims and runs jobs in a background thread; one per process that runs jobs."""
+    """Claims and runs jobs; one per process that runs jobs.
 
-    def __init__(self, store: Store, settings: Settings, pool_factory: Any) -> None:
+    With the ``process`` executor (the default) every job runs in its own process, so a job
+    that passes its time limit or is cancelled is stopped at once (the process is killed) and
+    the others go on. With the ``thread`` executor (tests, debugging) jobs stop at their next
+    progress report.
+    """
+
+    def __init__(self, store: Store, settings: Settings, pool_factory: Any = None) -> None:
         self.store = store
         self.settings = settings
         self._pool_factory = pool_factory
-        self.pool: Executor = pool_factory()
+        self._threads = settings.executor == "thread"
+        self.pool: Executor | None = pool_factory() if (self._threads and pool_factory) else None
         self.owner = runner_identity()
-        self._running: dict[str, tuple[int, Future]] = {}
+        self._running: dict[str, _Running] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._wake = threading.Event()
         self._thread: threading.Thread | None = None
 
+    @property
+    def runner(self) -> str:
+        """This runner's identity (``host:pid:token``)."""
+        return self.owner
+
     def start(self) -> None:
         self._recover()
+        if not self._threads:  # start the fork server now (it imports the numerics once)
+            threading.Thread(target=_warm_fork_server, name="snapwarn-fork", daemon=True).start()
         self._thread = threading.Thread(target=self._loop, name="snapwarn-jobs", daemon=True)
         self._thread.start()
 
@@ -225,15 +330,21 @@ class JobRunner:
         if self._thread is not None:
             self._thread.join(timeout)
         with self._lock:
-            ids = list(self._running)
+            running = dict(self._running)
+        for r in running.values():
+            if r.proc is not None and r.proc.is_alive():
+                r.proc.kill()
         try:
-            n = self.store.release_jobs(ids, self.owner)
+            n = self.store.release_jobs(list(running), self.owner)
             if n:
                 log.warning("stopping: %d running job(s) handed back to the queue", n)
         except Exception:  # noqa: BLE001 - recovery by lease will do it
             log.exception("could not hand back the running jobs")
-        _terminate_workers(self.pool)
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        for r in running.values():
+            if r.proc is not None:
+                r.proc.join(1.0)
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
         try:
             self.store.worker_gone(self.owner)
         except Exception:  # noqa: BLE001
@@ -252,14 +363,10 @@ class JobRunner:
         while not self._stop.is_set():
             try:
                 now = time.monotonic()
+                self._reap(now)
                 if now - last_beat >= s.job_heartbeat_s:
                     last_beat = now
-                    with self._lock:
-                        ids = list(self._running)
-                    self.store.heartbeat_jobs(ids, self.owner)
-                    self.store.worker_heartbeat(self.owner)
-                    if s.heartbeat_file:
-                        Path(s.heartbeat_file).touch()
+                    self._heartbeat()
                 if now - last_recover >= min(s.job_lease_s / 2, 5.0):
                     last_recover = now
                     self._recover()
@@ -270,35 +377,101 @@ class JobRunner:
             self._wake.wait(s.job_poll_s)
             self._wake.clear()
 
+    def _heartbeat(self) -> None:
+        with self._lock:
+            ids = list(self._running)
+        still = self.store.heartbeat_jobs(ids, self.owner)
+        self.store.worker_heartbeat(self.owner)
+        if self.settings.heartbeat_file:
+            Path(self.settings.heartbeat_file).touch()
+        for job_id in set(ids) - still:  # cancelled, failed or resumed elsewhere: stop it
+            with self._lock:
+                r = self._running.get(job_id)
+            if r is not None and r.proc is not None:
+                log.info("job %s is no longer ours (cancelled?): stopping its process", job_id)
+                r.proc.kill()
+
+    def _reap(self, now: float) -> None:
+        """Collect ended job processes; stop the ones past their time limit."""
+        with self._lock:
+            items = list(self._running.items())
+        for job_id, r in items:
+            if r.proc is None:
+                continue
+            if r.proc.is_alive():
+                if r.deadline is not None and now >= r.deadline:
+                    r.proc.kill()
+                    r.proc.join(2.0)
+                    elapsed = r.run_s + (r.time_limit_s or 0.0) - max(0.0, r.deadline - now)
+                    job = self.store.get_job(job_id)
+                    if job is not None:
+                        self.store.fail_job(job_id, r.attempt, time_limit_error(job, elapsed))
+                    log.warning("job %s stopped at its time limit", job_id)
+                else:
+                    continue
+            r.proc.join(0.1)
+            code = r.proc.exitcode
+            with self._lock:
+                self._running.pop(job_id, None)
+            if code not in (0, None) and not self._stop.is_set():
+                cid = uuid.uuid4().hex[:12]
+                log.error("job %s attempt %d: its process ended with code %s [%s]",
+                          job_id, r.attempt, code, cid)
+                self.store.fail_job(job_id, r.attempt, {
+                    "type": "urn:snapwarn:problem:job-crashed",
+                    "title": "Job failed",
+                    "detail": f"the job's process ended unexpectedly (exit code {code}); "
+                    f"correlation id {cid}",
+                    "reason": "crashed",
+                    "correlation_id": cid,
+                })
+            self._wake.set()
+
     def _claim(self) -> None:
-        while True:
+        while not self._stop.is_set():
             with self._lock:
                 if len(self._running) >= self.settings.job_workers:
                     return
             job = self.store.claim_job(self.owner)
             if job is None:
                 return
-            try:
-                fut = self.pool.submit(run_job, self.store.url, job.id, job.attempts)
-            except (BrokenProcessPool, RuntimeError):
-                self.pool = self._pool_factory()
-                fut = self.pool.submit(run_job, self.store.url, job.id, job.attempts)
+            limit = job.time_limit_s
+            run_s = float(job.run_s or 0.0)
+            deadline = None if limit is None else time.monotonic() + max(0.0, limit - run_s)
+            r = _Running(job.attempts, deadline, limit, run_s)
+            if self._threads:
+                r.fut = self._submit(job.id, job.attempts)
+            else:
+                ctx = _mp_context()
+                r.proc = ctx.Process(
+                    target=_job_process,
+                    args=(self.store.url, job.id, job.attempts, os.getpid()),
+                    name=f"snapwarn-job-{job.id[:8]}",
+                    daemon=True,
+                )
+                r.proc.start()
             with self._lock:
-                self._running[job.id] = (job.attempts, fut)
-            fut.add_done_callback(lambda f, jid=job.id, a=job.attempts: self._done(jid, a, f))
+                self._running[job.id] = r
+            if r.fut is not None:
+                r.fut.add_done_callback(
+                    lambda f, jid=job.id, a=job.attempts: self._done(jid, a, f)
+                )
+
+    def _submit(self, job_id: str, attempt: int) -> Future:
+        assert self.pool is not None
+        try:
+            return self.pool.submit(run_job, self.store.url, job_id, attempt)
+        except RuntimeError:
+            self.pool = self._pool_factory()
+            return self.pool.submit(run_job, self.store.url, job_id, attempt)
 
     def _done(self, job_id: str, attempt: int, fut: Future) -> None:
         with self._lock:
             self._running.pop(job_id, None)
         exc = fut.exception() if not fut.cancelled() else None
-        if exc is not None and self._stop.is_set():
-            return  # stopping: the job was handed back to the queue, not failed
-        if exc is not None:
-            log.error("job %s attempt %d crashed: %r", job_id, attempt, exc)
+        if exc is not None and not self._stop.is_set():
             try:
                 self.store.fail_job(job_id, attempt, _problem_dict(exc))
             except Exception:  # noqa: BLE001
                 log.exception("could not record the failure of job %s", job_id)
-            if isinstance(exc, BrokenProcessPool):
-                self.pool = self._pool_factory()
         self._wake.set()

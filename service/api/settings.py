@@ -59,6 +59,31 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=64 * 1024 * 1024, ge=1024)
     max_samples: int = Field(default=4_000_000, ge=2)
     max_sweep_signals: int = Field(default=500, ge=2)
+    min_sweep_signals: int = Field(
+        default=3, ge=3, description="Fewest recorded signals a sweep needs (the pipeline's)."
+    )
+    max_decompressed_bytes: int = Field(
+        default=256 * 1024 * 1024,
+        ge=1024,
+        description="Largest uncompressed size of the arrays in an NPZ/MAT upload (zip bombs).",
+    )
+    max_json_depth: int = Field(default=32, ge=2, description="Deepest nesting of metadata.")
+    max_elements: int = Field(default=400, ge=4, description="Most rod elements of a scene.")
+    max_sim_duration: float = Field(
+        default=500.0, gt=0, description="Longest simulated duration (time units)."
+    )
+    max_sim_work: float = Field(
+        default=40_000.0,
+        gt=0,
+        description="Largest duration x elements of a discretised simulation (its cost: time "
+        "steps per unit time x elements).",
+    )
+    max_active_jobs_per_owner: int = Field(
+        default=16, ge=1, description="Queued + running jobs one owner may have (429 beyond)."
+    )
+    job_time_limit_s: float = Field(
+        default=1800.0, gt=0, description="Time limit of a job (failed with a reason beyond it)."
+    )
     uniform_rtol: float = Field(
         default=1e-3, gt=0, description="Max relative deviation of diff(t) from its mean."
     )

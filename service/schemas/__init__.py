@@ -25,7 +25,13 @@ from service.schemas.detections import Detection, DetectionFlag, DetectionReques
 from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobPage, JobStatus, Progress
 from service.schemas.signals import SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.simulations import SimulationRequest, SimulationResult
-from service.schemas.sweeps import SimulatedSweep, Sweep, SweepMeasurement, SweepRequest
+from service.schemas.sweeps import (
+    SimulatedSweep,
+    Sweep,
+    SweepMeasurement,
+    SweepPage,
+    SweepRequest,
+)
 
 __all__ = [
     "Alarm",
@@ -63,5 +69,6 @@ __all__ = [
     "SimulationResult",
     "Sweep",
     "SweepMeasurement",
+    "SweepPage",
     "SweepRequest",
 ]

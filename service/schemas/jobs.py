@@ -7,8 +7,9 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-JobStatus = Literal["queued", "running", "succeeded", "failed"]
-TERMINAL_STATUSES = ("succeeded", "failed")
+# open: a live sweep; cancelled: by POST /v1/jobs/{id}/cancel (never re-run)
+JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled", "open"]
+TERMINAL_STATUSES = ("succeeded", "failed", "cancelled")
 
 
 class Progress(BaseModel):
@@ -24,6 +25,14 @@ class JobError(BaseModel):
     type: str = "about:blank"
     title: str
     detail: str | None = None
+    reason: str | None = Field(
+        default=None,
+        description="'invalid-input', 'time-limit', 'cancelled', 'interrupted', 'crashed' or "
+        "'internal-error'.",
+    )
+    correlation_id: str | None = Field(
+        default=None, description="Names the failure in the server log (internal errors)."
+    )
 
 
 class Job(BaseModel):

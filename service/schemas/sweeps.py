@@ -70,3 +70,12 @@ class Sweep(BaseModel):
     prediction: Prediction | None = None
     alarm: Alarm | None = None
     created_at: datetime
+
+
+class SweepPage(BaseModel):
+    """A page of sweeps, newest first."""
+
+    items: list[Sweep]
+    total: int
+    limit: int
+    offset: int

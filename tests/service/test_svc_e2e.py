@@ -123,7 +123,8 @@ def test_raw_http_end_to_end(live_server, recorded) -> None:  # noqa: ANN001
         # a bad request in the middle leaves everything stored as it was
         before = h.get(f"/v1/sweeps/{sid}").json()
         r = h.post(
-            "/v1/sweeps", json={"measurements": [{"signal_id": ids[0]}, {"signal_id": "gone"}]}
+            "/v1/sweeps",
+            json={"measurements": [{"signal_id": i} for i in (ids[0], "gone", ids[1])]},
         )
         assert (
             r.status_code == 422 and r.json()["errors"][0]["field"] == "measurements[1].signal_id"

@@ -157,11 +157,21 @@ async def test_sweep_validation(asgi) -> None:  # noqa: ANN001
     cases = [
         ({}, "measurements"),
         ({"measurements": [{"signal_id": no_control}]}, "measurements"),
+        (  # fewer signals than the pipeline needs: refused at the door, not by a failed job
+            {
+                "measurements": [
+                    {"signal_id": no_control, "control_value": 1},
+                    {"signal_id": no_control, "control_value": 2},
+                ]
+            },
+            "measurements",
+        ),
         (
             {
                 "measurements": [
                     {"signal_id": "nope", "control_value": 1},
                     {"signal_id": no_control, "control_value": 2},
+                    {"signal_id": no_control, "control_value": 3},
                 ]
             },
             "measurements[0].signal_id",
@@ -171,9 +181,20 @@ async def test_sweep_validation(asgi) -> None:  # noqa: ANN001
                 "measurements": [
                     {"signal_id": no_control, "control_value": 1},
                     {"signal_id": no_control},
+                    {"signal_id": no_control, "control_value": 3},
                 ]
             },
             "measurements[1].control_value",
+        ),
+        (
+            {
+                "measurements": [
+                    {"signal_id": no_control, "control_value": 1},
+                    {"signal_id": no_control, "control_value": 2},
+                    {"signal_id": no_control, "control_value": 1.0},
+                ]
+            },
+            "measurements[2].control_value",
         ),
         ({"simulate": {"actuation": "sideways"}}, "simulate.actuation"),
         ({"simulate": {"max_measurements": 1}}, "simulate.max_measurements"),
@@ -206,7 +227,7 @@ async def test_sweep_document_and_plot_from_stored_result(asgi) -> None:  # noqa
     store = app.state.snapwarn.store
     sweep, job = store.create_sweep("diagnostic-sleep", {"simulate": {}}, {"seconds": 0}, "charted")
     claimed = None
-    for _ in range(50):  # the runner may claim it first; then wait for it to finish
+    for _ in range(400):  # the runner may claim it first; then wait for it to finish
         row = store.get_job(job.id)
         if row.status == "succeeded":
             break

@@ -9,6 +9,9 @@ from pydantic import ValidationError
 
 from service.schemas.common import PROBLEM_MEDIA_TYPE
 
+#: Largest ``offset`` of a page (an SQL OFFSET beyond 64-bit integers is a database error).
+MAX_OFFSET = 1_000_000_000
+
 _PROBLEM = {"content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}}
 
 
@@ -21,6 +24,7 @@ def problems(*codes: int) -> dict[int | str, dict[str, Any]]:
         413: "Payload over the limits (settings).",
         415: "Unsupported media type or file format.",
         422: "Invalid input: the field and the value are named.",
+        429: "Too many queued or running jobs of this owner (settings); retry later.",
         501: "The numerics this resource needs are not installed yet.",
     }
     return {c: {"description": text.get(c, "Error."), **_PROBLEM} for c in codes}

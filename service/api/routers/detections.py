@@ -11,6 +11,7 @@ from pydantic import ValidationError
 
 from service import convert, recordings
 from service.analysis.detect import detect
+from service.api.auth import CallerDep
 from service.api.problems import as_problems, invalid, not_found
 from service.api.routers._common import body_validation_error, problems
 from service.api.state import StateDep
@@ -35,7 +36,9 @@ _INLINE_IN_LOOP = 100_000  # validate small inline signals on the loop, big ones
         }
     },
 )
-async def create_detection(request: Request, state: StateDep) -> dict[str, Any]:
+async def create_detection(
+    request: Request, state: StateDep, caller: CallerDep
+) -> dict[str, Any]:
     """Give ``signal_id`` (a stored signal) or ``w`` with ``t`` or ``dt`` (inline).
 
     The body is parsed by pydantic-core straight from the bytes (8x faster than
@@ -52,7 +55,7 @@ async def create_detection(request: Request, state: StateDep) -> dict[str, Any]:
                 req.signal_id,
                 "must not be given together with an inline signal (w, t, dt)",
             )
-        sig = await to_thread.run_sync(state.store.get_signal, req.signal_id)
+        sig = await to_thread.run_sync(state.store.get_signal, req.signal_id, caller.scope)
         if sig is None:
             raise not_found("signal", req.signal_id)
         w, dt = sig.w, sig.row.dt
@@ -74,6 +77,7 @@ async def create_detection(request: Request, state: StateDep) -> dict[str, Any]:
             rec = await to_thread.run_sync(clean)
         w, dt, notes = rec.w, rec.dt, [convert.plain(f) for f in rec.flags]
     return await state.run(detection_doc, w, dt, req.method, notes)
+
 
 def detection_doc(
     w: Any, dt: float, method: str = "auto", notes: list[dict[str, str]] | None = None

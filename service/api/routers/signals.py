@@ -13,8 +13,9 @@ from pydantic import ValidationError
 
 from service import convert, recordings
 from service.api import plots
+from service.api.auth import CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
-from service.api.routers._common import body_validation_error
+from service.api.routers._common import MAX_OFFSET, body_validation_error
 from service.api.state import AppState, StateDep, signal_meta
 from service.schemas import Control, SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.common import PROBLEM_MEDIA_TYPE
@@ -210,7 +211,7 @@ async def _from_form(request: Request, state: AppState) -> CleanSignal:
         }
     },
 )
-async def create_signal(request: Request, state: StateDep) -> JSONResponse:
+async def create_signal(request: Request, state: StateDep, caller: CallerDep) -> JSONResponse:
     """JSON ``{"t": [...]}`` or ``{"dt": x}`` with ``{"w": [...]}``, or a multipart file.
 
     Answers 201 with the signal's metadata and ``Location``.
@@ -245,6 +246,7 @@ async def create_signal(request: Request, state: StateDep) -> JSONResponse:
             value_unit=clean.value_unit,
             control=control,
             metadata=clean.metadata,
+            owner=caller.owner,
         )
     )
     meta = SignalMeta.model_validate(signal_meta(row))
@@ -256,10 +258,11 @@ async def create_signal(request: Request, state: StateDep) -> JSONResponse:
 @router.get("", response_model=SignalPage, summary="Stored signals, newest first", responses=ERRORS)
 async def list_signals(
     state: StateDep,
+    caller: CallerDep,
     limit: Annotated[int, Query(ge=1, le=500)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> dict[str, Any]:
-    rows, total = await to_thread.run_sync(state.store.list_signals, limit, offset)
+    rows, total = await to_thread.run_sync(state.store.list_signals, limit, offset, caller.scope)
     return {
         "items": [signal_meta(r) for r in rows],
         "total": total,
@@ -268,8 +271,8 @@ async def list_signals(
     }
 
 
-async def _load(state: AppState, signal_id: str) -> Any:
-    sig = await to_thread.run_sync(state.store.get_signal, signal_id)
+async def _load(state: AppState, signal_id: str, scope: str | None) -> Any:
+    sig = await to_thread.run_sync(state.store.get_signal, signal_id, scope)
     if sig is None:
         raise not_found("signal", signal_id)
     return sig
@@ -278,8 +281,8 @@ async def _load(state: AppState, signal_id: str) -> Any:
 @router.get(
     "/{signal_id}", response_model=SignalMeta, summary="A signal's metadata", responses=ERRORS
 )
-async def get_signal(signal_id: str, state: StateDep) -> dict[str, Any]:
-    row = await to_thread.run_sync(state.store.get_signal_meta, signal_id)
+async def get_signal(signal_id: str, state: StateDep, caller: CallerDep) -> dict[str, Any]:
+    row = await to_thread.run_sync(state.store.get_signal_meta, signal_id, caller.scope)
     if row is None:
         raise not_found("signal", signal_id)
     return signal_meta(row)
@@ -301,6 +304,7 @@ async def get_signal_data(
     signal_id: str,
     request: Request,
     state: StateDep,
+    caller: CallerDep,
     format: Annotated[
         str | None, Query(pattern="^(json|csv|npy)$", description="Overrides the Accept header.")
     ] = None,
@@ -315,7 +319,7 @@ async def get_signal_data(
             fmt = "npy"
         else:
             fmt = "json"
-    sig = await _load(state, signal_id)
+    sig = await _load(state, signal_id, caller.scope)
     row = sig.row
     t = recordings.time_axis(row.n, row.dt, row.t0, sig.t)
     if fmt == "csv":
@@ -348,8 +352,8 @@ async def get_signal_data(
 
 
 @router.delete("/{signal_id}", status_code=204, summary="Delete a signal", responses=ERRORS)
-async def delete_signal(signal_id: str, state: StateDep) -> Response:
-    if not await to_thread.run_sync(state.store.delete_signal, signal_id):
+async def delete_signal(signal_id: str, state: StateDep, caller: CallerDep) -> Response:
+    if not await to_thread.run_sync(state.store.delete_signal, signal_id, caller.scope):
         raise not_found("signal", signal_id)
     return Response(status_code=204)
 
@@ -360,8 +364,8 @@ async def delete_signal(signal_id: str, state: StateDep) -> Response:
     responses={**ERRORS, 200: {"content": {"image/png": {}}, "description": "PNG chart."}},
     response_class=Response,
 )
-async def plot_signal(signal_id: str, state: StateDep) -> Response:
-    sig = await _load(state, signal_id)
+async def plot_signal(signal_id: str, state: StateDep, caller: CallerDep) -> Response:
+    sig = await _load(state, signal_id, caller.scope)
     row = sig.row
     t = recordings.time_axis(row.n, row.dt, row.t0, sig.t)
     static = (row.meta or {}).get("w_static")

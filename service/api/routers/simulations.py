@@ -12,6 +12,8 @@ from fastapi.responses import JSONResponse
 
 import sim
 from service import convert
+from service.api import limits
+from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler, store_simulated_signal
 from service.api.problems import ApiProblem, as_problems
 from service.api.routers._common import problems
@@ -33,16 +35,27 @@ _NOT_SCENE = {"model", "background", "name"}
         **problems(401, 413, 422),
     },
 )
-async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResponse:
+async def create_simulation(
+    req: SimulationRequest, state: StateDep, caller: CallerDep
+) -> JSONResponse:
     """201 with the stored signal, or 202 with the job that will store it."""
     scene = req.model_dump(exclude=_NOT_SCENE)
+    limits.check_simulation(scene, req.model, state.settings)
     await to_thread.run_sync(check_scene, scene)
     background = req.background
     if background is None:
         background = req.model not in state.settings.sync_simulation_models
     params: dict[str, Any] = {"scene": scene, "model": req.model, "name": req.name}
     if background:
-        row = await to_thread.run_sync(state.store.create_job, "simulation", params)
+        await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
+        row = await to_thread.run_sync(
+            lambda: state.store.create_job(
+                "simulation",
+                params,
+                owner=caller.owner,
+                time_limit_s=state.settings.job_time_limit_s,
+            )
+        )
         if state.runner is not None:
             state.runner.wake()
         job = Job.model_validate(job_doc(row))
@@ -52,7 +65,7 @@ async def create_simulation(req: SimulationRequest, state: StateDep) -> JSONResp
             headers={"Location": f"/v1/jobs/{row.id}"},
         )
     out = await state.run(simulate, scene, req.model)
-    row = await to_thread.run_sync(store_simulated_signal, state.store, out, params)
+    row = await to_thread.run_sync(store_simulated_signal, state.store, out, params, caller.owner)
     meta = SignalMeta.model_validate(signal_meta(row))
     return JSONResponse(
         SimulationResult(signal=meta).model_dump(mode="json"),
@@ -67,8 +80,9 @@ def run_simulation_job(ctx: JobContext) -> dict[str, Any]:
     params = ctx.params
     ctx.progress(0.0, f"simulating ({params['model']})")
     out = simulate(params["scene"], params["model"])
-    row = store_simulated_signal(ctx.store, out, params)
+    row = store_simulated_signal(ctx.store, out, params, ctx.owner)
     return {"signal_id": row.id}
+
 
 def check_scene(params: dict[str, Any]) -> None:
     """Validate scene parameters with ``sim.Scene`` (422 naming the field)."""

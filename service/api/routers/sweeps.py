@@ -4,23 +4,23 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import Annotated, Any
 
 from anyio import to_thread
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
 from service import convert
 from service.analysis.pipeline import sweep_from_signals, warn
-from service.api import plots
+from service.api import limits, plots
 from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
 from service.api.problems import ApiProblem, as_problems, invalid, not_found, too_large
-from service.api.routers._common import problems
+from service.api.routers._common import MAX_OFFSET, problems
 from service.api.state import AppState, StateDep, job_doc
 from service.api.storage import as_utc
-from service.schemas import Sweep, SweepRequest
+from service.schemas import Sweep, SweepPage, SweepRequest
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 log = logging.getLogger("snapwarn.api")
@@ -52,9 +52,14 @@ def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
     return doc.model_dump(mode="json")
 
 
-async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict[str, Any]]:
+async def _resolve_measurements(
+    req: SweepRequest, state: AppState, scope: str | None
+) -> list[dict[str, Any]]:
     ms = req.measurements or []
     limit = state.settings.max_sweep_signals
+    least = state.settings.min_sweep_signals
+    if len(ms) < least:
+        raise invalid("measurements", len(ms), f"need at least {least} signals, got {len(ms)}")
     if len(ms) > limit:
         raise too_large(
             "measurements",
@@ -64,7 +69,7 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
         )
     out = []
     for k, m in enumerate(ms):
-        row = await to_thread.run_sync(state.store.get_signal_meta, m.signal_id)
+        row = await to_thread.run_sync(state.store.get_signal_meta, m.signal_id, scope)
         if row is None:
             raise invalid(f"measurements[{k}].signal_id", m.signal_id, "is not a stored signal")
         value = m.control_value if m.control_value is not None else row.control_value
@@ -77,6 +82,15 @@ async def _resolve_measurements(req: SweepRequest, state: AppState) -> list[dict
         if not math.isfinite(value):
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
         out.append({"signal_id": m.signal_id, "control_value": float(value)})
+    seen: dict[float, int] = {}
+    for k, m in enumerate(out):
+        j = seen.setdefault(m["control_value"], k)
+        if j != k:
+            raise invalid(
+                f"measurements[{k}].control_value",
+                m["control_value"],
+                f"repeats measurements[{j}]'s: control values must be distinct",
+            )
     return out
 
 
@@ -98,19 +112,22 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
     if (req.measurements is None) == (req.simulate is None):
         raise invalid("measurements", None, "give exactly one of 'measurements' or 'simulate'")
     if req.measurements is not None:
-        if len(req.measurements) < 2:
-            raise invalid("measurements", len(req.measurements), "need at least 2 signals")
         kind = "sweep-signals"
-        params: dict[str, Any] = {"measurements": await _resolve_measurements(req, state)}
+        resolved = await _resolve_measurements(req, state, caller.scope)
+        params: dict[str, Any] = {"measurements": resolved}
     else:
         kind = "sweep-simulated"
         params = req.simulate.model_dump(exclude_none=True)
+    await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
     sweep, job = await to_thread.run_sync(
-        state.store.create_sweep,
-        kind,
-        req.model_dump(mode="json", exclude_none=True),
-        params,
-        req.name,
+        lambda: state.store.create_sweep(
+            kind,
+            req.model_dump(mode="json", exclude_none=True),
+            params,
+            req.name,
+            owner=caller.owner,
+            time_limit_s=state.settings.job_time_limit_s,
+        )
     )
     if state.runner is not None:
         state.runner.wake()
@@ -118,8 +135,31 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
     return JSONResponse(doc, status_code=202, headers={"Location": f"/v1/sweeps/{sweep.id}"})
 
 
-async def _get(state: AppState, sweep_id: str) -> tuple[Any, Any]:
-    found = await to_thread.run_sync(state.store.get_sweep, sweep_id)
+@router.get(
+    "",
+    response_model=SweepPage,
+    summary="Sweeps, newest first (the caller's own; an admin key sees all)",
+    responses=problems(401, 422),
+)
+async def list_sweeps(
+    state: StateDep,
+    caller: CallerDep,
+    limit: Annotated[int, Query(ge=1, le=500)] = 50,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
+) -> dict[str, Any]:
+    pairs, total = await to_thread.run_sync(
+        lambda: state.store.list_sweeps(limit, offset, scope=caller.scope)
+    )
+    return {
+        "items": [sweep_doc(s, j) for s, j in pairs],
+        "total": total,
+        "limit": limit,
+        "offset": offset,
+    }
+
+
+async def _get(state: AppState, sweep_id: str, scope: str | None) -> tuple[Any, Any]:
+    found = await to_thread.run_sync(state.store.get_sweep, sweep_id, scope)
     if found is None:
         raise not_found("sweep", sweep_id)
     return found
@@ -131,13 +171,13 @@ async def _get(state: AppState, sweep_id: str) -> tuple[Any, Any]:
     summary="A sweep: measurements, classification, prediction, alarm",
     responses=problems(401, 404),
 )
-async def get_sweep(sweep_id: str, state: StateDep) -> dict[str, Any]:
-    sweep, job = await _get(state, sweep_id)
+async def get_sweep(sweep_id: str, state: StateDep, caller: CallerDep) -> dict[str, Any]:
+    sweep, job = await _get(state, sweep_id, caller.scope)
     return sweep_doc(sweep, job)
 
 
-async def _plot(sweep_id: str, state: AppState, fmt: str) -> Response:
-    sweep, job = await _get(state, sweep_id)
+async def _plot(sweep_id: str, state: AppState, fmt: str, scope: str | None) -> Response:
+    sweep, job = await _get(state, sweep_id, scope)
     if job.status != "succeeded":
         raise ApiProblem(
             409,
@@ -145,12 +185,16 @@ async def _plot(sweep_id: str, state: AppState, fmt: str) -> Response:
             field="status",
             value=job.status,
         )
-    body = await state.run(_render, job.result, sweep.name or sweep_id, fmt)
+    from service.api.pages.routes import sweep_units  # (the pages import this module)
+
+    units = await sweep_units(state, scope, sweep)  # the user's control name and units
+    body = await state.run(_render, job.result, sweep.name or sweep_id, fmt, units)
     return Response(body, media_type=plots.MEDIA[fmt])
 
 
-def _render(doc: dict[str, Any], title: str, fmt: str) -> bytes:
-    return plots.sweep_plot(doc, title=title, fmt=fmt)
+def _render(doc: dict[str, Any], title: str, fmt: str, units: dict[str, Any]) -> bytes:
+    return plots.sweep_plot(doc, title=title, fmt=fmt, control_name=units["control_name"],
+                            control_unit=units["control_unit"], time_unit=units["time_unit"])
 
 
 @router.get(
@@ -162,8 +206,8 @@ def _render(doc: dict[str, Any], title: str, fmt: str) -> bytes:
         **problems(401, 404, 409),
     },
 )
-async def plot_sweep_png(sweep_id: str, state: StateDep) -> Response:
-    return await _plot(sweep_id, state, "png")
+async def plot_sweep_png(sweep_id: str, state: StateDep, caller: CallerDep) -> Response:
+    return await _plot(sweep_id, state, "png", caller.scope)
 
 
 @router.get(
@@ -175,8 +219,8 @@ async def plot_sweep_png(sweep_id: str, state: StateDep) -> Response:
         **problems(401, 404, 409),
     },
 )
-async def plot_sweep_svg(sweep_id: str, state: StateDep) -> Response:
-    return await _plot(sweep_id, state, "svg")
+async def plot_sweep_svg(sweep_id: str, state: StateDep, caller: CallerDep) -> Response:
+    return await _plot(sweep_id, state, "svg", caller.scope)
 
 
 @job_handler("sweep-simulated")
