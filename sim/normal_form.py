@@ -36,16 +36,13 @@ from functools import cache
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from sim.errors import SimulationError
 from sim.euler_beam import galerkin
+from sim.euler_beam._quadrature import WQ as _WQ
+from sim.euler_beam._quadrature import XQ as _XQ
+from sim.euler_beam.bifurcation import bifurcation
 from sim.euler_beam.stability import spectrum_of
-from sim.euler_beam.statics import (
-    _WQ,
-    _XQ,
-    ACTUATION_SLOPE,
-    BeamError,
-    bifurcation,
-    equilibrium,
-)
+from sim.euler_beam.statics import ACTUATION_SLOPE, BeamError, equilibrium
 from sim.scene import Scene, Signal, add_noise
 
 
@@ -120,7 +117,10 @@ class NormalForm:
         pitchforkGrowthRate)."""
         eqs = self.equilibria(dmu)
         if branch not in eqs:
-            raise BeamError(f"branch {branch!r} has no normal-form equilibrium at dmu={dmu!r}")
+            raise SimulationError(
+                "mu", self.mu_star + dmu,
+                f"branch {branch!r} has no normal-form equilibrium at mu={self.mu_star + dmu!r} "
+                f"(dmu={dmu!r} from the {self.transition} at mu*={self.mu_star:.10g})")
         A = eqs[branch]
         c = self.coefficients
         if self.saddle_node:
@@ -250,7 +250,8 @@ def impulse_response(scene: Scene) -> Signal:
     dmu = scene.mu - nf.mu_star
     eqs = nf.equilibria(dmu)
     if scene.branch not in eqs:
-        raise BeamError(
+        raise SimulationError(
+            "mu", scene.mu,
             f"branch {scene.branch!r} has no normal-form equilibrium for {scene.actuation} "
             f"actuation at mu={scene.mu!r} (normal-form branches here: {sorted(eqs)})"
         )
@@ -268,8 +269,14 @@ def impulse_response(scene: Scene) -> Signal:
     dt = scene.dt if scene.dt is not None else dt
     n = int(round(duration / dt)) + 1
     if n > 400_000:
-        raise BeamError(f"duration/dt gives {n} samples, more than 400000")
+        raise BeamError("duration", duration, f"duration/dt gives {n} samples, more than 400000")
     t = np.arange(n) * dt
+    if s2 > 0 and math.sqrt(s2) * float(t[-1]) > 12.0:
+        raise SimulationError(
+            "mu", scene.mu,
+            f"branch {scene.branch!r} at mu={scene.mu!r} is unstable past the {nf.transition} "
+            f"at mu*={nf.mu_star:.10g} (sigma^2 = {s2:.6g} > 0): the strip would snap; "
+            "shorten the duration or use snap")
     eq_star = equilibrium(scene.actuation, nf.mu_star * (1 - 1e-14), "U_A")
     w_star = float(eq_star.shape(np.array([scene.probe]))[0])
     p_probe = float(nf.phi(np.array([scene.probe]))[0])

@@ -12,13 +12,32 @@ from typing import Any
 
 import numpy as np
 
-ACTUATIONS = ("asymmetric", "symmetric", "antisymmetric")
+from sim.errors import ParameterError
+
+#: The one actuation table (paper eq. BC): end rotations (left, right) per unit alpha, i.e.
+#: W_X(0) = mu * left and W_X(1) = mu * right. The beam's slope ratio is ``right``; the rod's
+#: end angles are ``alpha * (left, right)``.
+ACTUATION_ENDS: dict[str, tuple[float, float]] = {
+    "asymmetric": (1.0, 0.0),
+    "symmetric": (1.0, -1.0),
+    "antisymmetric": (1.0, 1.0),
+}
+ACTUATIONS = tuple(ACTUATION_ENDS)
 BRANCHES = ("U_A", "U_B", "S_A", "S_B", "W_A", "W_B")
 MODELS = ("normal-form", "euler-beam", "cosserat", "auto")
+DEFAULT_RTOL = 2e-4  # requested relative accuracy of mu* and of the fundamental's sigma^2
 
 
-class SceneError(ValueError):
-    """A scene parameter is out of its domain; the message names the parameter and value."""
+class SceneError(ParameterError):
+    """A scene parameter is out of its domain (``.parameter``, ``.value``; message names both)."""
+
+
+def check_actuation(actuation: str, error: type[ParameterError] = ParameterError) -> str:
+    """``actuation`` if it is one of ACTUATIONS, else ``error("actuation", ...)``."""
+    if actuation not in ACTUATION_ENDS:
+        raise error("actuation", actuation,
+                    f"actuation must be one of {ACTUATIONS}, got {actuation!r}")  # fmt: skip
+    return actuation
 
 
 def _check_finite(
@@ -27,13 +46,13 @@ def _check_finite(
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise SceneError(f"{name} must be a number, got {value!r}") from None
+        raise SceneError(name, value, f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(v):
-        raise SceneError(f"{name} must be finite, got {value!r}")
+        raise SceneError(name, value, f"{name} must be finite, got {value!r}")
     if positive and v <= 0:
-        raise SceneError(f"{name} must be > 0, got {value!r}")
+        raise SceneError(name, value, f"{name} must be > 0, got {value!r}")
     if nonneg and v < 0:
-        raise SceneError(f"{name} must be >= 0, got {value!r}")
+        raise SceneError(name, value, f"{name} must be >= 0, got {value!r}")
     return v
 
 
@@ -65,8 +84,20 @@ class Scene:
         (response = record minus its static level).
     seed : int or None
         Seed of the noise generator.
-    end_shortening, slenderness, elements : float, float, int
-        dL/L, h/L and the number of elements: used by the Cosserat backend only.
+    end_shortening : float
+        dL/L.
+    slenderness, width : float
+        Thickness h/L and width b/L of the rectangular strip (b >= h). The planar models use
+        h (stretch and shear stiffness 12/h^2 relative to bending, rotary inertia h^2/12);
+        b scales out of the non-dimensional equations and is kept for the record.
+    poisson : float
+        Poisson ratio nu in [0, 0.5]: shear modulus E / (2 (1 + nu)) and the rectangle's shear
+        coefficient 10 (1 + nu) / (12 + 11 nu) (Cowper 1966) of the Cosserat rod.
+    rtol : float
+        Requested relative accuracy of mu* and of the fundamental's sigma^2, in (0, 0.1):
+        picks the discretisation (``sim.resolution``) and, for model="auto", the backend.
+    elements : int or None
+        Number of elements of the Cosserat rod; None: chosen from ``rtol``.
     """
 
     actuation: str = "asymmetric"
@@ -82,32 +113,45 @@ class Scene:
     seed: int | None = None
     end_shortening: float = 1e-2
     slenderness: float = 1e-3
-    elements: int = 50
+    width: float = 1e-1
+    poisson: float = 0.5
+    rtol: float = DEFAULT_RTOL
+    elements: int | None = None
 
     def __post_init__(self) -> None:
-        if self.actuation not in ACTUATIONS:
-            raise SceneError(f"actuation must be one of {ACTUATIONS}, got {self.actuation!r}")
+        check_actuation(self.actuation, SceneError)
         if self.branch not in BRANCHES:
-            raise SceneError(f"branch must be one of {BRANCHES}, got {self.branch!r}")
+            raise SceneError("branch", self.branch,
+                             f"branch must be one of {BRANCHES}, got {self.branch!r}")
         _check_finite("mu", self.mu)
         _check_finite("damping", self.damping, nonneg=True)
         _check_finite("kick", self.kick)
         for name in ("kick_position", "probe"):
             v = _check_finite(name, getattr(self, name))
             if not 0.0 < v < 1.0:
-                raise SceneError(f"{name} must lie in (0, 1), got {v!r}")
+                raise SceneError(name, v, f"{name} must lie in (0, 1), got {v!r}")
         if self.duration is not None:
             _check_finite("duration", self.duration, positive=True)
         if self.dt is not None:
             _check_finite("dt", self.dt, positive=True)
         if self.duration is not None and self.dt is not None and self.dt >= self.duration:
-            raise SceneError(f"dt must be smaller than duration, got dt={self.dt!r}")
+            raise SceneError("dt", self.dt, f"dt must be smaller than duration, got dt={self.dt!r}")
         if self.snr_db is not None:
             _check_finite("snr_db", self.snr_db)
         _check_finite("end_shortening", self.end_shortening, positive=True)
         _check_finite("slenderness", self.slenderness, positive=True)
-        if int(self.elements) != self.elements or self.elements < 4:
-            raise SceneError(f"elements must be an integer >= 4, got {self.elements!r}")
+        if _check_finite("width", self.width, positive=True) < self.slenderness:
+            raise SceneError("width", self.width, f"width must be >= the thickness "
+                             f"(slenderness={self.slenderness!r}), got width={self.width!r}")
+        if not 0.0 <= _check_finite("poisson", self.poisson) <= 0.5:
+            raise SceneError("poisson", self.poisson,
+                             f"poisson must lie in [0, 0.5], got {self.poisson!r}")
+        if not 0.0 < _check_finite("rtol", self.rtol) < 0.1:
+            raise SceneError("rtol", self.rtol, f"rtol must lie in (0, 0.1), got {self.rtol!r}")
+        e = self.elements
+        if e is not None and (isinstance(e, bool) or not isinstance(e, (int, np.integer))
+                              or e < 4 or e % 2):
+            raise SceneError("elements", e, f"elements must be an even integer >= 4, got {e!r}")
 
     def with_(self, **changes: Any) -> Scene:
         """A copy with some fields changed (validated again)."""

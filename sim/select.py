@@ -1,18 +1,11 @@
-"""``model="auto"``: the cheapest backend accurate enough for a scene, and why.
+"""``model="auto"``: the cheapest backend whose estimated total error meets the requested
+accuracy, and why.
 
-Backends by cost: the normal form (one degree of freedom), the Euler beam by modal
-superposition (linear, a few modes), the Euler beam by nonlinear integration, the discrete
-Cosserat rod. Each has a model error that the scene decides:
-
-* Euler beam vs a strip of finite end-shortening: the beam is the dL/L -> 0 limit. The paper's
-  Table 1 (rod at dL/L = 1e-2 against the beam) gives relative mu* differences of 1.1 %, 1.4 %,
-  1.7 %: we take 1.7 dL/L as the beam's relative error.
-* Normal form vs beam: computed, not guessed: its sigma^2 against the beam spectrum at the
-  scene's mu (one Galerkin solve, about a millisecond).
-* Linear vs nonlinear: the fundamental's frequency shifts with the response amplitude
-  A ~ kick / omega; the beam's nonlinear integration gives a relative shift of about
-  77 (kick / omega)^2 (measured: tests/sim/test_select.py re-measures it). Above the requested
-  accuracy, a linear (modal) response is not accurate enough.
+Candidates by cost (``sim.backends.BACKENDS[...].cost_rank``): the normal form (one degree of
+freedom), the Euler beam by modal superposition (linear), the Euler beam by nonlinear
+integration, the discrete Cosserat rod. Each one's estimated relative error of mu* (and of the
+fundamental) is its model error plus its discretisation error (``Backend.error_estimate``);
+none is ever 0. The requested accuracy is the scene's ``rtol``.
 """
 
 from __future__ import annotations
@@ -20,11 +13,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from sim.errors import ParameterError
+from sim.results import ErrorEstimate
 from sim.scene import Scene
 
-BEAM_ERROR_PER_END_SHORTENING = 1.7
-NONLINEAR_SHIFT_COEFF = 77.0
-COST_RANK = ("normal-form", "euler-beam", "euler-beam-nonlinear", "cosserat")
+NONLINEAR_SHIFT_COEFF = 77.0  # (kick / omega)^2 coefficient, re-measured by tests/sim
+LADDER = (("normal-form", "normal-form", None), ("euler-beam", "euler-beam", "modal"),
+          ("euler-beam-nonlinear", "euler-beam", "nonlinear"), ("cosserat", "cosserat", None))
 
 
 @dataclass(frozen=True)
@@ -39,73 +34,75 @@ class Choice:
         "modal" or "nonlinear" for the beam.
     reason : str
         One sentence with the numbers that decided.
+    estimate : ErrorEstimate
+        The chosen backend's estimated relative error (model + discretisation).
     estimates : dict
-        Estimated relative error of each candidate.
+        Estimated total relative error of each candidate evaluated (name -> float).
+    rtol : float
+        The accuracy requested.
+    met : bool
+        False when no candidate meets ``rtol`` (the most accurate one is chosen).
     """
 
     model: str
     method: str | None
     reason: str
+    estimate: ErrorEstimate
     estimates: dict = field(default_factory=dict)
+    rtol: float = 0.0
+    met: bool = True
 
     def to_dict(self) -> dict:
         return {"model": self.model, "method": self.method, "reason": self.reason,
-                "estimates": dict(self.estimates)}  # fmt: skip
+                "error": self.estimate.to_dict(), "estimates": dict(self.estimates),
+                "rtol": self.rtol, "met": self.met}  # fmt: skip
 
 
-def estimate_errors(scene: Scene) -> dict[str, float]:
-    """Relative error of sigma^2 (and mu*) each backend would make on this scene."""
-    from sim.euler_beam import BeamError, bifurcation, spectrum
-    from sim.normal_form import normal_form
+def estimate_errors(scene: Scene) -> dict[str, ErrorEstimate]:
+    """Every candidate's estimated relative error on this scene (keys of ``LADDER``)."""
+    from sim.backends import BACKENDS
 
-    beam_model = BEAM_ERROR_PER_END_SHORTENING * scene.end_shortening
-    est: dict[str, float] = {}
-    try:
-        s2_beam = spectrum(scene.actuation, scene.mu, scene.branch, modes=1).sigma2[0]
-    except BeamError:
-        s2_beam = math.nan  # no beam equilibrium on this branch here (past mu*)
-    omega = math.sqrt(abs(s2_beam)) if math.isfinite(s2_beam) else math.nan
-    shift = NONLINEAR_SHIFT_COEFF * (scene.kick / omega) ** 2 if omega > 0 else math.inf
-    est["nonlinear_shift"] = shift
-    # normal form
-    nf = normal_form(scene.actuation)
-    dmu = scene.mu - bifurcation(scene.actuation).mu_star
-    try:
-        s2_nf = nf.sigma2(dmu, scene.branch)
-        nf_err = abs(s2_nf / s2_beam - 1.0) if math.isfinite(s2_beam) else math.inf
-    except (ValueError, ZeroDivisionError):
-        nf_err = math.inf
-    est["normal-form"] = nf_err + beam_model
-    est["euler-beam"] = beam_model + shift
-    est["euler-beam-nonlinear"] = beam_model if math.isfinite(s2_beam) else math.inf
-    est["cosserat"] = 0.0  # the reference fidelity of the ladder
-    return est
+    out = {}
+    for key, model, method in LADDER:
+        opts = {"method": method} if method else {}
+        out[key] = BACKENDS[model].error_estimate(scene, **opts)
+    return out
 
 
-def choose_model(scene: Scene, *, accuracy: float = 1e-2) -> Choice:
-    """The cheapest backend whose estimated relative error is below ``accuracy``.
+def choose_model(scene: Scene, *, accuracy: float | None = None) -> Choice:
+    """The cheapest backend whose estimated total relative error is <= the accuracy.
 
     Parameters
     ----------
     scene : Scene
-    accuracy : float
-        Requested relative accuracy of the fundamental's sigma^2 (and of mu*), in (0, 1).
+    accuracy : float, optional
+        Requested relative accuracy of mu* and of the fundamental, in (0, 0.1); default
+        ``scene.rtol``.
     """
-    if not (isinstance(accuracy, (int, float)) and 0 < accuracy < 1):
-        raise ValueError(f"accuracy must be in (0, 1), got accuracy={accuracy!r}")
-    est = estimate_errors(scene)
-    for name in COST_RANK:
-        err = est[name]
-        if err <= accuracy:
-            model, method = {
-                "normal-form": ("normal-form", None),
-                "euler-beam": ("euler-beam", "modal"),
-                "euler-beam-nonlinear": ("euler-beam", "nonlinear"),
-                "cosserat": ("cosserat", None),
-            }[name]
-            skipped = [f"{n} ({est[n]:.1e})" for n in COST_RANK[: COST_RANK.index(name)]]
-            why = f"{name}: estimated relative error {err:.1e} <= {accuracy:g}"
+    from sim.backends import BACKENDS
+
+    rtol = scene.rtol if accuracy is None else accuracy
+    if not (isinstance(rtol, (int, float)) and 0 < rtol < 0.1):
+        raise ParameterError("rtol", rtol, f"rtol (accuracy) must be in (0, 0.1), got {rtol!r}")
+    if accuracy is not None:
+        scene = scene.with_(rtol=float(accuracy))
+    est: dict[str, ErrorEstimate] = {}
+    ladder = sorted(LADDER, key=lambda c: (BACKENDS[c[1]].cost_rank, c[0]))
+    for key, model, method in ladder:
+        opts = {"method": method} if method else {}
+        e = BACKENDS[model].error_estimate(scene, **opts)
+        est[key] = e
+        if e.total <= rtol:
+            skipped = [f"{k} ({v.total:.1e})" for k, v in est.items() if k != key]
+            why = (f"{key}: estimated relative error {e.total:.1e} (model {e.model:.1e} + "
+                   f"discretisation {e.discretisation:.1e}) <= rtol {rtol:g}")
             if skipped:
                 why += f"; cheaper but not accurate enough: {', '.join(skipped)}"
-            return Choice(model, method, why, est)
-    raise AssertionError("unreachable: the Cosserat rod is always a candidate")
+            return Choice(model, method, why, e, {k: v.total for k, v in est.items()}, rtol)
+    key = min(est, key=lambda k: est[k].total if math.isfinite(est[k].total) else math.inf)
+    _, model, method = next(c for c in LADDER if c[0] == key)
+    e = est[key]
+    why = (f"no backend meets rtol {rtol:g}; the most accurate is {key} with an estimated "
+           f"relative error {e.total:.1e} ("
+           + ", ".join(f"{k} {v:.1e}" for k, v in e.details.items()) + ")")
+    return Choice(model, method, why, e, {k: v.total for k, v in est.items()}, rtol, False)

@@ -1,4 +1,9 @@
-"""Simulator commands: bifurcation, equilibria, spectrum, normal-form, simulate."""
+"""Simulator commands: bifurcation, equilibria, spectrum, normal-form, simulate, snap.
+
+Every command takes ``--model`` (the backends of ``sim.backends.BACKENDS``) and one resolution
+(``--rtol`` or ``--elements``), so that the commands of one scene agree; a scene without an
+answer (past a fold, an unstable equilibrium) is a one-line error (exit 2) naming mu and mu*.
+"""
 
 from __future__ import annotations
 
@@ -6,78 +11,92 @@ import argparse
 import csv
 from pathlib import Path
 
-from service.cli._common import CliError, add_json_flag, bad, emit, finite
-from sim.scene import ACTUATIONS, BRANCHES, SceneError
+from service.cli._common import add_json_flag, bad, emit, finite
+from sim.scene import ACTUATIONS, BRANCHES
 
 
 def _add_actuation(p: argparse.ArgumentParser) -> None:
     p.add_argument("--actuation", required=True, choices=ACTUATIONS, help="end rotation mode")
 
 
-def _beam_errors(fn):
-    def wrapper(args):
-        from sim.euler_beam import BeamError
+def _add_strip(p: argparse.ArgumentParser, *, models: tuple[str, ...], default: str) -> None:
+    """--model, the strip (dL/L, h/L, b/L, nu) and the resolution (--rtol or --elements)."""
+    p.add_argument("--model", default=default, choices=models)
+    p.add_argument("--end-shortening", type=finite, default=None, help="dL/L")
+    p.add_argument("--slenderness", type=finite, default=None, help="thickness h/L")
+    p.add_argument("--width", type=finite, default=None, help="width b/L (>= h/L)")
+    p.add_argument("--poisson", type=finite, default=None, help="Poisson ratio in [0, 0.5]")
+    p.add_argument("--rtol", type=finite, default=None,
+                   help="requested relative accuracy of mu* and sigma^2 (picks the resolution "
+                        "and, for --model auto, the backend)")
+    p.add_argument("--elements", type=int, default=None,
+                   help="Cosserat elements (even); default: chosen from --rtol")
 
-        try:
-            return fn(args)
-        except (BeamError, SceneError) as exc:
-            raise CliError(str(exc)) from None
 
-    return wrapper
+def _scene(args: argparse.Namespace, **fields):
+    from sim.scene import Scene
+
+    for name in ("end_shortening", "slenderness", "width", "poisson", "rtol", "elements"):
+        if getattr(args, name, None) is not None:
+            fields[name] = getattr(args, name)
+    return Scene(actuation=args.actuation, **fields)
 
 
-@_beam_errors
+def _backend(model: str):
+    from sim.backends import BACKENDS
+
+    return BACKENDS[model]
+
+
+def _resolution_text(res: dict | None) -> str:
+    if not res:
+        return ""
+    return (f"  resolution: {res['model']} size {res['size']}, estimated mu* error "
+            f"{res['mu_star_error']:.2g} ({res['method']})")
+
+
 def _bifurcation(args: argparse.Namespace) -> int:
-    if args.model == "cosserat":
-        from sim import cosserat
-
-        kw = {"end_shortening": args.end_shortening, "slenderness": args.slenderness}
-        if args.elements is not None:
-            kw["elements"] = args.elements
-        doc = cosserat.bifurcation(args.actuation, **kw).to_dict()
-    else:
-        from sim.euler_beam import bifurcation
-
-        doc = bifurcation(args.actuation).to_dict()
-    lines = [f"{doc['actuation']}: {doc['transition']} at mu* = {doc['mu_star']:.12f}"]
+    scene = _scene(args)
+    doc = _backend(args.model).bifurcation(scene).to_dict()
+    lines = [f"{doc['actuation']}: {doc['transition']} at mu* = {doc['mu_star']:.12f} "
+             f"({doc['model']})"]
     lines += [
         f"  secondary {s['transition']} at mu* = {s['mu_star']:.12f}" for s in doc["secondary"]
     ]
+    lines.append(_resolution_text(doc["resolution"]))
     emit(doc, json_mode=args.json, text="\n".join(lines))
     return 0
 
 
-@_beam_errors
 def _equilibria(args: argparse.Namespace) -> int:
-    from sim.euler_beam import equilibria
-
-    eqs = equilibria(args.actuation, args.mu)
-    doc = {"actuation": args.actuation, "mu": args.mu, "equilibria": [e.to_dict() for e in eqs]}
+    scene = _scene(args, mu=args.mu)
+    eqs = _backend(args.model).equilibria(scene)
+    res = eqs[0].resolution.to_dict() if eqs and eqs[0].resolution is not None else None
+    doc = {"actuation": args.actuation, "mu": args.mu, "model": args.model,
+           "equilibria": [e.to_dict() for e in eqs], "resolution": res}  # fmt: skip
     rows = [f"{'branch':6} {'Lambda':>10} {'W(1/2)':>10} {'W(1/4)':>10} {'energy':>10} stable"]
     rows += [
         f"{e['branch']:6} {e['lambda']:10.6f} {e['w_half']:10.6f} {e['w_quarter']:10.6f} "
-        f"{e['energy']:10.4f} {e['stable']}"
+        f"{e['energy'] if e['energy'] is not None else float('nan'):10.4f} {e['stable']}"
         for e in doc["equilibria"]
     ]
+    rows.append(_resolution_text(res))
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
 
 
-@_beam_errors
 def _spectrum(args: argparse.Namespace) -> int:
-    from sim.euler_beam import spectrum
-
     if not 1 <= args.modes <= 30:
         raise bad("--modes", args.modes, "must be between 1 and 30")
-    sp = spectrum(args.actuation, args.mu, args.branch, modes=args.modes)
-    doc = sp.to_dict()
-    rows = [f"{args.branch} at mu = {args.mu}: sigma^2 (omega)"]
+    scene = _scene(args, mu=args.mu, branch=args.branch)
+    doc = _backend(args.model).spectrum(scene, args.modes).to_dict()
+    rows = [f"{args.branch} at mu = {args.mu} ({doc['model']}): sigma^2 (omega)"]
     rows += [f"  {s:16.6f}  ({w:.6f})" for s, w in zip(doc["sigma2"], doc["omega"])]
+    rows.append(_resolution_text(doc["resolution"]))
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
 
 
-@_beam_errors
 def _normal_form(args: argparse.Namespace) -> int:
     from sim.normal_form import normal_form
 
@@ -86,37 +105,27 @@ def _normal_form(args: argparse.Namespace) -> int:
     return 0
 
 
-@_beam_errors
-def _simulate(args: argparse.Namespace) -> int:
-    from sim import simulate
-    from sim.scene import Scene
-
-    fields = dict(
-        actuation=args.actuation,
-        mu=args.mu,
-        branch=args.branch,
-        damping=args.damping,
-        kick=args.kick,
-        duration=args.duration,
-        dt=args.dt,
-        snr_db=args.snr,
-        seed=args.seed,
-    )
-    for name in ("end_shortening", "slenderness", "elements"):
-        if getattr(args, name) is not None:
-            fields[name] = getattr(args, name)
-    scene = Scene(**fields)
-    sig = simulate(scene, args.model)
-    out = Path(args.out)
+def _write_csv(path: str, columns: dict) -> Path:
+    out = Path(path)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with out.open("w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["t", "w"])
-            for ti, wi in zip(sig.t, sig.w):
-                w.writerow([repr(float(ti)), repr(float(wi))])
+            w.writerow(list(columns))
+            for row in zip(*columns.values()):
+                w.writerow([repr(float(v)) for v in row])
     except OSError as exc:
-        raise bad("--out", args.out, f"cannot be written: {exc.strerror}") from None
+        raise bad("--out", path, f"cannot be written: {exc.strerror}") from None
+    return out
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from sim import simulate
+
+    scene = _scene(args, mu=args.mu, branch=args.branch, damping=args.damping, kick=args.kick,
+                   duration=args.duration, dt=args.dt, snr_db=args.snr, seed=args.seed)
+    sig = simulate(scene, args.model)
+    out = _write_csv(args.out, {"t": sig.t, "w": sig.w})
     doc = {
         "path": str(out),
         "samples": int(sig.t.size),
@@ -128,27 +137,52 @@ def _simulate(args: argparse.Namespace) -> int:
         "duration": float(sig.t[-1]),
         "w_static": sig.w_static,
         "sigma2": sig.info.get("sigma2", [None])[0],
+        "resolution": sig.info.get("resolution"),
+        "error": sig.info.get("error"),
     }
+    text = f"wrote {doc['samples']} samples to {out} ({sig.model})"
     if "auto" in sig.info:
         doc["auto"] = sig.info["auto"]
-    emit(doc, json_mode=args.json, text=f"wrote {doc['samples']} samples to {out}")
+        text += f"\n  auto: {doc['auto']['reason']}"
+    elif doc["error"]:
+        text += f"\n  estimated relative error {doc['error']['total']:.1e}"
+    text += "\n" + _resolution_text(doc["resolution"])
+    emit(doc, json_mode=args.json, text=text)
+    return 0
+
+
+def _snap(args: argparse.Namespace) -> int:
+    from sim.snap import snap
+
+    scene = _scene(args, damping=args.damping)
+    r = snap(scene, args.model, args.dmu, duration=args.duration)
+    doc = r.to_dict()
+    if args.out:
+        cols = {"t": r.t, "amplitude": r.amplitude}
+        doc["path"] = str(_write_csv(args.out, cols))
+    text = (f"{r.actuation} ({r.model}): from {r.from_branch} at mu = {r.mu:.8g} "
+            f"(mu* {'+' if r.mu > r.mu_star else '-'} {r.dmu:.3g}) to {r.to_branch}: snap time "
+            + (f"{r.snap_time:.6g}" if r.snap_time is not None else "not reached"))
+    emit(doc, json_mode=args.json, text=text)
     return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the simulator sub-commands to ``sub``."""
+    from sim.backends import BACKENDS
+    from sim.scene import MODELS
+
+    static = tuple(BACKENDS)
     p = sub.add_parser("bifurcation", help="mu* and type of the transition")
     _add_actuation(p)
-    p.add_argument("--model", default="euler-beam", choices=("euler-beam", "cosserat"))
-    p.add_argument("--end-shortening", type=finite, default=1e-2)
-    p.add_argument("--slenderness", type=finite, default=1e-3)
-    p.add_argument("--elements", type=int, default=None)
+    _add_strip(p, models=static, default="euler-beam")
     add_json_flag(p)
     p.set_defaults(func=_bifurcation)
 
-    p = sub.add_parser("equilibria", help="every equilibrium on the six branches at mu")
+    p = sub.add_parser("equilibria", help="every equilibrium at mu (beam: six branches)")
     _add_actuation(p)
     p.add_argument("--mu", type=finite, required=True)
+    _add_strip(p, models=static, default="euler-beam")
     add_json_flag(p)
     p.set_defaults(func=_equilibria)
 
@@ -157,6 +191,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mu", type=finite, required=True)
     p.add_argument("--branch", default="U_A", choices=BRANCHES)
     p.add_argument("--modes", type=int, default=10)
+    _add_strip(p, models=static, default="euler-beam")
     add_json_flag(p)
     p.set_defaults(func=_spectrum)
 
@@ -166,9 +201,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_normal_form)
 
     p = sub.add_parser("simulate", help="simulate an impulse response, write CSV t,w")
-    p.add_argument(
-        "--model", default="euler-beam", choices=("euler-beam", "normal-form", "cosserat", "auto")
-    )
     _add_actuation(p)
     p.add_argument("--mu", type=finite, required=True)
     p.add_argument("--branch", default="U_A", choices=BRANCHES)
@@ -178,12 +210,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--kick", type=finite, default=1e-2)
     p.add_argument("--snr", type=finite, default=None, help="noise, dB")
     p.add_argument("--seed", type=int, default=None)
-    p.add_argument("--elements", type=int, default=None, help="cosserat only")
-    p.add_argument("--end-shortening", type=finite, default=None)
-    p.add_argument("--slenderness", type=finite, default=None)
+    _add_strip(p, models=MODELS, default="euler-beam")
     p.add_argument("--out", required=True, help="CSV file to write (header t,w)")
     add_json_flag(p)
     p.set_defaults(func=_simulate)
+
+    p = sub.add_parser("snap", help="snap-through past the transition (the paper's protocol)")
+    _add_actuation(p)
+    p.add_argument("--dmu", type=finite, required=True,
+                   help="distance from mu* (> 0): right of mu* (asymmetric, symmetric), left "
+                        "of it (antisymmetric, from S_B)")
+    p.add_argument("--duration", type=finite, default=None,
+                   help="record length (time units); default: 4 normal-form snap times")
+    p.add_argument("--damping", type=finite, default=2e-4)
+    _add_strip(p, models=static, default="euler-beam")
+    p.add_argument("--out", default=None, help="CSV file (t, amplitude) to write")
+    add_json_flag(p)
+    p.set_defaults(func=_snap)
 
 
 def beam_summary() -> dict:

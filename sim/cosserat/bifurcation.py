@@ -13,12 +13,13 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
+
+from sim.results import Bifurcation, BifurcationPoint, Resolution
 
 from . import statics as S
 from .rod import Rod
@@ -28,60 +29,6 @@ TRANSITIONS = {
     "symmetric": ("subcritical-pitchfork", ("U_A", "S_A", "S_B")),
     "antisymmetric": ("supercritical-pitchfork", ("U_A", "U_B", "S_B")),
 }
-
-
-@dataclass(frozen=True)
-class Bifurcation:
-    """The shape transition of U_A for the discrete Cosserat rod.
-
-    Attributes
-    ----------
-    actuation : str
-    mu_star : float
-        Control parameter at the transition (mu = alpha sqrt(L / dL)).
-    lambda_star : float
-        Lambda = sqrt(F L^2 / B) of the compressive end force at mu*.
-    transition : {"saddle-node", "subcritical-pitchfork", "supercritical-pitchfork"}
-    branches : tuple of str
-        Branches that meet there.
-    elements, end_shortening, slenderness, clamp : the rod.
-    secondary : tuple of dict
-        Secondary bifurcations of U_A (symmetric: the fold U_A / W_B).
-    w_star : ndarray (n+1,)
-        Shape W(s) at mu* (units of sqrt(L dL)).
-    info : dict
-        Diagnostics (eigenvalue at the root, number of Newton solves).
-    """
-
-    actuation: str
-    mu_star: float
-    lambda_star: float
-    transition: str
-    branches: tuple[str, ...]
-    elements: int
-    end_shortening: float
-    slenderness: float
-    clamp: str = "node"
-    secondary: tuple[dict, ...] = ()
-    w_star: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
-    info: dict = field(default_factory=dict)
-    model: str = "cosserat"
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (the Euler beam's keys plus the rod's parameters)."""
-        lam = self.lambda_star
-        return {
-            "actuation": self.actuation,
-            "model": self.model,
-            "mu_star": float(self.mu_star),
-            "lambda_star": float(lam) if math.isfinite(lam) else None,
-            "transition": self.transition,
-            "branches": list(self.branches),
-            "secondary": [dict(s) for s in self.secondary],
-            "elements": int(self.elements),
-            "end_shortening": float(self.end_shortening),
-            "slenderness": float(self.slenderness),
-        }
 
 
 def _lam_min(rod: Rod, z: np.ndarray) -> float:
@@ -107,7 +54,7 @@ def _fold_by_pin(
             break
         prev = (c, z, mu, lam)
     if bracket is None:
-        raise S.ConvergenceError("no fold found along the branch")
+        raise S.ConvergenceError(f"no fold of U_A found along the branch ({rod.n} elements)")
     (ca, za, ma, _), (cb, zb, mb, _) = bracket
     cache: dict[float, tuple[np.ndarray, float]] = {}
 
@@ -175,8 +122,13 @@ def _root_in_mu(
     return m_star, cache[m_star], solves + len(cache)
 
 
-def find_bifurcation(rod: Rod, *, xtol: float = 1e-12) -> Bifurcation:
-    """Locate the transition of U_A for ``rod`` (see the module docstring)."""
+def find_bifurcation(rod: Rod, *, xtol: float = 1e-12,
+                     resolution: Resolution | None = None) -> Bifurcation:
+    """Locate the transition of U_A for ``rod`` (see the module docstring).
+
+    ``resolution`` (the discretisation's error estimate, ``sim.resolution``) is attached to
+    the result as given.
+    """
     act = rod.actuation
     transition, branches = TRANSITIONS[act]
     k = 3 * (rod.n // 2) + 1
@@ -202,8 +154,8 @@ def find_bifurcation(rod: Rod, *, xtol: float = 1e-12) -> Bifurcation:
             try:
                 mu2, z2, c2, s2 = _fold_by_pin_sym(rod, z_star, mu_star, c0, xtol)
                 P2 = -rod.axial_force(z2)
-                secondary.append({"mu_star": mu2, "lambda_star": math.sqrt(max(P2, 0.0)),
-                                  "transition": "saddle-node", "branches": ["U_A", "W_B"]})
+                secondary.append(BifurcationPoint(mu2, math.sqrt(max(P2, 0.0)), "saddle-node",
+                                                  ("U_A", "W_B")))
                 solves += s2
             except S.ConvergenceError as e:  # pragma: no cover - reported, not fatal
                 info["secondary_error"] = str(e)
@@ -220,17 +172,19 @@ def find_bifurcation(rod: Rod, *, xtol: float = 1e-12) -> Bifurcation:
     P = -rod.axial_force(z_star)
     info["min_eigenvalue_at_root"] = _lam_min(rod, z_star)
     info["newton_solves"] = solves
+    info["clamp"] = rod.clamp
     return Bifurcation(
         actuation=act,
         mu_star=float(mu_star),
         lambda_star=math.sqrt(P) if P > 0 else math.nan,
         transition=transition,
         branches=branches,
-        elements=rod.n,
+        secondary=tuple(secondary),
+        model="cosserat",
+        resolution=resolution if resolution is not None else Resolution(
+            "cosserat", rod.n, None, math.nan, "not estimated"),
         end_shortening=rod.end_shortening,
         slenderness=rod.slenderness,
-        clamp=rod.clamp,
-        secondary=tuple(secondary),
         w_star=z_star[1::3] / math.sqrt(rod.end_shortening),
         info=info,
     )

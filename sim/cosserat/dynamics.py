@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from sim.errors import ParameterError, SimulationError
 from sim.scene import Scene, Signal, add_noise
 
 from . import _kernels as K
@@ -100,19 +101,19 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
         times; ``Run.stop`` is "diverged" if it still fails, with the record up to there.
     """
     if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive number, got {dt!r}")
+        raise ParameterError("dt", dt, f"dt must be a positive number, got {dt!r}")
     if int(nsteps) != nsteps or nsteps < 1:
-        raise ValueError(f"nsteps must be an integer >= 1, got {nsteps!r}")
+        raise ParameterError("nsteps", nsteps, f"nsteps must be an integer >= 1, got {nsteps!r}")
     if int(every) != every or every < 1:
-        raise ValueError(f"every must be an integer >= 1, got {every!r}")
+        raise ParameterError("every", every, f"every must be an integer >= 1, got {every!r}")
     if not (xi >= 0 and math.isfinite(xi)):
-        raise ValueError(f"xi must be >= 0, got {xi!r}")
+        raise ParameterError("xi", xi, f"xi must be >= 0, got {xi!r}")
     if not 0.0 <= rho_inf <= 1.0:
-        raise ValueError(f"rho_inf must lie in [0, 1], got {rho_inf!r}")
+        raise ParameterError("rho_inf", rho_inf, f"rho_inf must lie in [0, 1], got {rho_inf!r}")
     z = rod.apply_bc(np.array(z0, dtype=float), mu)
     v = np.array(v0, dtype=float)
     if z.shape != (rod.N,) or v.shape != (rod.N,):
-        raise ValueError(f"z0 and v0 must have shape ({rod.N},)")
+        raise ParameterError("z0", np.shape(z0), f"z0 and v0 must have shape ({rod.N},)")
     fixed = rod.fixed_mask()
     for i in fixed_extra or []:
         fixed[i] = True
@@ -159,12 +160,23 @@ def kick_velocity(rod: Rod, X: float, kick: float) -> np.ndarray:
     return v
 
 
-def _rod_for(scene: Scene, clamp: str = "node") -> Rod:
-    return Rod(elements=scene.elements, end_shortening=scene.end_shortening,
-               slenderness=scene.slenderness, actuation=scene.actuation, clamp=clamp)
+def rod_for(scene: Scene, clamp: str = "node"):
+    """(Rod, Resolution) of a scene: ``scene.elements`` or the resolution policy's n for
+    ``scene.rtol``."""
+    from .api import make_rod
+
+    return make_rod(scene.actuation, end_shortening=scene.end_shortening,
+                    slenderness=scene.slenderness, elements=scene.elements, rtol=scene.rtol,
+                    poisson=scene.poisson, clamp=clamp)
 
 
-def simulate(scene: Scene, *, steps_per_period: int = 100, periods: float = 40.0,
+def steps_for(rtol: float) -> int:
+    """Time steps per fundamental period for a relative frequency error (omega dt)^2 / 12
+    below rtol / 4 (at least 50)."""
+    return max(50, math.ceil(2.0 * math.pi / math.sqrt(3.0 * rtol)))
+
+
+def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: float = 40.0,
              samples_per_period: int = 50, rho_inf: float = 0.8, clamp: str = "node") -> Signal:
     """The paper's impulse-response protocol on the discrete Cosserat rod.
 
@@ -178,9 +190,10 @@ def simulate(scene: Scene, *, steps_per_period: int = 100, periods: float = 40.0
     scene : Scene
         Uses actuation, mu, branch (U_A or U_B), damping, kick, kick_position, probe,
         duration, dt, snr_db, seed, end_shortening, slenderness, elements.
-    steps_per_period : int
-        Internal steps per fundamental period (default 100: relative frequency error of the
-        time stepping ~ (2 pi / 100)^2 / 12 = 3e-4); the step divides the sampling step.
+    steps_per_period : int or None
+        Internal steps per fundamental period; default ``steps_for(scene.rtol)``, relative
+        frequency error of the time stepping (2 pi / steps)^2 / 12 <= rtol / 4; the step
+        divides the sampling step.
     periods : float
         Default duration in fundamental periods (when ``scene.duration`` is None).
     samples_per_period : int
@@ -196,15 +209,42 @@ def simulate(scene: Scene, *, steps_per_period: int = 100, periods: float = 40.0
     Signal
         ``t`` (time units), ``w`` = W(probe, t) (units of sqrt(L dL)), ``w_static``, and
         ``info`` with the equilibrium's Lambda, the rod's linear spectrum (sigma2), the
-        step, the Newton count, the CPU time and the stop reason.
+        resolution (elements, estimated mu* error), the Richardson estimate of the
+        fundamental's sigma^2 error (n against n/2), the step, the Newton count, the CPU
+        time and the stop reason.
+
+    Raises
+    ------
+    sim.errors.SimulationError
+        (parameter "mu") past the fold, on an unstable equilibrium, or on U_A past the
+        antisymmetric pitchfork (where it has merged with S_B).
     """
-    rod = _rod_for(scene, clamp)
+    rod, res = rod_for(scene, clamp)
     z_eq = S.branch_state(rod, scene.mu, scene.branch)
     lam = S.min_eigenvalues(rod, z_eq)[0]
     s2, _ = S.sigma2(rod, z_eq, modes=4)
+    k_mid = 3 * (rod.n // 2) + 1
     if lam <= 0.0:
-        warnings.warn(f"the {scene.branch} equilibrium at mu={scene.mu} is unstable "
-                      f"(smallest Hessian eigenvalue {lam:.3e})", CosseratWarning, stacklevel=2)
+        raise SimulationError(
+            "mu", scene.mu, f"the {scene.branch} equilibrium of the rod ({rod.n} elements) at "
+            f"mu={scene.mu!r} is unstable (smallest Hessian eigenvalue {lam:.3e}): past its "
+            "transition, the strip would snap (see `snapwarn bifurcation --model cosserat`)")
+    if (scene.actuation == "antisymmetric" and scene.branch in ("U_A", "U_B")
+            and abs(z_eq[k_mid]) < 1e-9 * math.sqrt(rod.end_shortening)):
+        raise SimulationError(
+            "mu", scene.mu, f"{scene.branch} does not exist at mu={scene.mu!r}: past the rod's "
+            f"supercritical pitchfork ({rod.n} elements) it has merged with S_B")
+    half = Rod(elements=max(4, 2 * (rod.n // 4)), end_shortening=rod.end_shortening,
+               slenderness=rod.slenderness, actuation=rod.actuation, clamp=clamp,
+               poisson=rod.poisson)
+    try:
+        s2_half = S.sigma2(half, S.branch_state(half, scene.mu, scene.branch), 1)[0][0]
+        s2_err = abs(s2[0] - s2_half) / (2.0 ** (2 if clamp == "node" else 1) - 1.0)
+        s2_err = float(s2_err / abs(s2[0]))
+    except (SimulationError, np.linalg.LinAlgError):  # n/2 is past its own fold
+        s2_err = math.inf
+    if steps_per_period is None:
+        steps_per_period = steps_for(scene.rtol)
     omega1 = math.sqrt(abs(s2[0]))
     period = 2.0 * math.pi / omega1
     sample_dt = scene.dt if scene.dt is not None else period / samples_per_period
@@ -232,10 +272,11 @@ def simulate(scene: Scene, *, steps_per_period: int = 100, periods: float = 40.0
         "stop": run.stop,
         "clamp": clamp,
         "rho_inf": rho_inf,
+        "elements": rod.n,
+        "resolution": res.to_dict(),
+        "sigma2_error": s2_err,
+        "time_error": (2.0 * math.pi / steps_per_period) ** 2 / 12.0,
     }
-    k_mid = 3 * (rod.n // 2) + 1
-    if scene.actuation == "antisymmetric" and abs(z_eq[k_mid]) < 1e-9:
-        info["branch_reached"] = "S_B (U_A and U_B have merged with it past mu*)"
     if run.stop != "done":
         warnings.warn(f"time stepping stopped early ({run.stop}) at step {run.steps}",
                       CosseratWarning, stacklevel=2)
@@ -296,7 +337,7 @@ def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float
     from .bifurcation import find_bifurcation
 
     if not (dmu > 0 and math.isfinite(dmu)):
-        raise ValueError(f"dmu must be > 0, got {dmu!r}")
+        raise ParameterError("dmu", dmu, f"dmu must be > 0, got {dmu!r}")
     rod = Rod(elements=elements, end_shortening=end_shortening, slenderness=slenderness,
               actuation="asymmetric")
     ms = find_bifurcation(rod).mu_star if mu_star is None else float(mu_star)
@@ -346,4 +387,4 @@ def _newton_held(rod: Rod, z: np.ndarray, mu: float, k: int, value: float) -> np
         z += dz
         if np.max(np.abs(dz)) < 1e-11:
             return z
-    raise S.ConvergenceError(f"pinned Newton did not converge at mu={mu!r}")
+    raise S.ConvergenceError(f"pinned Newton did not converge at mu={mu!r}", mu)

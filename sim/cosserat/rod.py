@@ -5,8 +5,9 @@ B = E b h^3 / 12 = 1, mass per unit length rho b h = 1, so time is in units of
 sqrt(rho b h L^4 / B). For a rectangular strip of thickness h:
 
 - stretch stiffness  EA = E b h = 12 B / h^2                      -> ``12 / slenderness**2``
-- shear stiffness    GA = alpha_c G b h, G = E / 3 (Poisson 1/2), alpha_c = 27/28
-                      (PyElastica 1.0's defaults, so that the benchmark compares like with like)
+- shear stiffness    GA = kappa G b h, G = E / (2 (1 + nu)), kappa = 10 (1 + nu) / (12 + 11 nu)
+                      (Cowper 1966's coefficient of a rectangle: 5/6 at nu = 0, 6/7 at
+                      nu = 1/2)             -> ``shear_ratio * EA``
 - rotary inertia     rho I = rho b h^3 / 12                      -> ``slenderness**2 / 12``
 - damping            force -xi * rho A * velocity and torque -xi * rho I * angular velocity,
                       xi = nu L^2 / sqrt(rho b h B) (paper eq. beam_equation_damping)
@@ -28,11 +29,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.errors import ParameterError
+from sim.scene import ACTUATION_ENDS, check_actuation
+
 from . import _kernels as K
 
-ACTUATION_SIGNS = {"asymmetric": (1.0, 0.0), "symmetric": (1.0, -1.0), "antisymmetric": (1.0, 1.0)}
+ACTUATION_SIGNS = ACTUATION_ENDS  # (left, right) end-angle signs, from sim.scene's table
 CLAMPS = ("node", "element")
-SHEAR_RATIO = (27.0 / 28.0) / 3.0  # GA / EA with G = E / 3 and alpha_c = 27/28 (PyElastica)
+
+
+def cowper_rectangle(poisson: float) -> float:
+    """Shear coefficient of a rectangular section, 10 (1 + nu) / (12 + 11 nu) (Cowper 1966)."""
+    return 10.0 * (1.0 + poisson) / (12.0 + 11.0 * poisson)
+
+
+def shear_ratio(poisson: float, shear_coefficient: float | None = None) -> float:
+    """GA / EA = kappa / (2 (1 + nu)); kappa defaults to the rectangle's (Cowper)."""
+    kappa = cowper_rectangle(poisson) if shear_coefficient is None else shear_coefficient
+    return kappa / (2.0 * (1.0 + poisson))
 
 
 class CosseratWarning(UserWarning):
@@ -40,9 +54,7 @@ class CosseratWarning(UserWarning):
 
 
 def _check_actuation(actuation: str) -> str:
-    if actuation not in ACTUATION_SIGNS:
-        raise ValueError(f"actuation must be one of {tuple(ACTUATION_SIGNS)}, got {actuation!r}")
-    return actuation
+    return check_actuation(actuation)
 
 
 @dataclass(frozen=True)
@@ -56,11 +68,15 @@ class Rod:
     end_shortening : float
         dL / L in (0, 0.5): the right end node sits at x = 1 - dL, y = 0.
     slenderness : float
-        h / L > 0 (sets EA = 12 / h^2, GA = SHEAR_RATIO EA, rotary inertia h^2 / 12).
+        h / L > 0 (sets EA = 12 / h^2, GA = shear_ratio(poisson) EA, rotary inertia h^2 / 12).
     actuation : {"asymmetric", "symmetric", "antisymmetric"}
         End angles (alphaL, alphaR) = mu sqrt(dL) (1, 0), (1, -1) or (1, 1) (paper eq. BC).
     clamp : {"node", "element"}
         Clamp convention, see the module docstring.
+    poisson : float
+        Poisson ratio in [0, 0.5] (shear modulus E / (2 (1 + nu))).
+    shear_coefficient : float or None
+        kappa of GA = kappa G A; None: the rectangle's, ``cowper_rectangle(poisson)``.
     """
 
     elements: int = 50
@@ -68,21 +84,34 @@ class Rod:
     slenderness: float = 1e-3
     actuation: str = "asymmetric"
     clamp: str = "node"
+    poisson: float = 0.5
+    shear_coefficient: float | None = None
 
     def __post_init__(self) -> None:
         n = self.elements
         if isinstance(n, bool) or int(n) != n or n < 4 or n % 2:
-            raise ValueError(f"elements must be an even integer >= 4, got {n!r}")
+            raise ParameterError("elements", n, f"elements must be an even integer >= 4, got {n!r}")
         object.__setattr__(self, "elements", int(n))
         d = float(self.end_shortening)
         if not (math.isfinite(d) and 0.0 < d < 0.5):
-            raise ValueError(f"end_shortening must lie in (0, 0.5), got {self.end_shortening!r}")
+            raise ParameterError("end_shortening", self.end_shortening,
+                                 f"end_shortening must lie in (0, 0.5), got {d!r}")
         h = float(self.slenderness)
         if not (math.isfinite(h) and 0.0 < h < 0.5):
-            raise ValueError(f"slenderness must lie in (0, 0.5), got {self.slenderness!r}")
+            raise ParameterError("slenderness", self.slenderness,
+                                 f"slenderness must lie in (0, 0.5), got {self.slenderness!r}")
         _check_actuation(self.actuation)
         if self.clamp not in CLAMPS:
-            raise ValueError(f"clamp must be one of {CLAMPS}, got {self.clamp!r}")
+            raise ParameterError("clamp", self.clamp,
+                                 f"clamp must be one of {CLAMPS}, got {self.clamp!r}")
+        nu = float(self.poisson)
+        if not (math.isfinite(nu) and 0.0 <= nu <= 0.5):
+            raise ParameterError("poisson", self.poisson,
+                                 f"poisson must lie in [0, 0.5], got {self.poisson!r}")
+        k = self.shear_coefficient
+        if k is not None and not (math.isfinite(float(k)) and 0.0 < float(k) <= 1.0):
+            raise ParameterError("shear_coefficient", k,
+                                 f"shear_coefficient must lie in (0, 1], got {k!r}")
 
     # ---- derived constants ---------------------------------------------------------------
     @property
@@ -104,7 +133,7 @@ class Rod:
 
     @property
     def GA(self) -> float:
-        return SHEAR_RATIO * self.EA
+        return shear_ratio(self.poisson, self.shear_coefficient) * self.EA
 
     @property
     def rotary_inertia(self) -> float:
@@ -170,7 +199,7 @@ class Rod:
     def _z(self, z: np.ndarray) -> np.ndarray:
         z = np.ascontiguousarray(z, dtype=np.float64)
         if z.shape != (self.N,):
-            raise ValueError(f"z must have shape ({self.N},), got {z.shape}")
+            raise ParameterError("z", z.shape, f"z must have shape ({self.N},), got {z.shape}")
         return z
 
     # ---- validated kernel wrappers -----------------------------------------------------------
@@ -215,7 +244,7 @@ class Rod:
     def interp_weights(self, X: float) -> tuple[tuple[int, int], tuple[float, float]]:
         """Indices into ``z`` of the y of the two nodes around reference arclength X, weights."""
         if not 0.0 <= X <= 1.0:
-            raise ValueError(f"X must lie in [0, 1], got {X!r}")
+            raise ParameterError("X", X, f"X must lie in [0, 1], got {X!r}")
         u = X * self.n
         i = min(int(math.floor(u)), self.n - 1)
         f = u - i

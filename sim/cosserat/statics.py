@@ -24,13 +24,21 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
+from sim.errors import ParameterError, SimulationError
+
 from .rod import Rod
 
 _TOL = 1e-11
 
 
-class ConvergenceError(RuntimeError):
-    """Newton did not converge (e.g. the requested branch does not exist at this mu)."""
+class ConvergenceError(SimulationError):
+    """Newton or a continuation did not converge (e.g. the branch does not exist at this mu).
+
+    A ``sim.errors.SimulationError`` whose parameter is "mu" (``.value``: the mu reached).
+    """
+
+    def __init__(self, message: str, mu: float | None = None) -> None:
+        super().__init__("mu", mu, message)
 
 
 def _dirichlet_band(rod: Rod, ab: np.ndarray, fixed: np.ndarray, diag: float = 1.0) -> np.ndarray:
@@ -105,7 +113,7 @@ def newton(
     z = rod.apply_bc(np.array(z, dtype=float), mu)
     fixed = rod.fixed_mask()
     if pin is not None and fixed[pin]:
-        raise ValueError(f"pin must index a free dof, got {pin!r}")
+        raise ParameterError("pin", pin, f"pin must index a free dof, got {pin!r}")
     dmax = math.inf
     P = _anti_projector(rod) if symmetric else None
     for _ in range(maxit):
@@ -137,7 +145,7 @@ def newton(
             break
         if dmax < tol or (dmax < 1e-8 and dmax > 0.5 * prev):
             return z, float(mu)
-    raise ConvergenceError(f"Newton did not converge at mu={mu!r} (last |dz|={dmax:.3e})")
+    raise ConvergenceError(f"Newton did not converge at mu={mu!r} (last |dz|={dmax:.3e})", mu)
 
 
 def tangent_mu(rod: Rod, z: np.ndarray) -> np.ndarray:
@@ -196,22 +204,28 @@ def follow_mu(
     max_step: float = 0.05,
     min_step: float = 1e-7,
 ) -> np.ndarray:
-    """Newton continuation in mu from an equilibrium ``z`` at mu0 to mu1 (tangent predictor)."""
+    """Newton continuation in mu from an equilibrium ``z`` at mu0 to mu1 (tangent predictor).
+
+    A step is refused (and retried 4x shorter) when Newton fails, or when its correction is
+    larger than the predictor's own move (max |z - z_pred| > step max |dz/dmu|): Newton has
+    then left the branch, e.g. jumped over a fold onto another state.
+    """
     mu = mu0
     h = max_step
     direction = 1.0 if mu1 >= mu0 else -1.0
     while direction * (mu1 - mu) > 1e-15:
         step = min(h, abs(mu1 - mu))
         t = tangent_mu(rod, z)
+        pred = z + direction * step * t
         try:
-            zn, _ = newton(
-                rod, z + direction * step * t, mu + direction * step, symmetric=symmetric
-            )
+            zn, _ = newton(rod, pred, mu + direction * step, symmetric=symmetric)
+            if np.max(np.abs(zn - pred)) > step * np.max(np.abs(t)) + 1e-12:
+                raise ConvergenceError("left the branch", mu)
         except (ConvergenceError, np.linalg.LinAlgError):
             h = step / 4.0
             if h < min_step:
                 raise ConvergenceError(
-                    f"continuation in mu stalled at mu={mu!r} (the branch may end here)"
+                    f"continuation in mu stalled at mu={mu!r} (the branch may end here)", mu
                 ) from None
             continue
         z, mu = zn, mu + direction * step
@@ -289,7 +303,8 @@ def branch_state(rod: Rod, mu: float, branch: str = "U_A") -> np.ndarray:
     pushes it towards the transition); U_B the one buckled to positive w.
     """
     if branch not in ("U_A", "U_B"):
-        raise ValueError(f"branch must be 'U_A' or 'U_B' for the Cosserat rod, got {branch!r}")
+        raise ParameterError("branch", branch,
+                             f"branch must be 'U_A' or 'U_B' for the Cosserat rod, got {branch!r}")
     sym = rod.actuation == "symmetric"
     z0, _ = newton(rod, rod.guess(branch), 0.0, symmetric=sym)
     if mu == 0.0:
@@ -337,11 +352,11 @@ def _u_a_near_fold(rod: Rod, z0: np.ndarray, mu: float) -> np.ndarray:
             break
         if len(pts) > 2 and m < pts[-2][2]:
             raise ConvergenceError(
-                f"no U_A equilibrium at mu={mu!r}: past the fold "
-                f"(branch maximum mu ~ {pts[-2][2]:.6f})"
+                f"no U_A equilibrium at mu={mu!r}: past the rod's fold at mu* ~ "
+                f"{pts[-2][2]:.6f} ({rod.elements} elements)", mu
             )
     else:
-        raise ConvergenceError(f"no U_A equilibrium at mu={mu!r}")
+        raise ConvergenceError(f"no U_A equilibrium at mu={mu!r}", mu)
     (ca, za, ma), (cb, zb, mb) = pts[-2], pts[-1]
     cache: dict[float, tuple[np.ndarray, float]] = {}
 

@@ -1,16 +1,15 @@
 """The quasi-linear Euler-beam model of the paper: statics, linear stability, dynamics."""
 
-from sim.euler_beam.stability import Spectrum, spectrum, spectrum_of
+from sim.euler_beam.bifurcation import bifurcation
+from sim.euler_beam.stability import Spectrum, is_stable, spectrum, spectrum_of
 from sim.euler_beam.statics import (
     BeamError,
-    Bifurcation,
-    BifurcationPoint,
     Equilibrium,
-    bifurcation,
     equilibria,
     equilibrium,
     euler_eigenvalues,
 )
+from sim.results import Bifurcation, BifurcationPoint
 
 __all__ = [
     "BeamError",
@@ -22,6 +21,7 @@ __all__ = [
     "equilibria",
     "equilibrium",
     "euler_eigenvalues",
+    "is_stable",
     "spectrum",
     "spectrum_of",
 ]

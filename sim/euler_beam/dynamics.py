@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.errors import SimulationError
 from sim.euler_beam import _kernels, galerkin
 from sim.euler_beam.stability import DEFAULT_N, Spectrum, spectrum_of
 from sim.euler_beam.statics import ACTUATION_SLOPE, BeamError, Equilibrium, equilibrium
@@ -144,10 +145,12 @@ def _time_grid(duration: float, dt: float) -> np.ndarray:
     n = int(round(duration / dt)) + 1
     if n > MAX_SAMPLES:
         raise BeamError(
+            "duration", duration,
             f"duration/dt gives {n} samples, more than {MAX_SAMPLES}: raise dt or shorten duration"
         )
     if n < 8:
-        raise BeamError(f"duration={duration!r} with dt={dt!r} gives fewer than 8 samples")
+        raise BeamError("duration", duration,
+                        f"duration={duration!r} with dt={dt!r} gives fewer than 8 samples")
     return np.arange(n) * dt
 
 
@@ -263,7 +266,7 @@ def impulse_response(scene: Scene, *, method: str = "modal", n: int = DEFAULT_N)
         Galerkin basis size.
     """
     if method not in ("modal", "nonlinear"):
-        raise BeamError(f"method must be 'modal' or 'nonlinear', got {method!r}")
+        raise BeamError("method", method, f"method must be 'modal' or 'nonlinear', got {method!r}")
     eq = equilibrium(scene.actuation, scene.mu, scene.branch)
     sp = spectrum_of(eq, modes=3, n=n)
     duration, dt = default_sampling(sp, scene.damping)
@@ -272,7 +275,8 @@ def impulse_response(scene: Scene, *, method: str = "modal", n: int = DEFAULT_N)
     t = _time_grid(duration, dt)
     growth = math.sqrt(max(float(np.max(sp.sigma2)), 0.0)) * float(t[-1])
     if growth > MAX_GROWTH:
-        raise BeamError(
+        raise SimulationError(
+            "mu", scene.mu,
             f"branch {scene.branch!r} at mu={scene.mu!r} is unstable (sigma^2 = "
             f"{float(np.max(sp.sigma2)):.6g} > 0): a kick grows by e^{growth:.0f} over the record, "
             "the strip would snap; shorten the duration or use snap_through"
@@ -326,7 +330,7 @@ def snap_through(
     tiny antisymmetric-breaking velocity ``perturbation`` (kick at X = 1/4) that lets a
     pitchfork leave its unstable symmetric state, as numerical noise does in the paper.
     """
-    from sim.euler_beam.statics import bifurcation
+    from sim.euler_beam.bifurcation import bifurcation
 
     bif = bifurcation(actuation)
     eq_star = equilibrium(actuation, bif.mu_star * (1 - 1e-12), "U_A")

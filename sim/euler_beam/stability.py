@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import brentq
 
+from sim.errors import ParameterError
 from sim.euler_beam import galerkin
 from sim.euler_beam.statics import Equilibrium, equilibrium
 
@@ -93,8 +94,8 @@ def spectrum_of(eq: Equilibrium, modes: int = 10, *, n: int = DEFAULT_N) -> Spec
     n : int
         Galerkin basis size; accuracy is spectral in n (see tests for the convergence study).
     """
-    if not 1 <= modes <= n - 1:
-        raise ValueError(f"modes must be in 1..{n - 1}, got {modes!r}")
+    if isinstance(modes, bool) or int(modes) != modes or not 1 <= modes <= n - 1:
+        raise ParameterError("modes", modes, f"modes must be in 1..{n - 1}, got {modes!r}")
     B = galerkin.basis(n)
     g = _constraint_vector(eq, B)
     K = B.K4 - eq.lambda2 * B.K2
@@ -121,6 +122,11 @@ def spectrum_of(eq: Equilibrium, modes: int = 10, *, n: int = DEFAULT_N) -> Spec
     q = (g @ (K @ A + B.M @ A * s2)) / (g @ g)
     lam = math.sqrt(abs(eq.lambda2)) or 1.0
     return Spectrum(eq, s2, A, q / (2.0 * lam), n)
+
+
+def is_stable(eq: Equilibrium, *, n: int = DEFAULT_N) -> bool:
+    """True when every sigma^2 of the equilibrium's spectrum is negative."""
+    return bool(np.all(spectrum_of(eq, modes=10, n=n).sigma2 < 0.0))
 
 
 def spectrum(

@@ -31,31 +31,26 @@ U_A meets W_B at mu2* = 2.0119; antisymmetric U_A, U_B meet S_B at mu* = 2.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 from scipy.optimize import brentq
 
-ACTUATION_SLOPE = {"asymmetric": 0.0, "symmetric": -1.0, "antisymmetric": 1.0}
-_QN = 96  # Gauss-Legendre nodes on [0, 1]: exact to round-off for |Lambda| < ~40
-_XQ, _WQ = np.polynomial.legendre.leggauss(_QN)
-_XQ = 0.5 * (_XQ + 1.0)
-_WQ = 0.5 * _WQ
+from sim.errors import ParameterError, SimulationError
+from sim.euler_beam._quadrature import _WQ, _XQ
+from sim.scene import ACTUATION_ENDS, check_actuation
+
+ACTUATION_SLOPE = {a: ends[1] for a, ends in ACTUATION_ENDS.items()}  # W_X(1) / W_X(0)
 _H = 1e-30  # complex-step size
 
 
-class BeamError(ValueError):
-    """Bad input to the beam model; the message names the parameter and the value."""
+class BeamError(ParameterError):
+    """Bad input to the beam model (``.parameter``, ``.value``; the message names both)."""
 
 
 def _slope(actuation: str) -> float:
-    try:
-        return ACTUATION_SLOPE[actuation]
-    except KeyError:
-        raise BeamError(
-            f"actuation must be one of {tuple(ACTUATION_SLOPE)}, got {actuation!r}"
-        ) from None
+    return ACTUATION_SLOPE[check_actuation(actuation, BeamError)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -208,7 +203,6 @@ class Equilibrium:
     lambda2: float
     coeffs: tuple[float, float, float, float]
     kind: str = "generic"
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def lam(self) -> float:
@@ -227,7 +221,7 @@ class Equilibrium:
             return a * Co + b * S1
         if derivative == 3:
             return -a * self.lambda2 * S1 + b * Co
-        raise BeamError(f"derivative must be 0..3, got {derivative!r}")
+        raise BeamError("derivative", derivative, f"derivative must be 0..3, got {derivative!r}")
 
     @property
     def w_half(self) -> float:
@@ -247,21 +241,8 @@ class Equilibrium:
         """integral W'^2 dX (= 2 on every equilibrium)."""
         return float(np.sum(_WQ * self.shape(_XQ, 1) ** 2))
 
-    def spectrum(self, modes: int = 10, **kw):
-        """Linear stability of this equilibrium (see ``stability.spectrum_of``)."""
-        from sim.euler_beam.stability import spectrum_of
-
-        key = ("spectrum", modes, tuple(sorted(kw.items())))
-        if key not in self._cache:
-            self._cache[key] = spectrum_of(self, modes=modes, **kw)
-        return self._cache[key]
-
-    @property
-    def stable(self) -> bool:
-        """True when every sigma^2 of the spectrum is negative."""
-        return bool(np.all(self.spectrum().sigma2 < 0.0))
-
-    def to_dict(self) -> dict:
+    def to_dict(self, stable: bool | None = None) -> dict:
+        """JSON-ready summary; ``stable`` comes from the caller (``stability.is_stable``)."""
         return {
             "branch": self.branch,
             "lambda": self.lam,
@@ -269,7 +250,7 @@ class Equilibrium:
             "w_half": self.w_half,
             "w_quarter": self.w_quarter,
             "energy": self.energy,
-            "stable": self.stable,
+            "stable": stable,
             "kind": self.kind,
         }
 
@@ -350,7 +331,8 @@ def _particular_at_mode(
     rhs = np.array([-1.0, s - 1.0])
     ab_p = np.linalg.lstsq(A, rhs, rcond=None)[0]
     if np.linalg.norm(A @ ab_p - rhs) > 1e-8:
-        raise BeamError("forcing is not compatible with the Euler mode (internal error)")
+        raise SimulationError("actuation", None,
+                              "forcing is not compatible with the Euler mode (internal error)")
     ab_m = np.array(_euler_mode_coeffs(lam_k))
     C, S, S1, _ = (v.real for v in basis(lam_k, _XQ))
     dWp = ab_p[0] * S1 + ab_p[1] * C + 1.0
@@ -382,7 +364,7 @@ def equilibria(
     s = _slope(actuation)
     mu = float(mu)
     if not math.isfinite(mu):
-        raise BeamError(f"mu must be finite, got {mu!r}")
+        raise BeamError("mu", mu, f"mu must be finite, got {mu!r}")
     if mu < 0:
         mirrored = equilibria(actuation, -mu)
         swap = {"A": "B", "B": "A"}
@@ -447,124 +429,19 @@ def equilibria(
 
 
 def equilibrium(actuation: str, mu: float, branch: str = "U_A") -> Equilibrium:
-    """The equilibrium on one branch; BeamError if the branch does not exist at this mu."""
+    """The equilibrium on one branch.
+
+    Raises
+    ------
+    SimulationError
+        (parameter "mu") when the branch does not exist at this mu (past its fold or
+        pitchfork); ``sim.backends`` adds the bifurcation's mu* to the message.
+    """
     found = [e for e in equilibria(actuation, mu) if e.branch == branch]
     if not found:
-        raise BeamError(
+        raise SimulationError(
+            "mu", mu,
             f"branch {branch!r} does not exist for {actuation} actuation at mu={mu!r} "
-            "(past its bifurcation)"
+            "(past its bifurcation)",
         )
     return found[0]
-
-
-# --------------------------------------------------------------------------------------------
-# Bifurcations
-# --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class BifurcationPoint:
-    """A bifurcation of the U_A branch: where it is and of which kind."""
-
-    mu_star: float
-    lambda_star: float
-    transition: str
-    branches: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class Bifurcation:
-    """The transition of an actuation (primary) and any secondary bifurcation of U_A."""
-
-    actuation: str
-    mu_star: float
-    lambda_star: float
-    transition: str
-    branches: tuple[str, ...]
-    secondary: tuple[BifurcationPoint, ...] = ()
-    model: str = "euler-beam"
-
-    def to_dict(self) -> dict:
-        return {
-            "actuation": self.actuation,
-            "model": self.model,
-            "mu_star": self.mu_star,
-            "lambda_star": self.lambda_star,
-            "transition": self.transition,
-            "branches": list(self.branches),
-            "secondary": [
-                {
-                    "mu_star": b.mu_star,
-                    "lambda_star": b.lambda_star,
-                    "transition": b.transition,
-                    "branches": list(b.branches),
-                }
-                for b in self.secondary
-            ],
-        }
-
-
-def _fold_points(actuation: str) -> list[BifurcationPoint]:
-    """Folds (saddle-nodes) of the generic branches: pairs of intervals sharing a fold."""
-    s = _slope(actuation)
-    intervals, _ = _structure(actuation)
-    out = []
-    for left, right in zip(intervals[:-1], intervals[1:]):
-        if left.hi == right.lo and left.hi != left.pole:  # a fold, not a pole
-            lam = left.hi
-            mu = math.sqrt(2.0 / _J(lam, s).real)
-            d = 1e-3 * (right.hi - left.lo)
-            _ = d
-            out.append(BifurcationPoint(mu, math.sqrt(lam), "saddle-node", (left.name, right.name)))
-    return out
-
-
-def _pitchfork_points(actuation: str) -> list[BifurcationPoint]:
-    s = _slope(actuation)
-    _, consts = _structure(actuation)
-    out = []
-    for lam_k, family in consts:
-        _, _, Jp, _ = _particular_at_mode(lam_k, s)
-        mu_c = math.sqrt(2.0 / Jp)
-        # criticality: the side branches (constant Lambda) are stable below mu_c -> supercritical
-        side = [
-            e
-            for e in equilibria(actuation, mu_c * (1 - 1e-3))
-            if e.kind == "constant" and e.branch[0] == family
-        ]
-        kind = (
-            "supercritical-pitchfork"
-            if side and all(e.stable for e in side)
-            else "subcritical-pitchfork"
-        )
-        trivial = [
-            e.branch
-            for e in equilibria(actuation, mu_c * (1 - 1e-3))
-            if e.kind == "generic" and abs(e.lambda2 - lam_k) < 0.05 * lam_k
-        ]
-        out.append(
-            BifurcationPoint(
-                mu_c, math.sqrt(lam_k), kind, tuple(sorted({e.branch for e in side} | set(trivial)))
-            )
-        )
-    return out
-
-
-@cache
-def bifurcation(actuation: str) -> Bifurcation:
-    """The shape transition of U_A under this actuation (and its secondary bifurcations).
-
-    The primary transition is the first bifurcation met by U_A as mu increases from 0:
-    asymmetric, the fold U_A/S_B (saddle-node, mu* ~ 1.7818); symmetric, the subcritical
-    pitchfork at mu* = 2 (S_A, S_B on U_A), secondary fold U_A/W_B at mu2* ~ 2.0119;
-    antisymmetric, the supercritical pitchfork at mu* = 2 (U_A, U_B on S_B).
-    """
-    _slope(actuation)
-    points = [
-        p for p in _fold_points(actuation) + _pitchfork_points(actuation) if "U_A" in p.branches
-    ]
-    points.sort(key=lambda p: p.mu_star)
-    if not points:
-        raise BeamError(f"no bifurcation of U_A found for actuation={actuation!r}")
-    first, rest = points[0], tuple(points[1:])
-    return Bifurcation(
-        actuation, first.mu_star, first.lambda_star, first.transition, first.branches, rest
-    )
