@@ -18,7 +18,13 @@ from service.analysis.detect._flags import _linearity_flag
 from service.analysis.detect._kernels import model_values
 from service.analysis.detect._modes import _ambient_errors, _model_at_lag0, _modes_from_fit
 from service.analysis.detect._results import Mode
-from service.analysis.detect._spectral import _fft_modes, _initial_candidates, _Spectrum, _spectrum
+from service.analysis.detect._spectral import (
+    _fft_modes,
+    _head_peaks,
+    _initial_candidates,
+    _Spectrum,
+    _spectrum,
+)
 from service.analysis.detect._varpro import (
     _Fit,
     _levenberg_marquardt,
@@ -177,18 +183,25 @@ def _fit_parametric(
             model_values(fit.ev.p, fit.ev.q, fit.ev.c, mv)
             r -= mv
         rspec = _spectrum(r)
+        base_p = fit.ev.p if fit is not None else np.zeros(0)
+        base_q = fit.ev.q if fit is not None else np.zeros(0)
+        # a weak mode that decays within the record: seen in a matched head's periodogram
+        hp, hq = _head_peaks(r, rspec, base_p, base_q, max_modes)
         head = r[: N // 8]
-        if not rspec.significant.any() and not (
-            head.size >= 128
-            and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
-            and _spectrum(head).significant.any()
+        if (
+            not hp.size
+            and not rspec.significant.any()
+            and not (
+                head.size >= 128
+                and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
+                and _spectrum(head).significant.any()
+            )
         ):
             break
         p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
+        p_new, q_new = np.concatenate((p_new, hp)), np.concatenate((q_new, hq))
         if p_new.size == 0:
             break
-        base_p = fit.ev.p if fit is not None else np.zeros(0)
-        base_q = fit.ev.q if fit is not None else np.zeros(0)
         p = np.concatenate((base_p, p_new))
         q = np.concatenate((base_q, q_new))
     if fit is not None and refine:

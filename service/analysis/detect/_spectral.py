@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.signal import find_peaks
 
 from service.analysis.common import Flag
@@ -288,3 +289,56 @@ def _fft_modes(
     others = [m for m in modes if m is not first]
     return [first] + sorted(others, key=lambda m: -m.sigma2), flags
 
+
+
+def _head_peaks(
+    r: np.ndarray, spec: _Spectrum, p: np.ndarray, q: np.ndarray, max_modes: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate modes from the Hann periodograms of the record's heads ``r[:L]``,
+    ``L = N`` (``spec``, the record's own) and about ``N/2, N/4, ...`` (FFT-friendly lengths,
+    down to 64 samples): a mode that decays within the record keeps
+    its energy in a head, where a window matched to its decay sees it above the noise although
+    the whole-record periodogram spreads it over many bins. A peak is significant at a 0.1 %
+    false-alarm rate per record over all heads and bins (white noise of the variance
+    ``spec.noise_var``); peaks within two bins of an existing candidate are left out. The initial
+    damping is the head's resolution (``p = 2 / L``)."""
+    N = r.shape[0]
+    noise_var = spec.noise_var
+    heads = [N]
+    L = N // 2
+    while L >= 64:
+        heads.append(sfft.prev_fast_len(L, real=True))
+        L //= 2
+    if noise_var <= 0:
+        return np.zeros(0), np.zeros(0)
+    om_have = list(np.sqrt(np.maximum(q - 0.25 * p * p, 0.0)))
+    add_p: list[float] = []
+    add_q: list[float] = []
+    for L in heads:
+        if L == N:
+            P = spec.hann
+        else:
+            win, norm = _hann(L)
+            X = np.fft.rfft(win * r[:L])
+            P = (X.real * X.real + X.imag * X.imag) / norm
+        nb = P.size
+        if nb < 4:
+            continue
+        thr = noise_var * math.log(nb * len(heads) / 1e-3)
+        mid = P[2:-1]
+        peaks = np.flatnonzero((mid > thr) & (mid >= P[1:-2]) & (mid > P[3:])) + 2
+        if peaks.size == 0:
+            continue
+        bin_w = 2 * math.pi / L
+        for j in peaks[np.argsort(-P[peaks])][:max_modes]:
+            a, b, c = (math.log(max(P[i], 1e-300)) for i in (j - 1, j, j + 1))
+            den = a - 2 * b + c
+            delta = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)) if den < 0 else 0.0
+            om = (j + delta) * bin_w
+            if om_have and min(abs(o - om) for o in om_have) < 2 * bin_w:
+                continue
+            pj = 2.0 / L
+            om_have.append(om)
+            add_p.append(pj)
+            add_q.append(om * om + 0.25 * pj * pj)
+    return np.asarray(add_p), np.asarray(add_q)
