@@ -1,4 +1,4 @@
-"""CLI commands of the service: ``serve``, ``worker``, ``openapi`` (see service/cli/__init__.py).
+"""CLI commands of the service: ``serve``, ``worker``, ``keys``, ``db``, ``openapi``.
 
 The web stack is imported only when one of these commands runs.
 """
@@ -37,7 +37,46 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not run jobs in the server (run `snapwarn worker` instead)",
     )
+    p.add_argument(
+        "--auth",
+        choices=("auto", "on", "off"),
+        default=None,
+        help="API keys on /v1: 'auto' (default) requires them beyond loopback, "
+        "'off' is an explicit opt-out",
+    )
     p.set_defaults(func=_serve)
+
+    k = sub.add_parser(
+        "keys",
+        help="create, list and revoke API keys",
+        description="API keys are stored hashed in the service database; a new key is shown "
+        "once. Every resource belongs to the owner of the key that made it.",
+    )
+    ksub = k.add_subparsers(dest="keys_cmd", required=True, metavar="{create,list,revoke}")
+    kc = ksub.add_parser("create", help="create a key (printed once)")
+    kc.add_argument("--owner", default=None, help="owner name (default: one per key)")
+    kc.add_argument("--admin", action="store_true", help="sees and manages every owner's data")
+    kc.add_argument("--note", default=None, help="a free text note")
+    kl = ksub.add_parser("list", help="the keys (never their secrets)")
+    kl.add_argument("--all", action="store_true", help="include revoked keys")
+    kr = ksub.add_parser("revoke", help="revoke a key by its id")
+    kr.add_argument("key_id", help="the id (the part after 'sw_' up to the next '_')")
+    for q in (kc, kl, kr):
+        q.add_argument("--db", default=None, metavar="URL", help="database URL")
+        add_json_flag(q)
+    k.set_defaults(func=_keys)
+
+    d = sub.add_parser(
+        "db",
+        help="database migrations (upgrade, current)",
+        description="The server upgrades its database at startup; this does it by hand.",
+    )
+    dsub = d.add_subparsers(dest="db_cmd", required=True, metavar="{upgrade,current}")
+    for name, text in (("upgrade", "upgrade to the newest schema"), ("current", "the revision")):
+        q = dsub.add_parser(name, help=text)
+        q.add_argument("--db", default=None, metavar="URL", help="database URL")
+        add_json_flag(q)
+    d.set_defaults(func=_db)
 
     w = sub.add_parser(
         "worker",
@@ -109,12 +148,17 @@ def _serve(args: argparse.Namespace) -> int:
         port=port,
         http_workers=workers,
         run_jobs="false" if args.no_jobs else None,
+        auth=args.auth,
     )
     settings = _settings()
     import uvicorn
 
+    from service.api.auth import keys_required
+
+    keys = "API keys required" if keys_required(settings) else "no API key needed (loopback)"
     sys.stderr.write(
-        f"snapwarn: serving on http://{settings.host}:{settings.port} (db {settings.db_url})\n"
+        f"snapwarn: serving on http://{settings.host}:{settings.port} (db {settings.db_url}; "
+        f"{keys})\n"
     )
     uvicorn.run(
         "service.api.app:app_from_env",
@@ -174,5 +218,82 @@ def _openapi(args: argparse.Namespace) -> int:
         {"path": str(path), "paths": len(doc["paths"]), "openapi": doc["openapi"]},
         json_mode=args.json,
         text=f"wrote {path} ({len(doc['paths'])} paths)",
+    )
+    return 0
+
+
+def _store(db: str | None):  # noqa: ANN202 - imported lazily
+    _apply_env(db)
+    settings = _settings()
+    from service.api.storage import Store
+
+    store = Store(settings.db_url)
+    store.migrate()
+    return store
+
+
+def _key_doc(info) -> dict:  # noqa: ANN001
+    return {
+        "id": info.id,
+        "owner": info.owner,
+        "admin": info.admin,
+        "note": info.note,
+        "created_at": info.created_at.isoformat() + "Z",
+        "revoked_at": info.revoked_at.isoformat() + "Z" if info.revoked_at else None,
+    }
+
+
+def _keys(args: argparse.Namespace) -> int:
+    store = _store(args.db)
+    try:
+        if args.keys_cmd == "create":
+            key, info = store.create_key(args.owner, admin=args.admin, note=args.note)
+            emit(
+                {"key": key, **_key_doc(info)},
+                json_mode=args.json,
+                text=f"{key}\n(owner {info.owner}{', admin' if info.admin else ''}; "
+                "shown once: only its hash is stored)",
+            )
+        elif args.keys_cmd == "list":
+            infos = store.list_keys(include_revoked=args.all)
+            lines = [
+                f"{i.id}  {i.owner}{'  admin' if i.admin else ''}"
+                f"{'  revoked' if i.revoked_at else ''}{'  ' + i.note if i.note else ''}"
+                for i in infos
+            ]
+            emit(
+                {"keys": [_key_doc(i) for i in infos]},
+                json_mode=args.json,
+                text="\n".join(lines) or "no keys",
+            )
+        else:
+            if not store.revoke_key(args.key_id):
+                raise bad("key_id", args.key_id, "is not a live key (see `snapwarn keys list`)")
+            emit(
+                {"id": args.key_id, "revoked": True},
+                json_mode=args.json,
+                text=f"revoked {args.key_id}",
+            )
+    finally:
+        store.dispose()
+    return 0
+
+
+def _db(args: argparse.Namespace) -> int:
+    from service.api import migrations
+
+    _apply_env(args.db)
+    settings = _settings()
+    from service.api.storage import Store
+
+    store = Store(settings.db_url)
+    try:
+        rev = store.migrate() if args.db_cmd == "upgrade" else migrations.current(store.engine)
+    finally:
+        store.dispose()
+    emit(
+        {"revision": rev, "head": migrations.head()},
+        json_mode=args.json,
+        text=f"revision {rev} (head {migrations.head()})",
     )
     return 0
