@@ -20,8 +20,10 @@ from service.api import pages
 from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_pool, warm_pool
+from service.api.idempotency import IdempotencyMiddleware
 from service.api.jobs import JobRunner
 from service.api.routers import detections, health, jobs, live, signals, simulations, sweeps
+from service.api.security import SecurityMiddleware
 from service.api.settings import Settings
 from service.api.state import AppState
 from service.api.storage import Store
@@ -94,7 +96,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.snapwarn = None
     install_handlers(app)
+    app.add_middleware(IdempotencyMiddleware)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(SecurityMiddleware, settings=settings)
+    if settings.cors_origins:  # CORS is closed unless origins are configured
+        from starlette.middleware.cors import CORSMiddleware
+
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origins,
+            allow_methods=["GET", "POST", "DELETE"],
+            allow_headers=["authorization", "x-api-key", "content-type", "idempotency-key"],
+            expose_headers=["location", "idempotent-replayed"],
+        )
     app.include_router(health.router)
     guarded = [Depends(get_caller)]
     for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):

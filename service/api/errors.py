@@ -81,9 +81,19 @@ async def _http_handler(request: Request, exc: StarletteHTTPException) -> JSONRe
 
 
 async def _internal_handler(request: Request, exc: Exception) -> JSONResponse:
-    log.exception("unhandled error on %s %s", request.method, request.url.path)
-    p = ApiProblem(500, f"{type(exc).__name__}: the server failed; the error is logged")
-    return problem_response(p, request.url.path)
+    import uuid
+
+    cid = uuid.uuid4().hex[:12]
+    log.exception("unhandled error on %s %s [correlation id %s]", request.method,
+                  request.url.path, cid)
+    p = ApiProblem(
+        500,
+        f"{type(exc).__name__}: the server failed; the error is logged under correlation id "
+        f"{cid}",
+        headers={"Connection": "close"},  # the request may not have been read to its end
+    )
+    resp = problem_response(p, request.url.path)
+    return resp
 
 
 def install_handlers(app: FastAPI) -> None:

@@ -54,6 +54,11 @@ class Settings(BaseSettings):
         default_factory=list,
         description="Origins allowed to call the API from a browser (CORS); none by default.",
     )
+    allowed_hosts: list[str] = Field(
+        default_factory=list,
+        description="Host names a browser may use to reach a loopback server without keys "
+        "(besides localhost and loopback addresses; DNS-rebinding defence).",
+    )
 
     # Limits (413 beyond them).
     max_body_bytes: int = Field(default=64 * 1024 * 1024, ge=1024)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import delete, select, update
 from sqlalchemy.exc import IntegrityError
 
 from service.api.storage.models import IdempotencyRow, sanitize, utcnow
@@ -43,3 +43,37 @@ class IdempotencyMixin:
                 return first
             raise
         return row
+
+    def complete_idempotent(
+        self, owner: str, key: str, fingerprint: str, status: int, body: Any
+    ) -> None:
+        """Store the answer of the request that claimed ``key``."""
+        with self.session() as s:  # type: ignore[attr-defined]
+            s.execute(
+                update(IdempotencyRow)
+                .where(IdempotencyRow.owner == owner, IdempotencyRow.key == key)
+                .values(fingerprint=fingerprint, status=int(status), body=sanitize(body))
+            )
+
+    def release_idempotent(self, owner: str, key: str) -> None:
+        """Forget a claimed key whose request failed (a retry runs it again)."""
+        with self.session() as s:  # type: ignore[attr-defined]
+            s.execute(
+                delete(IdempotencyRow).where(
+                    IdempotencyRow.owner == owner,
+                    IdempotencyRow.key == key,
+                    IdempotencyRow.status == 0,
+                )
+            )
+
+    def claim_idempotent(self, owner: str, key: str) -> bool:
+        """Claim ``key`` for a first request (a pending record); False if already there."""
+        row = IdempotencyRow(
+            owner=owner, key=key, fingerprint="", status=0, body=None, created_at=utcnow()
+        )
+        try:
+            with self.session() as s:  # type: ignore[attr-defined]
+                s.add(row)
+        except IntegrityError:
+            return False
+        return True

@@ -1,0 +1,121 @@
+"""Browser-facing defences: cross-site requests, DNS rebinding, CORS (closed by default).
+
+A browser may send "simple" cross-site requests (``text/plain``, form or multipart POSTs)
+without a CORS preflight; the server must refuse them itself:
+
+- a state-changing request (POST, PUT, PATCH, DELETE) whose ``Origin`` is neither this server
+  (the ``Host`` it was sent to) nor one of ``SNAPWARN_CORS_ORIGINS`` is refused (403), and so is
+  one marked ``Sec-Fetch-Site: cross-site`` by the browser;
+- request bodies on /v1 must be JSON or multipart (``text/plain`` and url-encoded forms: 415);
+- on a server that needs no key (loopback), a browser request (it carries ``Origin`` or
+  ``Sec-Fetch-*``) must name a loopback ``Host``: a DNS-rebinding page cannot reach the API.
+
+CORS answers are added only for the configured origins (Starlette's ``CORSMiddleware``).
+"""
+
+from __future__ import annotations
+
+from urllib.parse import urlsplit
+
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from service.api.auth import is_loopback, keys_required
+from service.api.errors import problem_response
+from service.api.problems import ApiProblem
+from service.api.settings import Settings
+
+UNSAFE = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+BODY_TYPES = ("application/json", "multipart/form-data", "application/merge-patch+json")
+
+
+def _host_of(value: str) -> str:
+    """The host name of a ``Host`` header value (port and brackets removed)."""
+    v = value.strip().lower()
+    if v.startswith("["):
+        return v[1:].split("]", 1)[0]
+    return v.rsplit(":", 1)[0] if v.count(":") == 1 else v
+
+
+def _origin_key(origin: str) -> str:
+    """``scheme://host[:port]`` of an origin, lower-cased (default ports dropped)."""
+    u = urlsplit(origin.strip().lower())
+    port = u.port
+    default = {"http": 80, "https": 443}.get(u.scheme)
+    host = u.hostname or ""
+    if ":" in host:
+        host = f"[{host}]"
+    return f"{u.scheme}://{host}" + (f":{port}" if port and port != default else "")
+
+
+class SecurityMiddleware:
+    """Refuse cross-site and rebinding requests before any route runs (see the module)."""
+
+    def __init__(self, app: ASGIApp, settings: Settings) -> None:
+        self.app = app
+        self.settings = settings
+        self.allowed = {_origin_key(o) for o in settings.cors_origins if o != "*"}
+        self.any_origin = "*" in settings.cors_origins
+
+    def _check(self, scope: Scope) -> ApiProblem | None:
+        headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
+        method = scope["method"]
+        origin = headers.get("origin")
+        host = headers.get("host", "")
+        fetch_site = headers.get("sec-fetch-site")
+        browser = origin is not None or fetch_site is not None
+        if browser and not keys_required(self.settings):
+            name = _host_of(host)
+            if not (is_loopback(name) or name in self.settings.allowed_hosts):
+                return ApiProblem(
+                    403,
+                    f"Host {host!r} is not this loopback server's: a browser request must "
+                    "name localhost or 127.0.0.1 (setting SNAPWARN_ALLOWED_HOSTS)",
+                    title="Forbidden",
+                    slug="forbidden",
+                    field="host",
+                    value=host,
+                )
+        if method in UNSAFE:
+            if origin is not None and origin != "null":
+                key = _origin_key(origin)
+                scheme = scope.get("scheme", "http")
+                same = key in (_origin_key(f"{scheme}://{host}"), _origin_key(f"http://{host}"),
+                               _origin_key(f"https://{host}"))
+                if not (same or self.any_origin or key in self.allowed):
+                    return _cross_site("origin", origin)
+            elif origin == "null":
+                return _cross_site("origin", origin)
+            elif fetch_site == "cross-site" and not self.any_origin:
+                return _cross_site("sec-fetch-site", fetch_site)
+            if scope["path"].startswith("/v1/"):
+                ctype = headers.get("content-type", "").split(";", 1)[0].strip().lower()
+                if ctype and ctype not in BODY_TYPES:
+                    return ApiProblem(
+                        415,
+                        f"send application/json or multipart/form-data, not {ctype!r}",
+                        field="content-type",
+                        value=ctype,
+                    )
+        return None
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http":
+            problem = self._check(scope)
+            if problem is not None:
+                resp = problem_response(problem, scope.get("path"))
+                resp.headers["connection"] = "close"  # the body was not read
+                await resp(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+
+def _cross_site(field: str, value: str) -> ApiProblem:
+    return ApiProblem(
+        403,
+        f"cross-site request refused ({field} {value!r} is not this server nor an allowed "
+        "origin; setting SNAPWARN_CORS_ORIGINS)",
+        title="Forbidden",
+        slug="cross-site",
+        field=field,
+        value=value,
+    )
