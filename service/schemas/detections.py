@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictFloat
 
 from service.schemas.analysis import Detection, Flag
 
@@ -15,9 +15,9 @@ class DetectionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     signal_id: str | None = None
-    w: list[float] | None = None
-    t: list[float] | None = None
-    dt: float | None = None
+    w: list[StrictFloat] | None = None
+    t: list[StrictFloat] | None = None
+    dt: StrictFloat | None = None
     method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = Field(
         default="auto", description="Detector method ('auto' resolves to 'varpro')."
     )

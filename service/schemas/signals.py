@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictFloat
 
 from service.schemas.common import Control
 
@@ -21,9 +21,11 @@ class SignalIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    w: list[float] = Field(description="Samples (absolute position at the probe).")
-    t: list[float] | None = Field(default=None, description="Sample times (same length as w).")
-    dt: float | None = Field(default=None, description="Sampling step, when t is not given.")
+    w: list[StrictFloat] = Field(description="Samples (absolute position at the probe).")
+    t: list[StrictFloat] | None = Field(
+        default=None, description="Sample times (same length as w)."
+    )
+    dt: StrictFloat | None = Field(default=None, description="Sampling step, when t is not given.")
     t0: float | None = Field(default=None, description="Time of the first sample (with dt).")
     unit: str | None = Field(default=None, max_length=100, description="Time unit, e.g. 's'.")
     value_unit: str | None = Field(default=None, max_length=100, description="Unit of w.")

@@ -1,15 +1,8 @@
-"""One app in-process (ASGI, lifespan run, thread pools) for the contract tests, and the CLI
-run in-process with its stdout captured."""
+"""One app in-process (ASGI, lifespan run, thread pools) for the contract tests."""
 
 from __future__ import annotations
 
-import io
-import json
-import sys
-from collections.abc import AsyncIterator, Callable
-from contextlib import redirect_stderr, redirect_stdout
-from pathlib import Path
-from typing import Any
+from collections.abc import AsyncIterator
 
 import httpx2
 import pytest
@@ -43,30 +36,3 @@ async def api(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[httpx2.
             yield client
 
 
-def run_cli(*argv: str) -> tuple[int, Any, str]:
-    """``snapwarn ARGV`` in-process: (exit code, the stdout JSON document or text, stderr)."""
-    from service.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with redirect_stdout(out), redirect_stderr(err):
-        rc = main(list(argv))
-    text = out.getvalue()
-    try:
-        doc: Any = json.loads(text)
-    except json.JSONDecodeError:
-        doc = text
-    return rc, doc, err.getvalue()
-
-
-@pytest.fixture
-def cli() -> Callable[..., tuple[int, Any, str]]:
-    return run_cli
-
-
-def upload_file(path: Path, **form: Any) -> dict[str, Any]:
-    """The multipart parts of an upload of ``path`` (for ``client.post(files=..., data=...)``)."""
-    fields = {k: str(v) for k, v in form.items() if v is not None}
-    return {"files": {"file": (path.name, path.read_bytes())}, "data": fields}
-
-
-assert sys.version_info >= (3, 11)

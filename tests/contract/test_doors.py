@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import run_cli, upload_file
+from _contract_helpers import run_cli, upload_file
 
 pytestmark = pytest.mark.anyio
 
