@@ -22,10 +22,21 @@ BRANCH_COLORS = {"U_A": "tab:blue", "U_B": "tab:orange", "S_A": "tab:green",
                  "S_B": "tab:red", "W_A": "tab:purple", "W_B": "tab:brown"}  # fmt: skip
 
 
-def check_path(path: str | None, option: str = "--plot") -> None:
-    """Fail early (before any computation) on a file name that is not .png or .svg."""
-    if path is not None:
-        format_of(path, option)
+def plot_file(text: str) -> str:
+    """argparse ``type`` of ``--plot``: a file name ending in .png or .svg."""
+    import argparse
+
+    try:
+        format_of(text, "--plot")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} must end in .png or .svg") from None
+    return text
+
+
+def add_plot_flag(parser: Any, what: str = "a chart of the result") -> None:
+    """``--plot FILE.{png,svg}`` on a command."""
+    parser.add_argument("--plot", metavar="FILE.{png,svg}", type=plot_file, default=None,
+                        help=f"also draw {what} into FILE (PNG or SVG)")  # fmt: skip
 
 
 def plot_detection(
@@ -77,6 +88,27 @@ def plot_prediction(
         control_name=control_name, control_unit=control_unit, time_unit=time_unit,
     )  # fmt: skip
     return write(sweep_figure(s, title="prediction from the table"), path)
+
+
+def plot_prediction_table(
+    path: str,
+    mu: Sequence[float],
+    columns: Mapping[str, Any],
+    prediction: Prediction,
+) -> Path:
+    """``snapwarn predict --plot``: ``columns`` holds the table's ``sigma2`` (and
+    ``sigma2_std``) or ``omega`` (``sigma^2 = -omega^2``; ``omega_std`` propagates as
+    ``2 omega omega_std``)."""
+    if "sigma2" in columns:
+        s2 = np.asarray(columns["sigma2"], dtype=float)
+        std = columns.get("sigma2_std")
+    else:
+        om = np.asarray(columns["omega"], dtype=float)
+        s2 = -(om**2)
+        std = None
+        if columns.get("omega_std") is not None:
+            std = 2.0 * om * np.asarray(columns["omega_std"], dtype=float)
+    return plot_prediction(path, mu, s2, std, prediction)
 
 
 def plot_spectrum(path: str, doc: Mapping[str, Any], *, actuation: str, mu: float,
