@@ -187,3 +187,30 @@ def plot_equilibria(path: str, actuation: str, mu: float | None = None) -> Path:
     """``snapwarn equilibria --plot``: the branch diagram, with the asked mu marked."""
     top = max(2.6, 1.1 * mu) if mu is not None and math.isfinite(mu) else 2.6
     return write(branch_figure(actuation, branch_points(actuation, top), mu=mu), path)
+
+
+def plot_snap(path: str, result: Any) -> Path:
+    """``snapwarn snap --plot``: the amplitude A(t) after the release, linear and log scales,
+    with the snap time (``sim.snap.SnapResult``)."""
+    t = np.asarray(result.t, dtype=float)
+    a = np.asarray(result.amplitude, dtype=float)
+    fig = figure(9.0, 4.0)
+    ax, bx = fig.subplots(1, 2)
+    ax.plot(t, a, color="tab:blue", lw=1.0)
+    pos = np.abs(a) > 0
+    bx.semilogy(t[pos], np.abs(a[pos]), color="tab:blue", lw=1.0)
+    for a_ in (ax, bx):
+        if result.snap_time is not None:
+            a_.axvline(result.snap_time, color="tab:red", lw=1.0, ls="--",
+                       label=f"snap time {result.snap_time:.4g}")  # fmt: skip
+        a_.set_xlabel(label("time T", NONDIM))
+        a_.grid(alpha=0.3, which="both")
+    ax.set_ylabel(label(f"A = W(X={result.probe:g}, t) - W*", NONDIM))
+    bx.set_ylabel(label("|A|", NONDIM))
+    if result.snap_time is not None:
+        ax.legend(fontsize=8)
+    side = "+" if result.mu > result.mu_star else "-"
+    title = (f"{result.actuation} ({result.model}): {result.from_branch} -> "
+             f"{result.to_branch} at mu = mu* {side} {result.dmu:.3g}")  # fmt: skip
+    fig.suptitle(title, fontsize=10)
+    return write(fig, path)
