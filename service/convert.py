@@ -31,6 +31,7 @@ __all__ = [
     "measurement",
     "mode",
     "paper_rule",
+    "parity_problems",
     "plain",
     "prediction",
     "sweep_document",
@@ -287,3 +288,23 @@ def live_update(
         finished=finished,
         created_at=created_at,
     )
+
+
+def parity_problems() -> list[str]:
+    """Where a result dataclass and its wire model disagree (see :data:`PARITY`); empty when
+    every numerics field has its wire field and every wire field its numerics source."""
+    import importlib
+
+    out = []
+    for where, (model, left_out, wire_only) in PARITY.items():
+        module, name = where.split(":")
+        cls = getattr(importlib.import_module(module), name)
+        fields = {f.name for f in dataclasses.fields(cls)}
+        wire_fields = set(model.model_fields)
+        for f in sorted(fields - left_out - wire_fields):
+            out.append(f"{where}.{f} has no field in {model.__name__} (add it, or list it)")
+        for f in sorted(wire_fields - wire_only - fields):
+            out.append(f"{model.__name__}.{f} has no source in {where}")
+        for f in sorted(left_out - fields):
+            out.append(f"{where}: PARITY leaves out {f!r}, which it does not have")
+    return out
