@@ -36,9 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Early warning of shape transitions of elastic strips.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    from service.cli import atlas_cmds
+    from service.cli import atlas_cmds, watch_cmds
 
-    for module in (sim_cmds, analysis_cmds, service_cmds, atlas_cmds):
+    for module in (sim_cmds, analysis_cmds, service_cmds, atlas_cmds, watch_cmds):
         module.register(sub)
     return parser
 

@@ -1,8 +1,6 @@
 """Live sweeps over HTTP against a real uvicorn: records, flags, concurrency, events, close.
 
-The records are closed-form damped oscillations ``w = c + A exp(-g t) sin(W t)``, whose
-undamped eigenvalue is ``sigma^2 = -(W^2 + g^2)``; along the sweep ``|sigma^2| = k (mu* -
-mu)^(2a)`` with the saddle-node's ``a = 1/4`` and ``mu* = 1.8``, so the detections and the
+The records are closed-form damped oscillations (``_records``): the detections and the
 prediction have exact references.
 """
 
@@ -12,29 +10,11 @@ import threading
 
 import anyio
 import httpx2
-import numpy as np
 import pytest
+from _records import DT, MU_STAR, record, sigma2_of
 
 from service.client import AsyncClient, Client, InvalidInput
 from service.client.errors import ApiError
-
-MU_STAR = 1.8
-K = 400.0
-GAMMA = 0.02
-DT = 2e-3
-N = 4000
-
-
-def sigma2_of(mu: float) -> float:
-    return -K * (MU_STAR - mu) ** 0.5
-
-
-def record(mu: float, *, n: int = N, dt: float = DT) -> tuple[np.ndarray, np.ndarray]:
-    """(t, w) of a noise-free impulse response at ``mu`` (closed form)."""
-    t = np.arange(n) * dt
-    omega = np.sqrt(-sigma2_of(mu) - GAMMA**2)
-    w = 0.05 * (MU_STAR - mu) ** 0.5 + 1e-2 * np.exp(-GAMMA * t) * np.sin(omega * t)
-    return t, w
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,272 @@
+"""``snapwarn watch DIR --control REGEX``: follow a folder a lab's logger writes records into.
+
+Every new file whose name matches ``--control`` (a regular expression with one group, or a
+group named ``control``, that captures the control value) is read when it stops changing, added
+to a live sweep, and the updated warning is printed: one line per record, or one JSON document
+per line with ``--json`` (the ``LiveUpdate`` wire model, as the API answers it). Files are
+noticed by ``watchfiles`` (OS notifications), not by polling the folder.
+
+Without ``--server`` the sweep runs in this process (:mod:`service.analysis.live`, the same
+numerics as the service); with ``--server URL`` each file is uploaded to an open live sweep
+there (``POST /v1/sweeps/{id}/records``), so dashboards can follow it. The watch ends after
+``--budget`` records, after ``--idle`` seconds without a new record, or on Ctrl-C; a server's
+sweep is then closed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from service.cli._common import CliError, add_json_flag, bad, emit, error_from, finite
+
+#: A file is read once its size and mtime have not changed for this long (s).
+SETTLE_S = 0.3
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "watch",
+        help="follow a folder of records: the warning after each new file",
+        description=__doc__.split("\n\n")[1],
+    )
+    p.add_argument("dir", metavar="DIR", help="folder the logger writes records into")
+    p.add_argument(
+        "--control", required=True, metavar="REGEX",
+        help="regular expression on the file name capturing the control value, e.g. "
+        r"'mu_([-+0-9.eE]+)\.csv' (one group, or a group named 'control')",
+    )  # fmt: skip
+    p.add_argument("--server", metavar="URL", help="add the records to a live sweep there")
+    p.add_argument("--api-key", default=os.environ.get("SNAPWARN_API_KEY"), help=argparse.SUPPRESS)
+    p.add_argument("--name", help="the sweep's name (default: the folder's name)")
+    p.add_argument("--control-name", default="mu", help="name of the control (default mu)")
+    p.add_argument("--unit", help="unit of the control")
+    p.add_argument("--step", type=finite, help="largest control step (control units)")
+    p.add_argument("--margin", type=finite, default=0.0, help="kept below the bound on mu*")
+    p.add_argument("--budget", type=int, help="stop after this many records")
+    p.add_argument("--idle", type=finite, help="stop after this many seconds without a record")
+    p.add_argument("--dt", type=finite, help="sample step of files without a time column")
+    p.add_argument(
+        "--skip-existing", action="store_true",
+        help="ignore the matching files already in DIR (default: add them first, by control)",
+    )  # fmt: skip
+    add_json_flag(p)
+    p.set_defaults(func=_watch)
+
+
+# ------------------------------------------------------------------------------- the sources
+def control_of(name: str, pattern: re.Pattern[str]) -> float | None:
+    """The control value in a file name (None when the name does not match)."""
+    m = pattern.search(name)
+    if m is None:
+        return None
+    text = m.group("control") if "control" in pattern.groupindex else m.group(1)
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+class InProcess:
+    """The live sweep in this process: the numerics of the service, the same wire model."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from service.analysis.live import LivePlan
+
+        self.plan = LivePlan(step=args.step, margin=args.margin)
+        self.records: list[Any] = []
+        self.dt = args.dt
+
+    def add(self, path: Path, control: float) -> Any:
+        from service import convert
+        from service.analysis.live import update
+        from service.recordings import read_file
+
+        rec = read_file(path, dt=self.dt)
+        u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan)
+        self.records.append(u.record)
+        return convert.live_update(u)
+
+    def close(self) -> None:
+        pass
+
+
+class Remote:
+    """A live sweep on a server: each file is uploaded as it is."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from service.client import Client
+
+        self.client = Client(args.server, api_key=args.api_key, timeout=300.0)
+        opts = {k: v for k, v in (("step", args.step), ("margin", args.margin),
+                                  ("budget", args.budget)) if v is not None}  # fmt: skip
+        self.live = self.client.live_sweep(
+            args.name or Path(args.dir).resolve().name, control=args.control_name,
+            unit=args.unit, **opts,
+        )  # fmt: skip
+        self.dt = args.dt
+        sys.stderr.write(f"live sweep {self.live.id} on {args.server}\n")
+
+    def add(self, path: Path, control: float) -> Any:
+        return self.live.add(path, control=control, dt=self.dt)
+
+    def close(self) -> None:
+        try:
+            self.live.close()
+        finally:
+            self.client.close()
+
+
+# ------------------------------------------------------------------------------- printing
+def line(u: Any, name: str) -> str:
+    """One human line: the record, the type, mu* and its interval, the alarm, the next value."""
+    f = u.detection.fundamental
+    parts = [f"#{u.seq} {name} control={u.control:.8g}"]
+    parts.append(f"sigma2={f.sigma2:.6g}" if f is not None and f.sigma2 is not None else "no mode")
+    if u.mu_star is not None:
+        lo, hi = u.mu_star_interval or (None, None)
+        p = max(u.probabilities.values(), default=None) if u.probabilities else None
+        pt = f" p={p:.2f}" if p is not None else ""
+        parts.append(f"{u.transition}{pt} mu*={u.mu_star:.8g} [{lo:.8g}, {hi:.8g}]")
+    parts.append(f"alarm={u.alarm.level}")
+    if u.next_control is not None:
+        parts.append(f"next<={u.next_control:.8g} ({u.next_bound_source})")
+    else:
+        parts.append("next: none")
+    if u.converged:
+        parts.append("converged")
+    codes = [x.code for x in (*u.record_flags, *u.flags)]
+    if codes:
+        parts.append("flags=" + ",".join(codes))
+    return " | ".join(parts)
+
+
+# ------------------------------------------------------------------------------- the loop
+class _Folder:
+    """Files to add: noticed by watchfiles, read once settled, each once."""
+
+    def __init__(self, root: Path, pattern: re.Pattern[str]) -> None:
+        self.root, self.pattern = root, pattern
+        self.pending: dict[Path, tuple[int, float, float]] = {}  # path -> size, mtime, seen
+        self.done: set[Path] = set()
+
+    def notice(self, path: Path) -> None:
+        if path in self.done or control_of(path.name, self.pattern) is None:
+            return
+        try:
+            st = path.stat()
+        except OSError:
+            return
+        if not path.is_file():
+            return
+        prev = self.pending.get(path)
+        if prev is None or (prev[0], prev[1]) != (st.st_size, st.st_mtime):
+            self.pending[path] = (st.st_size, st.st_mtime, time.monotonic())
+
+    def ready(self) -> list[Path]:
+        now = time.monotonic()
+        out = []
+        for p, (size, mtime, seen) in list(self.pending.items()):
+            try:
+                st = p.stat()
+            except OSError:
+                del self.pending[p]
+                continue
+            if (st.st_size, st.st_mtime) != (size, mtime):
+                self.pending[p] = (st.st_size, st.st_mtime, now)
+            elif now - seen >= SETTLE_S and st.st_size > 0:
+                out.append(p)
+        out.sort(key=lambda p: (self.pending[p][2], p.name))
+        return out
+
+
+def _watch(args: argparse.Namespace) -> int:
+    import watchfiles
+
+    root = Path(args.dir)
+    if not root.is_dir():
+        raise bad("DIR", args.dir, "is not a folder")
+    try:
+        pattern = re.compile(args.control)
+    except re.error as exc:
+        raise bad("--control", args.control, f"is not a regular expression ({exc})") from None
+    if pattern.groups < 1:
+        raise bad("--control", args.control, "needs a group capturing the control value")
+    if args.budget is not None and args.budget < 1:
+        raise bad("--budget", args.budget, "must be >= 1")
+    try:
+        source: InProcess | Remote = Remote(args) if args.server else InProcess(args)
+    except ValueError as exc:
+        err = error_from(exc)
+        raise err if err is not None else CliError(str(exc)) from None
+    folder = _Folder(root, pattern)
+    if not args.skip_existing:
+        existing = sorted(
+            (p for p in root.iterdir() if control_of(p.name, pattern) is not None),
+            key=lambda p: (control_of(p.name, pattern), p.name),
+        )
+        for p in existing:
+            folder.pending[p] = (-1, -1.0, 0.0)  # read at once, by control
+    else:
+        folder.done.update(p for p in root.iterdir())
+    n = 0
+    last_record = time.monotonic()
+    try:
+        with_watch = watchfiles.watch(
+            root, rust_timeout=100, yield_on_timeout=True, debounce=50, step=20,
+            raise_interrupt=False,
+        )  # fmt: skip
+        first = True
+        for changes in _first_then(with_watch):
+            if not first:
+                for _, path in changes:
+                    folder.notice(Path(path))
+            first = False
+            for p in _existing_first(folder):
+                n += _add(source, p, folder, pattern, args)
+                last_record = time.monotonic()
+                if args.budget is not None and n >= args.budget:
+                    return 0
+            if args.idle is not None and time.monotonic() - last_record > args.idle:
+                sys.stderr.write(f"no new record for {args.idle:g} s: stopping\n")
+                return 0
+    finally:
+        source.close()
+    return 0
+
+
+def _first_then(it: Any) -> Any:
+    yield set()  # the files found at the start, before any change
+    yield from it
+
+
+def _existing_first(folder: _Folder) -> list[Path]:
+    first = [p for p, v in folder.pending.items() if v[0] == -1]
+    if first:
+        for p in first:
+            del folder.pending[p]
+        return first
+    return folder.ready()
+
+
+def _add(source: Any, p: Path, folder: _Folder, pattern: re.Pattern[str], args: Any) -> int:
+    folder.pending.pop(p, None)
+    folder.done.add(p)
+    control = control_of(p.name, pattern)
+    try:
+        u = source.add(p, control)
+    except Exception as exc:  # noqa: BLE001 - one bad file must not stop the watch
+        err = error_from(exc, p.name) if isinstance(exc, ValueError) else None
+        msg = str(err) if err is not None else f"{p.name}: {exc}"
+        sys.stderr.write(f"snapwarn watch: skipped {msg}\n")
+        return 0
+    emit(u, json_mode=args.json, text=line(u, p.name))
+    sys.stdout.flush()
+    return 1

@@ -1,0 +1,128 @@
+"""``snapwarn watch``: a real process follows a folder while files appear in it.
+
+Files are written the way loggers write them (a header, a time column in milliseconds, rounded
+values, written in two parts), one at a time while the watcher runs. The same files give the
+same warning in process and through a server (one scene through every door).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import httpx2
+import numpy as np
+import pytest
+from _records import MU_STAR, record, sigma2_of
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAPWARN = [sys.executable, "-c", "import sys; from service.cli import main; sys.exit(main())"]
+CONTROLS = [0.0, 0.3, 0.6, 0.9, 1.2]
+
+
+def write_record(folder: Path, mu: float) -> None:
+    """``mu_<value>.csv`` written in two parts (a logger still writing), then renamed in."""
+    t, w = record(mu, n=3000)
+    lines = ["time [ms],deflection"] + [f"{1e3 * a:.6g},{b:.9g}" for a, b in zip(t, w)]
+    text = "\n".join(lines) + "\n"
+    path = folder / f"mu_{mu:.3f}.csv"
+    with open(path, "w") as fh:
+        fh.write(text[: len(text) // 2])
+        fh.flush()
+        time.sleep(0.05)
+        fh.write(text[len(text) // 2 :])
+
+
+def start_watch(folder: Path, *extra: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+    cmd = [*SNAPWARN, "watch", str(folder),
+           "--control", r"mu_([-+0-9.]+)\.csv", "--json", "--step", "0.3",
+           "--budget", str(len(CONTROLS)), "--idle", "120", *extra]  # fmt: skip
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)  # fmt: skip
+
+
+def feed(folder: Path, proc: subprocess.Popen) -> list[dict]:
+    """Write the first file before the watcher starts, the others while it runs; collect its
+    JSON lines."""
+    out: list[dict] = []
+
+    def read() -> None:
+        for ln in proc.stdout:
+            out.append(json.loads(ln))
+
+    reader = threading.Thread(target=read)
+    reader.start()
+    (folder / "notes.txt").write_text("not a record\n")
+    for mu in CONTROLS[1:]:
+        deadline = time.monotonic() + 120
+        while len(out) < CONTROLS.index(mu) and time.monotonic() < deadline:
+            time.sleep(0.05)  # the lab measures where it is told, after the answer
+        write_record(folder, mu)
+    proc.wait(180)
+    reader.join(10)
+    return out
+
+
+def check(out: list[dict]) -> dict:
+    assert [d["seq"] for d in out] == [1, 2, 3, 4, 5]
+    assert [d["control"] for d in out] == CONTROLS
+    for d in out:
+        s2 = d["detection"]["fundamental"]["sigma2"]
+        assert s2 == pytest.approx(sigma2_of(d["control"]) * 1e-6, rel=1e-4)  # 1/ms^2
+        assert not d["record_flags"]
+    last = out[-1]
+    lo, hi = last["mu_star_interval"]
+    assert lo <= MU_STAR <= hi and abs(last["mu_star"] - MU_STAR) < 1e-3
+    assert last["transition"] == "saddle-node"
+    assert 1.2 < last["next_control"] < MU_STAR
+    return last
+
+
+def watch_local(tmp_path: Path) -> dict:
+    here = tmp_path / "local"
+    here.mkdir()
+    write_record(here, CONTROLS[0])  # already there when the watch starts
+    proc = start_watch(here)
+    local = check(feed(here, proc))
+    assert proc.returncode == 0, proc.stderr.read()
+    return local
+
+
+def test_watch_in_process(tmp_path: Path) -> None:
+    watch_local(tmp_path)
+
+
+@pytest.mark.slow
+def test_watch_through_a_server_agrees_with_in_process(tmp_path: Path, server) -> None:  # noqa: ANN001
+    local = watch_local(tmp_path)
+    there = tmp_path / "remote"
+    there.mkdir()
+    write_record(there, CONTROLS[0])
+    proc = start_watch(there, "--server", server.url, "--name", "watched")
+    remote = check(feed(there, proc))
+    err = proc.stderr.read()
+    assert proc.returncode == 0, err
+    # one scene through every door: the same numbers
+    assert remote["mu_star"] == pytest.approx(local["mu_star"], rel=0, abs=1e-12)
+    assert remote["next_control"] == pytest.approx(local["next_control"], rel=0, abs=1e-12)
+    # the server's sweep spent its budget: an ordinary finished sweep
+    sweep = httpx2.get(f"{server.url}/v1/sweeps/{remote['sweep_id']}").json()
+    assert sweep["status"] == "succeeded"
+    assert len(sweep["result"]["measurements"]) == len(CONTROLS)
+    assert np.isclose(sweep["result"]["prediction"]["mu_star"], remote["mu_star"], atol=1e-12)
+
+
+def test_watch_refuses_a_regex_without_group(tmp_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([*SNAPWARN, "watch", str(tmp_path),
+                        "--control", r"mu_.*\.csv", "--json"],
+                       env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert r.returncode == 2
+    doc = json.loads(r.stdout)
+    assert doc["field"] == "--control"
