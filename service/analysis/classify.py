@@ -49,6 +49,8 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
+from service.analysis._laws_kernels import REL_FLOOR as _REL_FLOOR
+from service.analysis._laws_kernels import nll_rows
 from service.analysis.common import Flag
 
 __all__ = [
@@ -77,9 +79,7 @@ REGIMES = ("underdamped", "overdamped")
 _KMAX = 3  # most correction terms in the sigma^2 law
 _KW_MAX = 3  # most terms beyond the constant in the static law
 _ALPHA = 0.05  # goodness-of-fit level for accepting a window
-_REL_FLOOR = 1e-12  # relative noise floor (exact data)
 _GRID = 111
-_RHO = 0.5  # corrections may reach this fraction of the leading term inside the window
 
 
 # --------------------------------------------------------------------------------------------
@@ -263,62 +263,46 @@ class _Comp:
     lead_col: int = 0  # column of the leading term (the columns after it are corrections)
     signed: bool = True  # the leading term must have the sign of y (|sigma^2| > 0)
     mu: np.ndarray | None = None  # own control values (a suffix of the sweep); None: the window
+    conformal: bool = False  # series in z (a secondary fold at mu* + delta, delta profiled)
 
 
-def _comp_nll(x: np.ndarray, c: _Comp) -> np.ndarray:
-    """-2 log L (up to constants) of component ``c`` for each row of ``x`` (shape (G, n))."""
-    X = x[:, :, None] ** c.exps[None, None, :]
-    A = X * c.wt[None, :, None]
-    nrm = np.linalg.norm(A, axis=1, keepdims=True)
-    nrm[nrm == 0] = 1.0
-    A = A / nrm
-    b = c.y * c.wt
-    Q, R = np.linalg.qr(A)
-    qb = np.einsum("gnk,n->gk", Q, b)
-    r = b[None, :] - np.einsum("gnk,gk->gn", Q, qb)
-    rss = np.einsum("gn,gn->g", r, r)
-    n = c.y.size
-    if c.known:
-        out = rss
-    else:
-        floor = n * (_REL_FLOOR * max(float(np.max(np.abs(b))), 1e-300)) ** 2
-        # (n - k) instead of n: the profiled variance is then the unbiased one, so that profile
-        # differences behave like F statistics for small windows
-        out = max(n - c.exps.size, 1) * np.log(np.maximum(rss, floor) / n)
-    if c.lead and c.exps.size > c.lead_col + 1:
-        out = out + _lead_penalty(A, R, qb, c.lead_col, c.signed)
-    return out
+_LOGU = np.linspace(math.log(1e-4), math.log(10.0), 11)  # u = (mu* - mu_last) / delta
 
 
-def _lead_penalty(
-    A: np.ndarray, R: np.ndarray, qb: np.ndarray, col: int, signed: bool
-) -> np.ndarray:
-    """Penalty when the regular corrections exceed _RHO of the leading term (or the leading
-    coefficient has the wrong sign) at some window point: the law no longer "holds" there."""
-    try:
-        coef = np.linalg.solve(R, qb[:, :, None])[:, :, 0]
-    except np.linalg.LinAlgError:
-        return np.zeros(R.shape[0])
-    terms = A * coef[:, None, :]  # weighted term values, same sign convention as y * wt
-    lead = terms[:, :, col]
-    corr = terms[:, :, col + 1 :].sum(axis=2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if signed:
-            ratio = np.where(lead > 0, np.abs(corr) / lead, np.inf)
-        else:
-            ratio = np.where(lead != 0, np.abs(corr / lead), np.inf)
-    worst = np.max(ratio, axis=1)
-    excess = np.clip(worst - _RHO, 0.0, 1e3)
-    return 1e4 * excess**2
+def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple:
+    mus = [np.asarray(mu_w if c.mu is None else c.mu, dtype=float) for c in comps]
+    start = np.zeros(len(comps) + 1, dtype=np.int64)
+    start[1:] = np.cumsum([m.size for m in mus])
+    kmax = max(c.exps.size for c in comps)
+    exps = np.zeros((len(comps), kmax))
+    for i, c in enumerate(comps):
+        exps[i, : c.exps.size] = c.exps
+    nexp = np.array([c.exps.size for c in comps], dtype=np.int64)
+    opts = np.array(
+        [[c.known, c.lead, c.lead_col, c.signed, c.conformal] for c in comps], dtype=np.int64
+    )
+    return (
+        np.concatenate(mus),
+        np.concatenate([np.asarray(c.y, dtype=float) for c in comps]),
+        np.concatenate([np.asarray(c.wt, dtype=float) for c in comps]),
+        start,
+        exps,
+        nexp,
+        opts,
+    )
+
+
+def _nll_u(
+    mu_w: np.ndarray, comps: list[_Comp], mu_star: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """-2 log L (up to constants) at each mu* and the secondary-fold parameter
+    ``u = (mu* - mu_w[-1]) / delta`` profiled there (0: none, or no conformal component)."""
+    ms = np.ascontiguousarray(np.atleast_1d(np.asarray(mu_star, dtype=float)))
+    return nll_rows(ms, *_pack(mu_w, comps), float(mu_w[-1]), _LOGU)
 
 
 def _nll(mu_w: np.ndarray, comps: list[_Comp], mu_star: np.ndarray) -> np.ndarray:
-    ms = np.asarray(mu_star, dtype=float)[:, None]
-    out = np.zeros(ms.shape[0])
-    for c in comps:
-        x = np.maximum(ms - (mu_w if c.mu is None else c.mu)[None, :], 1e-300)
-        out += _comp_nll(x, c)
-    return out
+    return _nll_u(mu_w, comps, mu_star)[0]
 
 
 @dataclass(frozen=True)
@@ -344,11 +328,15 @@ def _profile(
 ) -> _Profile:
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals."""
     last = float(mu_w[-1])
-    t = np.linspace(math.log(scale * 1e-9), math.log(scale * 30.0), _GRID)
+    # a conformal law profiles the secondary fold at every mu* (some 25 fits each): a coarser
+    # grid around the same seeds keeps its cost near the plain laws'
+    cf = any(c.conformal for c in comps)
+    t = np.linspace(math.log(scale * 1e-9), math.log(scale * 30.0), 61 if cf else _GRID)
     seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
     if seeds:
+        k1, k2 = (15, 9) if cf else (41, 41)
         extra = [
-            np.log(d0) + np.concatenate([np.linspace(-1, 1, 41), np.linspace(-0.01, 0.01, 41)])
+            np.log(d0) + np.concatenate([np.linspace(-1, 1, k1), np.linspace(-0.01, 0.01, k2)])
             for d0 in seeds
         ]
         t = np.unique(np.concatenate([t, *extra]))
@@ -445,11 +433,30 @@ def _w_exps(b: float, Kw: int) -> np.ndarray:
     return np.asarray(e[: Kw + 1], dtype=float)
 
 
-def _sigma_comp(sw: Sweep, idx: slice, p: float, h: float, K: int) -> _Comp:
-    return _Comp(sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, h, K), True, True)
+_KCF = 2  # most corrections of a conformal law (one parameter more than the plain law: with
+# three corrections it out-fits a true fold's series over a fixed grid's far points)
 
 
-def _w_comp(sw: Sweep, idx: slice, b: float, Kw: int) -> _Comp | None:
+def _variants(p: float, h: float, K: int = 0) -> tuple[bool, ...]:
+    """Plain law, and for a pitchfork (|sigma^2| ~ x) also the law that knows a secondary fold
+    of the measured branch beyond mu* (series in the conformal variable z; see
+    :mod:`service.analysis._laws_kernels`). A subcritical pitchfork's trivial branch, unstable
+    past mu*, may fold soon after it (the symmetric beam: mu2* = mu* + 0.012); the series in
+    x = mu* - mu then converges only within that distance, the series in z much farther."""
+    return (False, True) if (p == 1.0 and h == 1.0 and K <= _KCF) else (False,)
+
+
+def _sigma_comp(
+    sw: Sweep, idx: slice, p: float, h: float, K: int, conformal: bool = False
+) -> _Comp:
+    return _Comp(
+        sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, h, K), True, True, conformal=conformal
+    )
+
+
+def _w_comp(
+    sw: Sweep, idx: slice, b: float, Kw: int, conformal: bool = False
+) -> _Comp | None:
     """Static-deflection component on the window ``idx`` (its own: the static law holds farther
     from mu* than the eigenvalue law, and near mu* w hardly moves)."""
     if sw.w is None:
@@ -466,10 +473,12 @@ def _w_comp(sw: Sweep, idx: slice, b: float, Kw: int) -> _Comp | None:
             1,
             False,
             sw.mu[idx],
+            conformal and b == 1.0,
         )
     return _Comp(
-        sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False, sw.mu[idx]
-    )
+        sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False, sw.mu[idx],
+        conformal and b == 1.0,
+    )  # fmt: skip
 
 
 def _window_sizes(n: int) -> list[int]:
@@ -487,6 +496,7 @@ class _Sel:
     K: int
     accepted: bool
     pvalue: float
+    conformal: bool = False
 
 
 def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
@@ -502,16 +512,20 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
         idx = slice(N - n, N)
         ok = False
         for K in range(_KMAX + 1):
-            dof = n - K - 2
-            if dof < 1:
-                break
-            prof = _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K)], scale, with_interval=False)
-            pv = float(stats.chi2.sf(prof.nll, dof))
-            if fallback is None or pv > fallback.pvalue:
-                fallback = _Sel(n, K, False, pv)
-            if pv >= _ALPHA:
-                best = _Sel(n, K, True, pv)
-                ok = True
+            for cf in _variants(p, h, K):
+                dof = n - K - 2 - int(cf)
+                if dof < 1:
+                    break
+                comp = _sigma_comp(sw, idx, p, h, K, cf)
+                prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
+                pv = float(stats.chi2.sf(prof.nll, dof))
+                if fallback is None or pv > fallback.pvalue:
+                    fallback = _Sel(n, K, False, pv, cf)
+                if pv >= _ALPHA:
+                    best = _Sel(n, K, True, pv, cf)
+                    ok = True
+                    break
+            if ok:
                 break
         misses = 0 if ok else misses + 1
         if misses >= patience and (best is not None or n >= 8):
@@ -522,10 +536,18 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
     return fallback
 
 
-def _sigma_chi2(sw: Sweep, p: float, h: float, n: int, K: int, scale: float) -> float:
+def _sigma_chi2(
+    sw: Sweep, p: float, h: float, n: int, K: int, scale: float, conformal: bool | None = None
+) -> float:
+    """Best chi^2 of the law on the nearest n points (over its variants when ``conformal`` is
+    None)."""
     N = sw.mu.size
     idx = slice(N - n, N)
-    return _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K)], scale, with_interval=False).nll
+    cfs = _variants(p, h) if conformal is None else (conformal,)
+    return min(
+        _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K, cf)], scale, with_interval=False).nll
+        for cf in cfs
+    )
 
 
 _ASSUMED_REL = 1e-2  # relative noise assumed when it can be neither given nor estimated
@@ -546,9 +568,13 @@ def _estimate_noise(sw: Sweep) -> Sweep:
     K = min(2, n - 2 - _MIN_NOISE_DOF)
     if K >= 0:
         for _, (a, _, h) in CANDIDATES.items():
-            c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True)
-            prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
-            best = min(best, prof.nll / (n - K - 2))
+            for cf in _variants(2 * a, h):
+                if n - K - 2 - int(cf) < 1:
+                    continue
+                c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True,
+                          conformal=cf)  # fmt: skip
+                prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
+                best = min(best, prof.nll / (n - K - 2 - int(cf)))
     s = math.sqrt(best) if math.isfinite(best) else _ASSUMED_REL
     s = max(s, _REL_FLOOR)
     return Sweep(
@@ -624,6 +650,7 @@ class ModelFit:
     bic: float
     profile: _Profile
     n_w: int = 0
+    conformal: bool = False
 
 
 _K_CRITERION = "aicc"
@@ -660,34 +687,36 @@ def _fit_candidate(
     if sw.w is not None and b is not None:
         kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
     for K in range(_KMAX + 1):
-        if n - K - 2 < 1:
-            break
-        for Kw in kw_range:
-            comps = [_sigma_comp(sw, idx, 2 * a, h, K)]
-            bic_pen = (K + 2) * math.log(n)
-            if Kw:
-                wc = _w_comp(sw, idx_w, float(b), Kw)
-                assert wc is not None
-                comps.append(wc)
-                bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
-            prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
-            bic = prof.nll + bic_pen
-            k_all = K + 2 + (Kw + 1 if Kw else 0)
-            m_all = n + (n_w if Kw else 0)
-            crit = _crit(prof.nll, bic, k_all, m_all)
-            if best is None or crit < best_crit:
-                best_crit = crit
-                best = ModelFit(
-                    name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w
-                )
+        for cf in _variants(2 * a, h, K):
+            if n - K - 2 - int(cf) < 1:
+                break
+            for Kw in kw_range:
+                comps = [_sigma_comp(sw, idx, 2 * a, h, K, cf)]
+                bic_pen = (K + 2 + int(cf)) * math.log(n)
+                if Kw:
+                    wc = _w_comp(sw, idx_w, float(b), Kw, cf)
+                    assert wc is not None
+                    comps.append(wc)
+                    bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
+                prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
+                bic = prof.nll + bic_pen
+                k_all = K + 2 + int(cf) + (Kw + 1 if Kw else 0)
+                m_all = n + (n_w if Kw else 0)
+                crit = _crit(prof.nll, bic, k_all, m_all)
+                if best is None or crit < best_crit:
+                    best_crit = crit
+                    best = ModelFit(
+                        name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w,
+                        cf,
+                    )  # fmt: skip
     assert best is not None
-    comps = [_sigma_comp(sw, idx, 2 * a, h, best.K)]
+    comps = [_sigma_comp(sw, idx, 2 * a, h, best.K, best.conformal)]
     if best.Kw:
-        wc = _w_comp(sw, idx_w, float(b), best.Kw)  # type: ignore[arg-type]
+        wc = _w_comp(sw, idx_w, float(b), best.Kw, best.conformal)  # type: ignore[arg-type]
         assert wc is not None
         comps.append(wc)
     prof = _profile(sw.mu[idx], comps, scale, level=level)
-    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof, n_w)
+    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof, n_w, best.conformal)
 
 
 def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[Flag]]:
@@ -959,7 +988,7 @@ def _compare(
             (
                 _profile(
                     sw.mu[idx],
-                    [_sigma_comp(sw, idx, p, h, min(sels[nm].K, n_c - 3))],
+                    [_sigma_comp(sw, idx, p, h, min(sels[nm].K, n_c - 3), sels[nm].conformal)],
                     scale,
                     with_interval=False,
                 )  # fmt: skip
@@ -1151,7 +1180,8 @@ def _classify_sweep(
 
     # free exponent a (on the window, corrections of the best model)
     def make_a(p: float) -> list[_Comp]:
-        return [_Comp(sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, top.h, top.K), True, True)]
+        return [_Comp(sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, top.h, top.K), True, True,
+                      conformal=top.conformal)]  # fmt: skip
 
     a2, a2_se = _free_exponent(sw.mu[idx], make_a, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale)
     a_hat, a_se = a2 / 2, a2_se / 2
@@ -1171,7 +1201,10 @@ def _classify_sweep(
             wt = 1.0 / wsd[iw] if wsd is not None else np.ones(n_w)
             known = wsd is not None and sw.w_noise_given
             # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
-            return [_Comp(sw.w[iw], wt, e, known, True, 1, False)]  # type: ignore[index]
+            return [
+                _Comp(sw.w[iw], wt, e, known, True, 1, False,  # type: ignore[index]
+                      conformal=top.conformal)
+            ]  # fmt: skip
 
         if n_w >= 5:
             b_hat, b_se = _free_exponent(

@@ -290,7 +290,7 @@ def _truncation_spread(sw: Sweep, fit: ModelFit) -> float:
         if n2 - K2 - 2 < 1 or n2 < 3 or K2 < 0:
             continue
         idx = slice(N - n2, N)
-        comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, K2)
+        comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, K2, fit.conformal)
         alt = _profile(sw.mu[idx], [comp], scale, with_interval=False).mu_star
         if math.isfinite(alt):
             out = max(out, abs(alt - m0))
