@@ -51,9 +51,10 @@ def write(fig: Any, path: str | Path, option: str = "--plot") -> Path:
 
 
 def label(name: str, unit: str | None) -> str:
-    """``"theta [deg]"``; ``"mu (non-dimensional)"`` when the unit is the simulator's."""
+    """``"theta [deg]"``; ``"mu (non-dimensional)"`` when the unit is the simulator's;
+    ``"t (no unit given)"`` when the data did not say (never a silent bare name)."""
     if not unit:
-        return name
+        return f"{name} (no unit given)"
     if unit == NONDIM:
         return f"{name} ({NONDIM})"
     return f"{name} [{unit}]"

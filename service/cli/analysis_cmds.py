@@ -13,7 +13,9 @@ from typing import Any
 import numpy as np
 
 from service import convert
+from service.charts.cli import add_plot_flag, plot_detection, plot_prediction_table, plot_sweep
 from service.cli._common import CliError, add_json_flag, bad, emit, error_from, finite
+from service.cli._progress import Progress, warm_kernels
 
 
 # ------------------------------------------------------------------------------- file readers
@@ -78,6 +80,9 @@ def _detect(args: argparse.Namespace) -> int:
     rec = read_record(args.file, dt=args.dt, resample=args.resample)
     det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
     doc = convert.detection(det, extra_flags=rec.flags)
+    if args.plot:
+        plot_detection(args.plot, rec.w, rec.dt, doc, time_unit=rec.unit,
+                       value_unit=rec.value_unit, title=Path(args.file).name)  # fmt: skip
     f = doc.fundamental
     text = (
         f"fundamental: omega = {f.omega}, sigma2 = {f.sigma2} +- {f.sigma2_std} ({f.regime})"
@@ -116,26 +121,21 @@ def _predict(args: argparse.Namespace) -> int:
         raise error_from(exc, f"SWEEP {args.file!r}") or CliError(f"SWEEP {args.file!r}: {exc}",
                                                                    field="SWEEP") from None
     doc = convert.prediction(pred)
+    if args.plot:
+        plot_prediction_table(args.plot, mu, kw, doc)
     lo, hi = doc.mu_star_interval
     emit(doc, json_mode=args.json,
          text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
     return 0
 
 
-def _progress_printer(enabled: bool):
-    if not enabled:
-        return None
-    from tqdm import tqdm
+def _progress_printer(enabled: bool, models: tuple[str, ...] = ()):
+    """Truthful progress on stderr (``service.cli._progress``): kernels compiled first."""
+    from service.cli._progress import make_progress, warm_kernels
 
-    bar = tqdm(total=100, file=sys.stderr, unit="%", leave=False, dynamic_ncols=True)
-
-    def cb(fraction: float, message: str) -> None:
-        bar.n = int(round(100 * fraction))
-        bar.set_postfix_str(message[:70])
-        bar.refresh()
-
-    cb.close = bar.close  # type: ignore[attr-defined]
-    return cb
+    if enabled:
+        warm_kernels(models)
+    return make_progress(enabled)
 
 
 def _warn(args: argparse.Namespace) -> int:
@@ -147,7 +147,7 @@ def _warn(args: argparse.Namespace) -> int:
             opts[name] = getattr(args, name)
     if args.max_measurements < 5:
         raise bad("--max-measurements", args.max_measurements, "must be >= 5")
-    cb = _progress_printer(not args.no_progress)
+    cb = _progress_printer(not args.no_progress, (args.model,))
     try:
         res = warn(args.actuation, model=args.model, damping=args.damping, snr_db=args.snr,
                    seed=args.seed, max_measurements=args.max_measurements,
@@ -156,6 +156,8 @@ def _warn(args: argparse.Namespace) -> int:
         if cb is not None:
             cb.close()
     doc = convert.sweep_result(res)
+    if args.plot:
+        plot_sweep(args.plot, doc, title=f"{args.actuation} ({args.model})")
     emit(doc, json_mode=args.json, text=_warn_text(doc))
     return 0
 
@@ -193,7 +195,7 @@ def _sweep(args: argparse.Namespace) -> int:
     control = _floats(table, "control", "MANIFEST", args.manifest)
     steps = _floats(table, "dt", "MANIFEST", args.manifest) if "dt" in table else None
     base = Path(args.manifest).resolve().parent
-    records, names = [], []
+    records, names, time_units = [], [], set()
     for k, (rel, c) in enumerate(zip(table["path"], control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
@@ -201,6 +203,7 @@ def _sweep(args: argparse.Namespace) -> int:
         rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample)
         records.append((rec.w, rec.dt, float(c)))
         names.append(str(rel))
+        time_units.add(rec.unit)
     cb = _progress_printer(not args.no_progress)
     try:
         res = sweep_from_signals(records, names=names, progress=cb)
@@ -211,6 +214,9 @@ def _sweep(args: argparse.Namespace) -> int:
         if cb is not None:
             cb.close()
     doc = convert.sweep_result(res)
+    if args.plot:
+        plot_sweep(args.plot, doc, control_name=args.control_name, control_unit=args.control_unit,
+                   time_unit=time_units.pop() if len(time_units) == 1 else None)  # fmt: skip
     p = doc.prediction
     text = (
         f"{p.transition}: mu* = {p.mu_star} {list(p.mu_star_interval)}"
@@ -243,13 +249,9 @@ def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
     acts = ("asymmetric", "symmetric", "antisymmetric")
     ctx = mp.get_context("spawn")
     workers = max(1, min(len(acts), os.cpu_count() or 1))
-    bars = {}
-    if show_progress:
-        from tqdm import tqdm
-
-        for i, act in enumerate(acts):
-            bars[act] = tqdm(total=100, desc=f"{act:13}", position=i, file=sys.stderr,
-                             leave=False, unit="%", dynamic_ncols=True)  # fmt: skip
+    warm_kernels(("euler-beam",), enabled=show_progress)  # compiled once, loaded by workers
+    bars = {act: Progress(f"{act:13}", position=i) for i, act in enumerate(acts)
+            if show_progress}  # fmt: skip
     with ctx.Manager() as mgr:
         q = mgr.Queue() if show_progress else None
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as ex:
@@ -262,9 +264,7 @@ def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
                         act, frac, msg = q.get_nowait()
                     except queue_mod.Empty:
                         break
-                    bars[act].n = int(round(100 * frac))
-                    bars[act].set_postfix_str(msg[:60])
-                    bars[act].refresh()
+                    bars[act](frac, msg)
             runs = [f.result() for f in futs]
     for bar in bars.values():
         bar.close()
@@ -323,6 +323,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "error for a file that has them")  # fmt: skip
     _resample_flag(p)
     add_json_flag(p)
+    add_plot_flag(p, "the record, the detector's fit over it and the residual")
     p.set_defaults(func=_detect)
 
     p = sub.add_parser("predict", help="mu* from a sweep table (mu,sigma2[,sigma2_std][,w_static])")
@@ -331,6 +332,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    choices=("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork",
                             "pitchfork"))  # fmt: skip
     add_json_flag(p)
+    add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
     p.set_defaults(func=_predict)
 
     p = sub.add_parser("warn", help="simulated early-warning sweep")
@@ -347,6 +349,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--elements", type=int, default=None)
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
+    add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
     p.set_defaults(func=_warn)
 
     p = sub.add_parser("sweep", help="detect recorded files then predict "
@@ -357,6 +360,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     _resample_flag(p)
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
+    add_plot_flag(p, "T(control), the T^(-1/a) collapse with the transition and its interval")
+    p.add_argument("--control-name", default="control", help="the control's name on the chart")
+    p.add_argument("--control-unit", default=None, help="the control's unit on the chart")
     p.set_defaults(func=_sweep)
 
     p = sub.add_parser("demo", help="the main job on embedded defaults")

@@ -11,6 +11,7 @@ import argparse
 import csv
 from pathlib import Path
 
+from service.charts.cli import add_plot_flag, plot_equilibria, plot_snap, plot_spectrum
 from service.cli._common import add_json_flag, bad, emit, finite
 from sim.scene import ACTUATIONS, BRANCHES
 
@@ -81,6 +82,8 @@ def _equilibria(args: argparse.Namespace) -> int:
         for e in doc["equilibria"]
     ]
     rows.append(_resolution_text(res))
+    if args.plot:
+        plot_equilibria(args.plot, args.actuation, args.mu)
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
 
@@ -93,6 +96,8 @@ def _spectrum(args: argparse.Namespace) -> int:
     rows = [f"{args.branch} at mu = {args.mu} ({doc['model']}): sigma^2 (omega)"]
     rows += [f"  {s:16.6f}  ({w:.6f})" for s, w in zip(doc["sigma2"], doc["omega"])]
     rows.append(_resolution_text(doc["resolution"]))
+    if args.plot:
+        plot_spectrum(args.plot, doc, actuation=args.actuation, mu=args.mu, branch=args.branch)
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
 
@@ -163,6 +168,8 @@ def _snap(args: argparse.Namespace) -> int:
     text = (f"{r.actuation} ({r.model}): from {r.from_branch} at mu = {r.mu:.8g} "
             f"(mu* {'+' if r.mu > r.mu_star else '-'} {r.dmu:.3g}) to {r.to_branch}: snap time "
             + (f"{r.snap_time:.6g}" if r.snap_time is not None else "not reached"))
+    if args.plot:
+        plot_snap(args.plot, r)
     emit(doc, json_mode=args.json, text=text)
     return 0
 
@@ -184,6 +191,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mu", type=finite, required=True)
     _add_strip(p, models=static, default="euler-beam")
     add_json_flag(p)
+    add_plot_flag(p, "the Euler beam's branch diagram W(1/2) vs mu (paper's Fig. 1 D-F)")
     p.set_defaults(func=_equilibria)
 
     p = sub.add_parser("spectrum", help="sigma^2 spectrum of an equilibrium")
@@ -193,6 +201,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--modes", type=int, default=10)
     _add_strip(p, models=static, default="euler-beam")
     add_json_flag(p)
+    add_plot_flag(p, "the eigenvalues sigma^2 of the modes")
     p.set_defaults(func=_spectrum)
 
     p = sub.add_parser("normal-form", help="amplitude-equation coefficients at mu*")
@@ -226,6 +235,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     _add_strip(p, models=static, default="euler-beam")
     p.add_argument("--out", default=None, help="CSV file (t, amplitude) to write")
     add_json_flag(p)
+    add_plot_flag(p, "A(t) after the release with the snap time")
     p.set_defaults(func=_snap)
 
 
