@@ -66,6 +66,8 @@ class Backend:
 def _past(exc: SimulationError, scene: Scene, bif: Bifurcation | None) -> SimulationError:
     """The same error, its message naming the backend's mu* (one line)."""
     msg = str(exc).splitlines()[0] if str(exc) else "no equilibrium"
+    if f"mu={scene.mu!r}" not in msg:
+        msg = f"no {scene.branch} equilibrium at mu={scene.mu!r} ({msg})"
     if bif is not None and f"{bif.mu_star:.6f}"[:6] not in msg:
         msg += (f"; the {bif.model} {bif.transition} of this scene is at "
                 f"mu*={bif.mu_star:.8g}")  # fmt: skip

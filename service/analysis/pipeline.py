@@ -366,19 +366,17 @@ def warn(
         kick_k = kick * min(1.0, (2 * math.pi / duration * PERIODS) / ms[0].omega)
         mu_next = cand
     truth = None
-    try:
-        from sim.euler_beam import bifurcation
+    try:  # the bifurcation of exactly the backend and resolution that were simulated
+        from sim.backends import BACKENDS
 
-        if model in ("euler-beam", "normal-form"):
-            b = bifurcation(actuation)
-            truth = {"mu_star": b.mu_star, "transition": b.transition}
-        elif model == "cosserat":
-            from sim import cosserat
-
-            opts = {k: v for k, v in (scene_options or {}).items()
-                    if k in ("end_shortening", "slenderness", "elements")}  # fmt: skip
-            b = cosserat.bifurcation(actuation, **opts)
-            truth = {"mu_star": b.mu_star, "transition": b.transition}
+        try:
+            simulated = sig.model  # model="auto": the backend it picked
+        except NameError:
+            simulated = model
+        b = BACKENDS[simulated].bifurcation(base)
+        truth = {"mu_star": b.mu_star, "transition": b.transition, "model": b.model,
+                 "mu_star_error": b.mu_star_error,
+                 "resolution": None if b.resolution is None else b.resolution.to_dict()}
     except Exception:  # noqa: BLE001 - the truth is a comparison, never a failure
         truth = None
     if truth is not None and pred is not None:

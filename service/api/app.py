@@ -117,6 +117,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     from service.api.routers import atlases
 
     app.include_router(atlases.router, dependencies=guarded)
+    from service.api.routers import snaps
+
+    app.include_router(snaps.router, dependencies=guarded)
     pages.install(app)
     app.openapi = partial(_openapi, app)  # type: ignore[method-assign]
     return app

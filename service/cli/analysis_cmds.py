@@ -142,7 +142,7 @@ def _warn(args: argparse.Namespace) -> int:
     from service.analysis.pipeline import warn
 
     opts: dict[str, Any] = {}
-    for name in ("end_shortening", "slenderness", "elements"):
+    for name in ("end_shortening", "slenderness", "elements", "rtol"):
         if getattr(args, name, None) is not None:
             opts[name] = getattr(args, name)
     if args.max_measurements < 5:
@@ -347,6 +347,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--end-shortening", type=finite, default=None)
     p.add_argument("--slenderness", type=finite, default=None)
     p.add_argument("--elements", type=int, default=None)
+    p.add_argument("--rtol", type=finite, default=None,
+                   help="simulator accuracy (resolution; backend for --model auto)")
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
     add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")

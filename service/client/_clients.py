@@ -124,6 +124,10 @@ class Client(AtlasMethods):
         """``POST /v1/simulations``: ``.signal`` at once, or ``.job`` to :meth:`wait` for."""
         return self._run(core.simulate(**scene))
 
+    def snap(self, **request: Any) -> Any:
+        """``POST /v1/snaps``: a snap-through (``service.schemas.snaps.SnapResult``)."""
+        return self._run(core.snap(**request))
+
     def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
         """``POST /v1/detections``: a stored signal's id, or ``w=`` with ``t=``/``dt=``."""
         return self._run(core.detect(signal_id, **kw))
@@ -263,6 +267,9 @@ class AsyncClient(AsyncAtlasMethods):
 
     async def simulate(self, **scene: Any) -> SimulationResult:
         return await self._run(core.simulate(**scene))
+
+    async def snap(self, **request: Any) -> Any:
+        return await self._run(core.snap(**request))
 
     async def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
         return await self._run(core.detect(signal_id, **kw))

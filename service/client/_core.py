@@ -229,6 +229,14 @@ def simulate(**scene: Any) -> Call:
     )
 
 
+def snap(**request: Any) -> Call:
+    from service.schemas.snaps import SnapResult
+
+    doc = {k: v for k, v in request.items() if v is not None}
+    return Call("POST", "/v1/snaps", content=dumps(doc), headers=dict(JSON_HEADERS),
+                parse=_model(SnapResult))  # fmt: skip
+
+
 def detect(
     signal_id: str | None = None,
     *,

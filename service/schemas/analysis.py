@@ -178,6 +178,9 @@ class Truth(_Result):
 
     mu_star: Num
     transition: str | None = None
+    model: str | None = Field(default=None, description="Backend whose bifurcation this is "
+                              "(the one simulated, at the resolution simulated).")
+    mu_star_error: Num = Field(default=None, description="Its estimated discretisation error.")
     error: Num = None
     covered: bool | None = None
     transition_correct: bool | None = None
