@@ -2,6 +2,8 @@
 
 Importing it loads no FastAPI, numpy, scipy or numba; numpy arrays are accepted anywhere a
 list of numbers is, and returned by :meth:`Client.signal_data` where numpy is installed.
+Results are the typed models of ``service.schemas`` (``det.modes[0].sigma2``); every error is a
+:class:`SnapwarnError` (``ApiError`` for a problem answer, ``TransportFailed`` for no answer).
 """
 
 from service.client._clients import AsyncClient, Client
@@ -16,6 +18,7 @@ from service.client.errors import (
     PayloadTooLarge,
     ServerError,
     SnapwarnError,
+    TransportFailed,
     Unauthorized,
     UnsupportedMediaType,
     WaitTimeout,
@@ -34,6 +37,7 @@ __all__ = [
     "PayloadTooLarge",
     "ServerError",
     "SnapwarnError",
+    "TransportFailed",
     "Unauthorized",
     "UnsupportedMediaType",
     "WaitTimeout",

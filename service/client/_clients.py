@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import os
 import time
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import httpx2
@@ -11,7 +13,7 @@ import httpx2
 from service.client import _core as core
 from service.client import live
 from service.client.atlases import AsyncAtlasMethods, AtlasMethods
-from service.client.errors import JobFailed, WaitTimeout
+from service.client.errors import JobFailed, TransportFailed, WaitTimeout
 from service.client.live import AsyncLiveSweep, LiveSweep
 from service.schemas import (
     Detection,
@@ -67,15 +69,18 @@ class Client(AtlasMethods):
         self.close()
 
     def _run(self, call: core.Call) -> Any:
-        r = self._http.request(
-            call.method,
-            call.path,
-            params=call.params,
-            content=call.content,
-            files=call.files,
-            data=call.data,
-            headers=call.headers or None,
-        )
+        try:
+            r = self._http.request(
+                call.method,
+                call.path,
+                params=call.params,
+                content=call.content,
+                files=call.files,
+                data=call.data,
+                headers=call.headers or None,
+            )
+        except httpx2.TransportError as exc:  # no answer: connection, timeout, protocol
+            raise TransportFailed(f"{call.method} {call.path}: {exc!r}") from exc
         core.raise_for_problem(r)
         return call.parse(r)
 
@@ -84,21 +89,76 @@ class Client(AtlasMethods):
         """``GET /healthz``."""
         return self._run(core.health())
 
-    def upload_signal(self, w: Any, **kw: Any) -> SignalMeta:
-        """``POST /v1/signals`` (JSON): ``w`` with ``t=`` or ``dt=``; ``unit``, ``control``..."""
-        return self._run(core.upload_signal(w, **kw))
+    def upload_signal(
+        self,
+        w: Any,
+        *,
+        t: Any = None,
+        dt: float | None = None,
+        t0: float | None = None,
+        unit: str | None = None,
+        value_unit: str | None = None,
+        control: Mapping[str, Any] | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        name: str | None = None,
+        resample: bool = False,
+    ) -> SignalMeta:
+        """``POST /v1/signals`` (JSON): samples ``w`` with their times ``t`` or step ``dt``.
 
-    def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
-        """``POST /v1/signals`` (multipart): a path or bytes (CSV, NPY, NPZ, WAV, MAT)."""
-        return self._run(core.upload_file(file, **kw))
+        ``control`` is ``{"name", "value", "unit"}``; ``resample`` interpolates non-uniform
+        times onto a uniform grid (else the server answers 422 naming the worst step).
+        """
+        return self._run(core.upload_signal(
+            w, t=t, dt=dt, t0=t0, unit=unit, value_unit=value_unit, control=control,
+            metadata=metadata, name=name, resample=resample,
+        ))  # fmt: skip
+
+    def upload_file(
+        self,
+        file: str | os.PathLike[str] | bytes,
+        *,
+        filename: str | None = None,
+        format: str | None = None,
+        dt: float | None = None,
+        t0: float | None = None,
+        column: str | None = None,
+        time_column: str | None = None,
+        channel: int | None = None,
+        resample: bool | None = None,
+        unit: str | None = None,
+        value_unit: str | None = None,
+        control_name: str | None = None,
+        control_value: float | None = None,
+        control_unit: str | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        name: str | None = None,
+    ) -> SignalMeta:
+        """``POST /v1/signals`` (multipart): a path or bytes (CSV, NPY, NPZ, WAV, MAT).
+
+        ``dt`` gives the step of a file without times (1-D .npy, one-column CSV); the server
+        refuses it for a file that has times. See ``service.recordings`` for the layouts.
+        """
+        return self._run(core.upload_file(
+            file, filename=filename, format=format, dt=dt, t0=t0, column=column,
+            time_column=time_column, channel=channel, resample=resample, unit=unit,
+            value_unit=value_unit, control_name=control_name, control_value=control_value,
+            control_unit=control_unit, metadata=metadata, name=name,
+        ))  # fmt: skip
 
     def list_signals(self, *, limit: int = 50, offset: int = 0) -> SignalPage:
         """``GET /v1/signals``: a page of signals, newest first."""
         return self._run(core.list_signals(limit=limit, offset=offset))
 
-    def list_jobs(self, **kw: Any) -> JobPage:
-        """``GET /v1/jobs``: a page of jobs (``status=``, ``kind=``, ``limit=``, ``offset=``)."""
-        return self._run(core.list_jobs(**kw))
+    def list_jobs(
+        self,
+        *,
+        status: str | None = None,
+        kind: str | None = None,
+        limit: int = 50,
+        offset: int = 0,
+    ) -> JobPage:
+        """``GET /v1/jobs``: a page of jobs, newest first (filtered by status and kind)."""
+        return self._run(core.list_jobs(status=status, kind=kind, limit=limit, offset=offset))
 
     def get_signal(self, signal_id: str) -> SignalMeta:
         """``GET /v1/signals/{id}``."""
@@ -128,13 +188,30 @@ class Client(AtlasMethods):
         """``POST /v1/snaps``: a snap-through (``service.schemas.snaps.SnapResult``)."""
         return self._run(core.snap(**request))
 
-    def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
-        """``POST /v1/detections``: a stored signal's id, or ``w=`` with ``t=``/``dt=``."""
-        return self._run(core.detect(signal_id, **kw))
+    def detect(
+        self,
+        signal_id: str | None = None,
+        *,
+        w: Any = None,
+        t: Any = None,
+        dt: float | None = None,
+        method: str = "auto",
+    ) -> Detection:
+        """``POST /v1/detections``: a stored signal's id, or ``w`` with ``t`` or ``dt``.
 
-    def create_sweep(self, measurements: Any = None, **kw: Any) -> Sweep:
+        Returns the typed document: ``det.fundamental.sigma2``, ``det.modes[0].omega``...
+        """
+        return self._run(core.detect(signal_id, w=w, t=t, dt=dt, method=method))
+
+    def create_sweep(
+        self,
+        measurements: Iterable[Any] | None = None,
+        *,
+        simulate: Mapping[str, Any] | None = None,
+        name: str | None = None,
+    ) -> Sweep:
         """``POST /v1/sweeps``: ``[(signal_id, control_value), ...]`` or ``simulate={...}``."""
-        return self._run(core.create_sweep(measurements, **kw))
+        return self._run(core.create_sweep(measurements, simulate=simulate, name=name))
 
     def get_sweep(self, sweep_id: str) -> Sweep:
         """``GET /v1/sweeps/{id}``."""
@@ -164,12 +241,13 @@ class Client(AtlasMethods):
         self,
         job: Any,
         *,
-        progress: bool = True,
+        progress: bool = False,
         timeout: float | None = None,
         poll: float = 0.25,
         raise_on_failure: bool = True,
     ) -> Any:
-        """Poll a job (or a Sweep / SimulationResult / id) until it ends, drawing a bar.
+        """Poll a job (or a Sweep / SimulationResult / id) until it ends (``progress=True``
+        draws a bar on stderr).
 
         Returns the finished Job, or the refreshed Sweep when given a Sweep. Raises
         :class:`JobFailed` if it failed (unless ``raise_on_failure=False``) and
@@ -223,32 +301,87 @@ class AsyncClient(AsyncAtlasMethods):
         await self.aclose()
 
     async def _run(self, call: core.Call) -> Any:
-        r = await self._http.request(
-            call.method,
-            call.path,
-            params=call.params,
-            content=call.content,
-            files=call.files,
-            data=call.data,
-            headers=call.headers or None,
-        )
+        try:
+            r = await self._http.request(
+                call.method,
+                call.path,
+                params=call.params,
+                content=call.content,
+                files=call.files,
+                data=call.data,
+                headers=call.headers or None,
+            )
+        except httpx2.TransportError as exc:  # no answer: connection, timeout, protocol
+            raise TransportFailed(f"{call.method} {call.path}: {exc!r}") from exc
         core.raise_for_problem(r)
         return call.parse(r)
 
     async def health(self) -> Health:
         return await self._run(core.health())
 
-    async def upload_signal(self, w: Any, **kw: Any) -> SignalMeta:
-        return await self._run(core.upload_signal(w, **kw))
+    async def upload_signal(
+        self,
+        w: Any,
+        *,
+        t: Any = None,
+        dt: float | None = None,
+        t0: float | None = None,
+        unit: str | None = None,
+        value_unit: str | None = None,
+        control: Mapping[str, Any] | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        name: str | None = None,
+        resample: bool = False,
+    ) -> SignalMeta:
+        """See :meth:`Client.upload_signal`."""
+        return await self._run(core.upload_signal(
+            w, t=t, dt=dt, t0=t0, unit=unit, value_unit=value_unit, control=control,
+            metadata=metadata, name=name, resample=resample,
+        ))  # fmt: skip
 
-    async def upload_file(self, file: Any, **kw: Any) -> SignalMeta:
-        return await self._run(core.upload_file(file, **kw))
+    async def upload_file(
+        self,
+        file: str | os.PathLike[str] | bytes,
+        *,
+        filename: str | None = None,
+        format: str | None = None,
+        dt: float | None = None,
+        t0: float | None = None,
+        column: str | None = None,
+        time_column: str | None = None,
+        channel: int | None = None,
+        resample: bool | None = None,
+        unit: str | None = None,
+        value_unit: str | None = None,
+        control_name: str | None = None,
+        control_value: float | None = None,
+        control_unit: str | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        name: str | None = None,
+    ) -> SignalMeta:
+        """See :meth:`Client.upload_file`."""
+        return await self._run(core.upload_file(
+            file, filename=filename, format=format, dt=dt, t0=t0, column=column,
+            time_column=time_column, channel=channel, resample=resample, unit=unit,
+            value_unit=value_unit, control_name=control_name, control_value=control_value,
+            control_unit=control_unit, metadata=metadata, name=name,
+        ))  # fmt: skip
 
     async def list_signals(self, *, limit: int = 50, offset: int = 0) -> SignalPage:
         return await self._run(core.list_signals(limit=limit, offset=offset))
 
-    async def list_jobs(self, **kw: Any) -> JobPage:
-        return await self._run(core.list_jobs(**kw))
+    async def list_jobs(
+        self,
+        *,
+        status: str | None = None,
+        kind: str | None = None,
+        limit: int = 50,
+        offset: int = 0,
+    ) -> JobPage:
+        """See :meth:`Client.list_jobs`."""
+        return await self._run(
+            core.list_jobs(status=status, kind=kind, limit=limit, offset=offset)
+        )
 
     async def get_signal(self, signal_id: str) -> SignalMeta:
         return await self._run(core.get_signal(signal_id))
@@ -271,11 +404,27 @@ class AsyncClient(AsyncAtlasMethods):
     async def snap(self, **request: Any) -> Any:
         return await self._run(core.snap(**request))
 
-    async def detect(self, signal_id: str | None = None, **kw: Any) -> Detection:
-        return await self._run(core.detect(signal_id, **kw))
+    async def detect(
+        self,
+        signal_id: str | None = None,
+        *,
+        w: Any = None,
+        t: Any = None,
+        dt: float | None = None,
+        method: str = "auto",
+    ) -> Detection:
+        """See :meth:`Client.detect`."""
+        return await self._run(core.detect(signal_id, w=w, t=t, dt=dt, method=method))
 
-    async def create_sweep(self, measurements: Any = None, **kw: Any) -> Sweep:
-        return await self._run(core.create_sweep(measurements, **kw))
+    async def create_sweep(
+        self,
+        measurements: Iterable[Any] | None = None,
+        *,
+        simulate: Mapping[str, Any] | None = None,
+        name: str | None = None,
+    ) -> Sweep:
+        """See :meth:`Client.create_sweep`."""
+        return await self._run(core.create_sweep(measurements, simulate=simulate, name=name))
 
     async def get_sweep(self, sweep_id: str) -> Sweep:
         return await self._run(core.get_sweep(sweep_id))
@@ -300,7 +449,7 @@ class AsyncClient(AsyncAtlasMethods):
         self,
         job: Any,
         *,
-        progress: bool = True,
+        progress: bool = False,
         timeout: float | None = None,
         poll: float = 0.25,
         raise_on_failure: bool = True,

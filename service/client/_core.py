@@ -127,8 +127,11 @@ def upload_signal(
     control: Mapping[str, Any] | None = None,
     metadata: Mapping[str, Any] | None = None,
     name: str | None = None,
+    resample: bool = False,
 ) -> Call:
     doc: dict[str, Any] = {"w": as_list(w, "w")}
+    if resample:
+        doc["resample"] = True
     for k, v in (
         ("t", as_list(t, "t")),
         ("dt", dt),
@@ -172,7 +175,12 @@ def upload_file(
     for k, v in fields.items():
         if v is None:
             continue
-        form[k] = json.dumps(v) if k == "metadata" else str(v)
+        if k == "metadata":
+            form[k] = json.dumps(v)
+        elif isinstance(v, bool):
+            form[k] = "true" if v else "false"
+        else:
+            form[k] = repr(v) if isinstance(v, float) else str(v)
     return Call(
         "POST", "/v1/signals", files={"file": (fname, data)}, data=form, parse=_model(SignalMeta)
     )

@@ -71,6 +71,13 @@ class ServerError(ApiError):
     """5xx."""
 
 
+class TransportFailed(SnapwarnError):
+    """No answer from the server: connection refused, timeout, broken protocol.
+
+    The transport's own exception (``httpx2.TransportError``) is kept as ``__cause__``.
+    """
+
+
 class JobFailed(SnapwarnError):
     """A job ended as failed; ``.job.error`` says why."""
 

@@ -140,7 +140,7 @@ def test_sync_client_over_uvicorn(live_server, tmp_path) -> None:  # noqa: ANN00
             c.sweep_plot("nope", format="svg")
         if numerics_has("service.analysis.detect", "detect"):
             doc = c.detect(meta.id)
-            assert doc.fundamental["omega"] == pytest.approx(2 * np.pi * 1.3, rel=1e-3)
+            assert doc.fundamental.omega == pytest.approx(2 * np.pi * 1.3, rel=1e-3)
             inline = c.detect(w=w, dt=0.005)
             assert inline.fundamental == doc.fundamental
         with pytest.raises(Conflict if False else NotFound):

@@ -44,7 +44,7 @@ def test_sdk_end_to_end(live_server, recorded, tmp_path, capsys) -> None:  # noq
             assert meta.source == "csv" and meta.control.value == mu
             ids.append(meta.id)
         doc = c.detect(ids[0])
-        assert doc.fundamental is not None and doc.fundamental["sigma2"] < 0
+        assert doc.fundamental is not None and doc.fundamental.sigma2 < 0
         assert doc.static_level is not None
         sweep = c.create_sweep(ids, name="lab sweep")  # control values stored with the signals
         assert sweep.status in ("queued", "running", "succeeded")
