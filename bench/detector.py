@@ -18,6 +18,11 @@ trials, divided by the Cramer-Rao bound of the same record (``service.analysis.c
 common-damping bound for ``varpro+common``), the fraction of trials where the method's
 fundamental is not the 40 rad/time mode (counted in the RMSE), and the time per call.
 
+``--baseline REV`` also runs the detector of git revision ``REV`` (its ``service/analysis``
+extracted to a temporary package) on the very same records, interleaved trial by trial, so that
+before/after accuracy and time per call come from one run on one machine; its rows carry the
+method name suffixed with ``@REV``.
+
 BLAS is pinned to one thread (set before numpy is imported) so that timings are per core and
 not spoiled by thread contention on a shared machine; cells run in ``--jobs`` processes (2 by
 default), and both the wall time and the process CPU time per call are recorded.
@@ -33,9 +38,15 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
+import importlib  # noqa: E402
+import io  # noqa: E402
 import math  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tarfile  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -62,6 +73,32 @@ METHODS = {
     "varpro": {"method": "varpro"},
     "varpro+common": {"method": "varpro", "common_damping": True},
 }
+
+
+#: Detectors to run: label -> detect function (the working tree's, plus a --baseline revision).
+DETECTORS: dict[str, Callable[..., object]] = {"": detect}
+_BASELINE_PKG = "snapwarn_baseline"
+
+
+def load_baseline(rev: str, where: Path | None = None) -> Callable[..., object]:
+    """The ``detect`` function of git revision ``rev``: its ``service/analysis`` is extracted
+    into a temporary directory as the package ``snapwarn_baseline`` (imports rewritten), so it
+    runs side by side with the working tree's detector in one process."""
+    root = Path(where or tempfile.mkdtemp(prefix="snapwarn-baseline-"))
+    pkg = root / _BASELINE_PKG
+    if not pkg.exists():
+        blob = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", rev, "service/analysis"],
+            check=True, capture_output=True,
+        ).stdout  # fmt: skip
+        with tarfile.open(fileobj=io.BytesIO(blob)) as tar:
+            tar.extractall(root / "_tar", filter="data")
+        (root / "_tar" / "service" / "analysis").rename(pkg)
+        for f in pkg.rglob("*.py"):
+            f.write_text(f.read_text().replace("service.analysis", _BASELINE_PKG))
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    return importlib.import_module(f"{_BASELINE_PKG}.detect").detect
 
 
 def beam_modes(dt: float, om1: float, rng: np.random.Generator) -> list[Underdamped]:
@@ -93,10 +130,11 @@ def run_cell(
         od = Overdamped.kicked(-0.5, 2.0, 1e-3)
         true_om, true_g, true_s2 = 0.0, od.damping, od.sigma2
     t = np.arange(N) * dt
-    errs: dict[str, list[tuple[float, float, float]]] = {m: [] for m in METHODS}
-    times: dict[str, list[float]] = {m: [] for m in METHODS}
-    cpu: dict[str, list[float]] = {m: [] for m in METHODS}
-    miss = dict.fromkeys(METHODS, 0)
+    names = [m + tag for tag in DETECTORS for m in METHODS]
+    errs: dict[str, list[tuple[float, float, float]]] = {m: [] for m in names}
+    times: dict[str, list[float]] = {m: [] for m in names}
+    cpu: dict[str, list[float]] = {m: [] for m in names}
+    miss = dict.fromkeys(names, 0)
     crb_sq_list: list[tuple[float, float, float]] = []
     crbc_sq_list: list[tuple[float, float, float]] = []
     for _ in range(trials):
@@ -117,10 +155,12 @@ def run_cell(
         bc = crb(t, modes, noise, common_damping=True)
         crb_sq_list.append((b.omega_std[0] ** 2, b.damping_std[0] ** 2, b.sigma2_std[0] ** 2))
         crbc_sq_list.append((bc.omega_std[0] ** 2, bc.damping_std[0] ** 2, bc.sigma2_std[0] ** 2))
-        for name, kw in METHODS.items():
+        for name, kw, fn in (
+            (m + tag, kw, fn) for tag, fn in DETECTORS.items() for m, kw in METHODS.items()
+        ):
             c0 = time.process_time()
             t0 = time.perf_counter()
-            det = detect(w, dt=dt, **kw)
+            det = fn(w, dt=dt, **kw)
             times[name].append(time.perf_counter() - t0)
             cpu[name].append(time.process_time() - c0)
             f = det.fundamental
@@ -136,10 +176,10 @@ def run_cell(
     crb_sq = np.mean(crb_sq_list, axis=0)
     crbc_sq = np.mean(crbc_sq_list, axis=0)
     rows = []
-    for name in METHODS:
+    for name in names:
         e = np.asarray(errs[name])
         rmse = np.sqrt(np.mean(e**2, axis=0))
-        ref = np.sqrt(crbc_sq if name == "varpro+common" else crb_sq)
+        ref = np.sqrt(crbc_sq if name.startswith("varpro+common") else crb_sq)
         ratio = np.where(ref > 0, rmse / np.where(ref > 0, ref, 1.0), np.nan)
         tt = np.asarray(times[name]) * 1e3
         rows.append(
@@ -176,7 +216,7 @@ def fmt(x: float) -> str:
 
 
 def print_table(rows: list[dict[str, object]]) -> None:
-    names = list(METHODS)
+    names = list(dict.fromkeys(r["method"] for r in rows))
     head = f"{'case':<10} {'cyc':>5} {'SNR':>4} | " + " | ".join(f"{n:^27}" for n in names)
     print(head)
     print(
@@ -278,11 +318,15 @@ def plot(rows: list[dict[str, object]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def _warm() -> None:
-    """Load the numba kernels (compiled or from cache) outside the timings."""
+def _warm(baseline: tuple[str, str] | None = None) -> None:
+    """Load the numba kernels (compiled or from cache) outside the timings; with ``baseline``
+    ``(rev, directory)`` also load that revision's detector."""
+    if baseline is not None:
+        DETECTORS["@" + baseline[0]] = load_baseline(baseline[0], Path(baseline[1]))
     w0 = synthesize(np.arange(N) * 1e-3, [Underdamped(40.0, 0.01, 1e-3)], STATIC)
-    for kw in METHODS.values():
-        detect(w0 + 1e-6 * np.random.default_rng(0).standard_normal(N), dt=1e-3, **kw)
+    for fn in DETECTORS.values():
+        for kw in METHODS.values():
+            fn(w0 + 1e-6 * np.random.default_rng(0).standard_normal(N), dt=1e-3, **kw)
 
 
 def _run_job(job: tuple[str, float, float, int, int]) -> list[dict[str, object]]:
@@ -298,6 +342,10 @@ def _progress(i: int, n: int, row: dict[str, object], t_start: float) -> None:
     )
 
 
+def _rel(path: Path) -> str:
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smoke run: small grid, few trials")
@@ -307,6 +355,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument(
         "--plot-only", action="store_true", help="re-read the CSV, print the table and re-plot"
+    )
+    ap.add_argument(
+        "--baseline",
+        metavar="REV",
+        default=None,
+        help="also run the detector of this git revision on the same records (before/after)",
     )
     args = ap.parse_args(argv)
     if args.plot_only:
@@ -326,7 +380,15 @@ def main(argv: list[str] | None = None) -> int:
         od_snrs = (20, 40)
     if trials < 2:
         ap.error(f"--trials: {trials!r} must be >= 2")
-    _warm()
+    baseline = None
+    if args.baseline:
+        rev = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", args.baseline],
+            check=True, capture_output=True, text=True,
+        ).stdout.strip()  # fmt: skip
+        baseline = (rev, tempfile.mkdtemp(prefix="snapwarn-baseline-"))
+        load_baseline(rev, Path(baseline[1]))  # extract once, before the workers start
+    _warm(baseline)
     rows: list[dict[str, object]] = []
     t_start = time.perf_counter()
     cells = [("beam", c, s) for c in cycles for s in snrs] + [
@@ -336,7 +398,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.jobs > 1:
         import multiprocessing as mp
 
-        with mp.get_context("spawn").Pool(args.jobs, initializer=_warm) as pool:
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(args.jobs, initializer=_warm, initargs=(baseline,)) as pool:
             for i, part in enumerate(pool.imap_unordered(_run_job, jobs)):
                 rows += part
                 _progress(i, len(cells), part[0], t_start)
@@ -356,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
     png = args.out / "detector.png"
     plot(rows, png)
     print(
-        f"\nwrote {csv_path.relative_to(ROOT)} and {png.relative_to(ROOT)} "
+        f"\nwrote {_rel(csv_path)} and {_rel(png)} "
         f"({time.perf_counter() - t_start:.0f} s, {trials} trials per cell)"
     )
     return 0
