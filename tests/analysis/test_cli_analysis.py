@@ -75,12 +75,16 @@ def test_detect_rejects_a_missing_file(capsys) -> None:
 def test_warn_json_document(capsys) -> None:
     doc = run_json(capsys, "warn", "--model", "normal-form", "--actuation", "antisymmetric",
                    "--seed", "2", "--max-measurements", "10", "--no-progress")  # fmt: skip
-    assert {"transition", "a", "mu_star", "mu_star_interval", "measurements", "alarm",
-            "baseline"} <= set(doc)  # fmt: skip
-    assert len(doc["measurements"]) <= 10
+    # the sweep document (service.schemas.SweepResult), shared with `sweep` and /v1/sweeps
+    assert {"actuation", "model", "measurements", "prediction", "alarm", "stopped",
+            "flags"} <= set(doc)  # fmt: skip
+    p = doc["prediction"]
+    assert {"transition", "a", "mu_star", "mu_star_interval", "baseline"} <= set(p)
+    assert len(doc["measurements"]) <= 10 and len(doc["alarm"]) == len(doc["measurements"])
     for m in doc["measurements"]:
         assert {"mu", "omega", "sigma2", "sigma2_std", "w_static"} <= set(m)
-    assert "mu_star" in doc["baseline"]
+    assert "mu_star" in p["baseline"] and doc["alarm"][-1]["level"] in (
+        "none", "watch", "warning", "critical")  # fmt: skip
 
 
 def test_simulated_record_round_trip_through_detect_keeps_static_level(tmp_path, capsys) -> None:

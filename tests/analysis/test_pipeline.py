@@ -99,9 +99,10 @@ def test_sweep_cli_reads_a_manifest(tmp_path, capsys) -> None:
     (tmp_path / "manifest.csv").write_text("\n".join(rows) + "\n")
     assert main(["sweep", str(tmp_path / "manifest.csv"), "--json", "--no-progress"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert {"transition", "mu_star", "mu_star_interval", "detections", "flags"} <= set(doc)
+    assert {"prediction", "measurements", "detections", "flags"} <= set(doc)  # SweepResult
+    assert {"transition", "mu_star", "mu_star_interval"} <= set(doc["prediction"])
     assert len(doc["detections"]) == 8 and doc["detections"][0]["name"] == "rec0.csv"
-    assert doc["mu_star"] == pytest.approx(mu_star, abs=1e-3)
+    assert doc["prediction"]["mu_star"] == pytest.approx(mu_star, abs=1e-3)
 
 
 def test_sweep_rejects_a_bad_manifest(tmp_path, capsys) -> None:
