@@ -1,0 +1,205 @@
+"""Live-sweep latency: a 1e4-sample record added to a 20-record live sweep, over loopback.
+
+    python bench/live_latency.py                 # 5 timed trials (+1 warm-up)
+    python bench/live_latency.py --trials 10 --records 20 --samples 10000
+
+The records are a lab loop on the Euler beam (asymmetric, xi = 2e-4, 40 dB): the first
+``--records`` at the controls the live sweep itself advised, then one more record of
+``--samples`` samples at the next advised control. For each trial a fresh live sweep on a real
+server (uvicorn, SQLite file, one analysis worker process) receives the prior records (not
+timed) and then the timed one (``POST /v1/sweeps/{id}/records``, inline JSON). Reported:
+
+- the server time from the upload's arrival to its answer (the ``Server-Timing`` header the
+  route writes: parsing, storing the record, detection, classification/prediction over all
+  records, next-measurement policy, storing the update), and the client's round trip;
+- the same numerics in this process, split: the detection of the new record and the
+  assessment (classification + prediction + policy over all records), medians of 5 runs.
+
+Target (issue 13): under 50 ms of server time. The cores are shared with whatever else runs
+(the load average is printed). Writes bench/results/live_latency.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results"
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import httpx2  # noqa: E402
+
+PERIODS = 40  # as service.analysis.pipeline.warn
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+Record = tuple[np.ndarray, float, float]  # (w, dt, control)
+
+
+def lab_records(n_prior: int, n_samples: int, actuation: str) -> list[Record]:
+    """``n_prior`` records at the advised controls, then one of ``n_samples`` samples."""
+    from service.analysis import live
+    from sim import simulate
+    from sim.scene import Scene
+
+    plan = live.LivePlan(step=0.2)
+    recs: list[live.LiveRecord] = []
+    out = []
+    mu, duration, dt, omega0 = 0.0, 2.0, 1e-3, None
+    for k in range(n_prior + 1):
+        if k == n_prior:  # the timed record: same length, n_samples samples
+            dt = duration / (n_samples - 1)
+        kick = 1e-2 if omega0 is None else 1e-2 * min(1.0, (2 * math.pi / duration * PERIODS)
+                                                       / omega0)  # fmt: skip
+        sig = simulate(Scene(actuation=actuation, mu=mu, damping=2e-4, kick=kick, snr_db=40.0,
+                             duration=duration, dt=dt, seed=1 + k), "euler-beam")  # fmt: skip
+        w = np.asarray(sig.w)[:n_samples] if k == n_prior else np.asarray(sig.w)
+        out.append((w, float(sig.dt), float(mu)))
+        if k == n_prior:
+            break
+        u = live.update(recs, w, dt=sig.dt, control=mu, plan=plan)
+        recs.append(u.record)
+        omega0 = omega0 or u.record.measurement.omega
+        if not math.isfinite(u.next_control):
+            raise SystemExit(f"no safe step after {k + 1} records: use fewer --records")
+        mu, duration, dt = u.next_control, u.record_duration, u.record_dt
+    return out
+
+
+def in_process(records: list[Record]) -> dict[str, float]:
+    """Median times (ms) of the detection of the last record and of the assessment."""
+    from service.analysis import live
+
+    plan = live.LivePlan(step=0.2)
+    prior: list[live.LiveRecord] = []
+    for w, dt, mu in records[:-1]:
+        prior.append(live.update(prior, w, dt=dt, control=mu, plan=plan).record)
+    w, dt, mu = records[-1]
+    det_t, ass_t = [], []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        det, m, fl = live.measure(w, dt=dt, control=mu)
+        t1 = time.perf_counter()
+        live.assess(prior, det, m, mu, plan=plan, detection_flags=fl)
+        t2 = time.perf_counter()
+        det_t.append(t1 - t0)
+        ass_t.append(t2 - t1)
+    return {"detect_ms": 1e3 * float(np.median(det_t)), "assess_ms": 1e3 * float(np.median(ass_t))}
+
+
+def start_server(tmp: Path) -> tuple[subprocess.Popen, str]:
+    port = _free_port()
+    env = dict(os.environ, SNAPWARN_DB_URL=f"sqlite:///{tmp / 'bench.db'}",
+               SNAPWARN_ANALYSIS_WORKERS="1", SNAPWARN_LOG_LEVEL="warning",
+               PYTHONPATH=str(ROOT))  # fmt: skip
+    env.pop("SNAPWARN_API_KEY", None)
+    cmd = [sys.executable, "-m", "uvicorn", "--factory", "service.api.app:app_from_env",
+           "--host", "127.0.0.1", "--port", str(port), "--log-level", "warning"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)  # fmt: skip
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        try:
+            if httpx2.get(url + "/healthz", timeout=1.0).status_code == 200:
+                return proc, url
+        except httpx2.HTTPError:
+            pass
+        time.sleep(0.2)
+    proc.kill()
+    raise SystemExit("the server did not start")
+
+
+def trial(client: httpx2.Client, records: list) -> tuple[float, float, dict]:
+    r = client.post("/v1/sweeps", json={"mode": "live", "name": "bench", "live": {"step": 0.2}})
+    r.raise_for_status()
+    sid = r.json()["id"]
+    for w, dt, mu in records[:-1]:
+        client.post(f"/v1/sweeps/{sid}/records",
+                    json={"w": w.tolist(), "dt": dt, "control": mu}).raise_for_status()  # fmt: skip
+    w, dt, mu = records[-1]
+    body = json.dumps({"w": w.tolist(), "dt": dt, "control": mu}).encode()
+    t0 = time.perf_counter()
+    r = client.post(f"/v1/sweeps/{sid}/records", content=body,
+                    headers={"content-type": "application/json"})  # fmt: skip
+    wall = time.perf_counter() - t0
+    r.raise_for_status()
+    server = float(r.headers["server-timing"].split("dur=")[1])
+    doc = r.json()
+    client.post(f"/v1/sweeps/{sid}/close").raise_for_status()
+    return server, 1e3 * wall, doc
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trials", type=int, default=5)
+    ap.add_argument("--records", type=int, default=20, help="records already in the sweep")
+    ap.add_argument("--samples", type=int, default=10_000, help="samples of the timed record")
+    ap.add_argument("--actuation", default="asymmetric")
+    args = ap.parse_args(argv)
+    print(f"building {args.records} + 1 beam records ({args.actuation}) ...", file=sys.stderr)
+    records = lab_records(args.records, args.samples, args.actuation)
+    local = in_process(records)
+    with tempfile.TemporaryDirectory() as tmp:
+        proc, url = start_server(Path(tmp))
+        try:
+            with httpx2.Client(base_url=url, timeout=300.0) as c:
+                trial(c, records)  # warm-up (pool, caches)
+                res = [trial(c, records) for _ in range(args.trials)]
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(30)
+    server = np.array([r[0] for r in res])
+    wall = np.array([r[1] for r in res])
+    last = res[-1][2]
+    load = os.getloadavg()
+    doc = {
+        "records_before": args.records,
+        "samples": int(records[-1][0].size),
+        "trials": args.trials,
+        "server_ms_median": float(np.median(server)),
+        "server_ms_max": float(server.max()),
+        "round_trip_ms_median": float(np.median(wall)),
+        "in_process_detect_ms": local["detect_ms"],
+        "in_process_assess_ms": local["assess_ms"],
+        "target_server_ms": 50.0,
+        "mu_star": last["mu_star"],
+        "transition": last["transition"],
+        "n_used": last["n_used"],
+        "load_average": list(load),
+        "cpus": os.cpu_count(),
+        "python": platform.python_version(),
+    }
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "live_latency.json").write_text(json.dumps(doc, indent=2) + "\n")
+    print(f"live sweep: a {doc['samples']}-sample record added to a {args.records}-record sweep "
+          f"({args.trials} trials; load average {load[0]:.2f} on {os.cpu_count()} cpus)")
+    print(f"  server time (upload -> answer)  median {doc['server_ms_median']:8.1f} ms   "
+          f"max {doc['server_ms_max']:8.1f} ms   target < 50 ms")
+    print(f"  client round trip               median {doc['round_trip_ms_median']:8.1f} ms")
+    print(f"  in process: detection {local['detect_ms']:.1f} ms, classification + prediction "
+          f"+ policy over {args.records + 1} records {local['assess_ms']:.1f} ms")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
