@@ -201,16 +201,26 @@ def prediction(p: Any) -> wire.Prediction:
     )
 
 
-def sweep_result(r: Any) -> wire.SweepResult:
-    """A sweep (``WarnResult``: simulated or recorded) as the one sweep document."""
+def sweep_result(
+    r: Any, *, record_flags: Mapping[str, Iterable[Any]] | None = None
+) -> wire.SweepResult:
+    """A sweep (``WarnResult``: simulated or recorded) as the one sweep document.
+
+    ``record_flags``: per record name, what the reader noticed about the file (rounded
+    timestamps, resampling), listed first among that record's detection flags.
+    """
     doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections"))
     dets = []
     for d in r.detections:
         if isinstance(d, Mapping):
-            dets.append(_detection_doc(d, d.get("control"), d.get("name")))
+            one = _detection_doc(d, d.get("control"), d.get("name"))
         else:  # a (detection, control, name) triple or a detection with those attributes
             det, control, name = d if isinstance(d, tuple) else (d, None, None)
-            dets.append(detection(det, control=control, name=name))
+            one = detection(det, control=control, name=name)
+        notes = (record_flags or {}).get(getattr(one, "name", None) or "")
+        if notes:
+            one = one.model_copy(update={"flags": flags([*notes, *one.flags])})
+        dets.append(one)
     return wire.SweepResult(
         **doc,
         measurements=[measurement(m) for m in r.measurements],

@@ -195,7 +195,7 @@ def _sweep(args: argparse.Namespace) -> int:
     control = _floats(table, "control", "MANIFEST", args.manifest)
     steps = _floats(table, "dt", "MANIFEST", args.manifest) if "dt" in table else None
     base = Path(args.manifest).resolve().parent
-    records, names, time_units = [], [], set()
+    records, names, time_units, notes = [], [], set(), {}
     for k, (rel, c) in enumerate(zip(table["path"], control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
@@ -204,6 +204,7 @@ def _sweep(args: argparse.Namespace) -> int:
         records.append((rec.w, rec.dt, float(c)))
         names.append(str(rel))
         time_units.add(rec.unit)
+        notes[str(rel)] = rec.flags
     cb = _progress_printer(not args.no_progress)
     try:
         res = sweep_from_signals(records, names=names, progress=cb)
@@ -213,7 +214,7 @@ def _sweep(args: argparse.Namespace) -> int:
     finally:
         if cb is not None:
             cb.close()
-    doc = convert.sweep_result(res)
+    doc = convert.sweep_result(res, record_flags=notes)
     if args.plot:
         plot_sweep(args.plot, doc, control_name=args.control_name, control_unit=args.control_unit,
                    time_unit=time_units.pop() if len(time_units) == 1 else None)  # fmt: skip

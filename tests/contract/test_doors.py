@@ -146,6 +146,8 @@ async def test_one_recorded_sweep_through_cli_api_and_sdk(api, lab) -> None:  # 
     api_doc = await _wait_sweep(api, r.json()["id"])
     assert api_doc["status"] == "succeeded", api_doc["job"]
     assert _without_names(api_doc["result"]) == _without_names(cli_doc)
+    for d in cli_doc["detections"]:  # the reader's note on the %.6g timestamps, in every door
+        assert d["flags"][0]["code"] == "rounded_timestamps", d["flags"]
 
     transport = api._transport  # the same app, through the SDK
     async with AsyncClient("http://asgi", transport=transport) as sdk:

@@ -236,7 +236,7 @@ def run_simulated_sweep_job(ctx: JobContext) -> dict[str, Any]:
 def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     """A sweep of stored recordings: detect each, then classify and predict."""
     params, progress, store = ctx.params, ctx.progress, ctx.store
-    items = []
+    items, notes = [], {}
     for k, m in enumerate(params["measurements"]):
         sig = store.get_signal(m["signal_id"])
         if sig is None:
@@ -247,6 +247,7 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
                 value=m["signal_id"],
             )
         items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
+        notes[m["signal_id"]] = (sig.row.meta or {}).get("recording_flags") or []
         progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
     progress(0.1, f"analysing {len(items)} signals")
     names = [m["signal_id"] for m in params["measurements"]]
@@ -254,4 +255,4 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
         res = sweep_from_signals(
             items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg)
         )
-    return convert.sweep_result(res).model_dump(mode="json")
+    return convert.sweep_result(res, record_flags=notes).model_dump(mode="json")
