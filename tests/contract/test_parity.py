@@ -112,3 +112,14 @@ def test_older_stored_documents_still_read() -> None:
     assert doc.prediction is not None and doc.prediction.mu_star == 2.0
     assert doc.alarm[0].level == "warning" and doc.alarm[0].distance == pytest.approx(10.0)
     assert doc.prediction.classification.transition == "saddle-node"
+
+
+def test_one_uniform_sampling_tolerance_for_cli_and_api(monkeypatch) -> None:  # noqa: ANN001
+    from service import recordings
+    from service.api import Settings
+
+    monkeypatch.delenv(recordings.UNIFORM_RTOL_ENV, raising=False)
+    assert Settings().uniform_rtol == recordings.uniform_rtol_from_env()
+    assert recordings.uniform_rtol_from_env() == recordings.DEFAULT_UNIFORM_RTOL
+    monkeypatch.setenv(recordings.UNIFORM_RTOL_ENV, "2.5e-7")
+    assert Settings().uniform_rtol == recordings.uniform_rtol_from_env() == 2.5e-7
