@@ -163,3 +163,29 @@ async def test_one_recorded_sweep_through_cli_api_and_sdk(api, lab) -> None:  # 
     lo, hi = p.mu_star_interval
     assert lo is not None and hi is not None and lo < p.mu_star < hi
     assert done.result.detections[0].fundamental.sigma2 < 0  # typed all the way down
+
+
+async def test_one_simulated_sweep_through_cli_api_and_sdk(api) -> None:  # noqa: ANN001
+    """``snapwarn warn --json`` and ``/v1/sweeps`` with ``simulate`` print one document."""
+    from service.client import AsyncClient
+
+    opts = {"model": "normal-form", "actuation": "asymmetric", "seed": 3,
+            "max_measurements": 8, "damping": 2e-4, "snr_db": 40.0}  # fmt: skip
+    rc, cli_doc, err = run_cli(
+        "warn", "--model", "normal-form", "--actuation", "asymmetric", "--seed", "3",
+        "--max-measurements", "8", "--damping", "2e-4", "--snr", "40", "--no-progress", "--json",
+    )  # fmt: skip
+    assert rc == 0, err
+    r = await api.post("/v1/sweeps", json={"simulate": opts})
+    assert r.status_code == 202, r.text
+    api_doc = await _wait_sweep(api, r.json()["id"])
+    assert api_doc["status"] == "succeeded", api_doc["job"]
+    assert api_doc["result"] == cli_doc
+    assert api_doc["prediction"] == cli_doc["prediction"]
+    async with AsyncClient("http://asgi", transport=api._transport) as sdk:
+        done = await sdk.wait(await sdk.create_sweep(simulate=opts), timeout=120)
+    assert done.result.model_dump(mode="json") == cli_doc
+    truth = done.result.truth
+    assert truth is not None and truth.mu_star is not None
+    lo, hi = done.result.prediction.mu_star_interval
+    assert lo is not None and hi is not None
