@@ -242,6 +242,23 @@ def _positive_finite(name: str, value: Any) -> float:
         raise RecordingError(name, value, "must be a number") from None
     if not (math.isfinite(v) and v > 0):
         raise RecordingError(name, v, "must be a finite number > 0")
+    return _representable_step(name, v)
+
+
+#: A step whose square (or inverse square) is not a normal float64 cannot give a finite
+#: eigenvalue (``sigma^2`` is in 1/time^2): about 3e-154 <= dt <= 3.4e153 (any time unit).
+_STEP_MIN = math.sqrt(2.0**-1022) * 2.0
+_STEP_MAX = 1.0 / _STEP_MIN
+
+
+def _representable_step(name: str, v: float) -> float:
+    if not _STEP_MIN <= v <= _STEP_MAX:
+        raise RecordingError(
+            name,
+            v,
+            f"is out of the representable range [{_STEP_MIN:.3g}, {_STEP_MAX:.3g}]: rates in "
+            "1/time^2 would under- or overflow; write the record in another time unit",
+        )
     return v
 
 
@@ -472,6 +489,7 @@ def _validate(
                 )
         if t0 is not None:
             raise RecordingError("t0", t0, f"must not be given: the times come from {t_name}")
+        _representable_step(f"{t_name} (its step)", step)
         return Recording(wa, t_out, step, first, raw.unit, raw.value_unit, raw.source, flags,
                          dict(raw.metadata))  # fmt: skip
     if raw.dt is not None:

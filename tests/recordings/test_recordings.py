@@ -270,9 +270,12 @@ def test_bad_inputs_name_the_field() -> None:
     with pytest.raises(RecordingError) as e:
         R.read_bytes(_mat(w={"a": 1}), "mat")
     assert e.value.field == "w"
-    with pytest.raises(RecordingError) as e:
-        R.from_arrays([1.0, 2.0], dt=0.0)
-    assert e.value.field == "dt"
+    for bad in (0.0, 1e-300, 1e300):  # a step whose square under/overflows: no finite rate
+        with pytest.raises(RecordingError) as e:
+            R.from_arrays([1.0, 2.0], dt=bad)
+        assert e.value.field == "dt"
+    for fine in (1e-150, 1e150):
+        assert R.from_arrays([1.0, 2.0], dt=fine).dt == fine
     assert isinstance(e.value, ValueError) and e.value.parameter == "dt"
 
 
