@@ -123,6 +123,28 @@ def test_quadratic_product_tone_is_marked_and_never_the_fundamental(noise: float
     assert len(lin.modes) == 2 and "combination_tone" not in lin.flag_codes
 
 
+@pytest.mark.parametrize("noise", [0.0, 1e-5])
+def test_quadratic_square_offset_and_tones_are_not_the_fundamental(noise: float) -> None:
+    """eps (x1 + x2)^2 adds, besides the tones, a mean shift decaying at 2 gamma_1, 2 gamma_2
+    and gamma_1 + gamma_2 (the zero-frequency difference tones): fitted as an overdamped pair,
+    it must be marked and not taken for an overdamped fundamental."""
+    n, dt = 8000, 2e-3
+    t = np.arange(n) * dt
+    x1 = 1.0e-2 * np.exp(-0.05 * t) * np.cos(30.0 * t + 0.4)
+    x2 = 0.7e-2 * np.exp(-0.08 * t) * np.cos(42.0 * t + 1.9)
+    w = 0.1 + x1 + x2 + 8.0 * (x1 + x2) ** 2
+    det = detect(w + noise * np.random.default_rng(4).standard_normal(n), dt=dt)
+    assert det.fundamental.regime == "underdamped"
+    assert abs(det.fundamental.omega - 30.0) <= 5 * det.fundamental.omega_std + 3e-5
+    slow = [m for m in det.modes if m.regime == "overdamped"]
+    assert slow and all(m.combination is not None and "decaying offset" in m.combination
+                        for m in slow)  # fmt: skip
+    tones = {round(m.omega): m.combination for m in det.modes if m.regime == "underdamped"}
+    assert tones[30] is None and tones[42] is None
+    assert all(tones[k] is not None for k in (12, 60, 72))
+    assert "overdamped" not in det.flag_codes and "unstable" not in det.flag_codes
+
+
 def test_nonlinear_euler_beam_difference_tone_is_not_the_fundamental() -> None:
     """Euler beam, symmetric actuation, mu = 1.9, a large kick, nonlinear time integration
     (the simulator's own Galerkin integrator, not the detector's model): the quadratic coupling

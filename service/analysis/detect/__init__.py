@@ -82,7 +82,9 @@ from service.analysis.detect._core import detect
 from service.analysis.detect._methods import METHOD_TABLE, METHODS
 from service.analysis.detect._results import (
     ALIAS_FRACTION,
+    COMBINATION_RATE_REL,
     COMBINATION_REL,
+    COMBINATION_WIDTH,
     COMBINATION_Z,
     FEW_PERIODS,
     FLAG_CODES,
@@ -108,6 +110,8 @@ __all__ = [
     "ALIAS_FRACTION",
     "COMBINATION_Z",
     "COMBINATION_REL",
+    "COMBINATION_WIDTH",
+    "COMBINATION_RATE_REL",
     "NOISE_FLOOR",
     "Mode",
     "Fundamental",

@@ -165,7 +165,11 @@ def _record_flags(
                     "equilibrium is unstable",
                 )
             )
-        od = [m for m in modes if m.regime == "overdamped" and m.real_poles is not None]
+        od = [
+            m
+            for m in modes
+            if m.regime == "overdamped" and m.real_poles is not None and m.combination is None
+        ]
         if od:
             txt = ", ".join(
                 f"sigma^2 = {m.sigma2:.4g} (poles {m.real_poles[0]:.4g}, {m.real_poles[1]:.4g})"

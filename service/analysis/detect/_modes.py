@@ -10,7 +10,9 @@ import numpy as np
 
 from service.analysis.detect._kernels import _ch_sh
 from service.analysis.detect._results import (
+    COMBINATION_RATE_REL,
     COMBINATION_REL,
+    COMBINATION_WIDTH,
     COMBINATION_Z,
     Fundamental,
     Mode,
@@ -173,12 +175,34 @@ def _ambient_errors(
 
 
 def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
-    """Modes whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or ``2 omega_i``
-    of two stronger modes (record SNR), within :data:`COMBINATION_Z` combined standard errors
-    or a relative :data:`COMBINATION_REL`: ``{k: (i, j, sign)}``."""
+    """Combination tones among ``modes``: ``{k: (i, j, sign)}``.
+
+    An underdamped mode whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or
+    ``2 omega_i`` of two stronger modes (record SNR), within :data:`COMBINATION_Z` combined
+    standard errors, a relative :data:`COMBINATION_REL`, or :data:`COMBINATION_WIDTH` times its
+    own decay rate (its half linewidth; sign ``"+"`` / ``"-"``); and an
+    overdamped mode whose slow decay rate is ``gamma_i + gamma_j`` of two stronger underdamped
+    modes within a relative :data:`COMBINATION_RATE_REL` (sign ``"0"``): the difference tone
+    ``omega_i - omega_j = 0`` of a quadratic response, a mean shift that decays at the sum of
+    the rates (a true overdamped fundamental of a structure with one damping ``xi`` has its slow
+    rate below ``xi / 2``, the sums are ``>= xi``).
+    """
     out: dict[int, tuple[int, int, str]] = {}
     strength = [m.snr_db if math.isfinite(m.snr_db) else -math.inf for m in modes]
     under = [k for k, m in enumerate(modes) if m.regime == "underdamped" and m.omega > 0]
+    for k, mk in enumerate(modes):
+        if mk.regime != "overdamped" or mk.real_poles is None:
+            continue
+        slow = -max(mk.real_poles)  # the slow decay rate (> 0 when decaying)
+        parents = [i for i in under if strength[i] > strength[k]]
+        best = math.inf
+        for a, i in enumerate(parents):
+            for j in parents[a:]:
+                target = modes[i].damping + modes[j].damping
+                d = abs(slow - target)
+                if slow > 0 and target > 0 and d <= COMBINATION_RATE_REL * target and d < best:
+                    best = d
+                    out[k] = (i, j, "0")
     for k in under:
         mk = modes[k]
         parents = [i for i in under if i != k and strength[i] > strength[k]]
@@ -190,7 +214,11 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
                 for sign, target in (("+", mi.omega + mj.omega), ("-", abs(mi.omega - mj.omega))):
                     if sign == "-" and i == j:
                         continue
-                    tol = max(COMBINATION_Z * math.sqrt(var), COMBINATION_REL * target)
+                    tol = max(
+                        COMBINATION_Z * math.sqrt(var),
+                        COMBINATION_REL * target,
+                        COMBINATION_WIDTH * mk.damping,
+                    )
                     d = abs(mk.omega - target)
                     if d <= tol and d < best:
                         best = d
@@ -214,7 +242,14 @@ def _fundamental(modes: list[Mode], *, n: int, dt: float) -> list[Mode]:
         m = modes[k]
         if k in comb:
             i, j, sign = comb[k]
-            txt = f"2 omega[{pos[i]}]" if i == j else f"omega[{pos[i]}] {sign} omega[{pos[j]}]"
+            if sign == "0":
+                a, b = sorted((pos[i], pos[j]))
+                rate = f"2 gamma[{a}]" if a == b else f"gamma[{a}] + gamma[{b}]"
+                txt = f"0 (a decaying offset at the rate {rate})"
+            elif i == j:
+                txt = f"2 omega[{pos[i]}]"
+            else:
+                txt = f"omega[{pos[i]}] {sign} omega[{pos[j]}]"
             m = replace(m, combination=txt)
         out.append(m)
     return out

@@ -35,6 +35,12 @@ ALIAS_FRACTION = 0.8  # fraction of the Nyquist frequency above which energy is 
 #: with the decaying amplitude).
 COMBINATION_Z = 4.0
 COMBINATION_REL = 2e-3
+#: ... or within this fraction of the candidate's own decay rate (half linewidth): a broad line's
+#: fitted frequency moves by a fraction of its width when the model misses other tones.
+COMBINATION_WIDTH = 0.1
+#: An overdamped mode whose slow decay rate is gamma_i + gamma_j of two stronger modes within
+#: this relative tolerance is their zero-frequency difference tone (a decaying mean shift).
+COMBINATION_RATE_REL = 0.25
 #: Relative numerical noise floor: the noise std is never taken below this fraction of the
 #: record's rms (float64 arithmetic on Gram matrices resolves residual energies to about
 #: ``1e-16 x`` the record's energy; a noise-free record must not make rounding significant).
