@@ -27,19 +27,13 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis.classify import (
-    CANDIDATES,
-    Classification,
-    ModelFit,
-    Sweep,
-    _analyse,
-    _classify_sweep,
-    _clean,
-    _profile,
-    _sigma_comp,
-    prepare_sweep,
-)
+from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_mu_star
+from service.analysis._sweep import Sweep, prepare_sweep
+from service.analysis.alarm import Alarm, alarm_for, next_measurement
+from service.analysis.classify import Classification, classify_sweep
+from service.analysis.classify import clean as _clean
 from service.analysis.common import Flag
+from service.analysis.errors import ParameterError
 
 __all__ = ["PaperRule", "Prediction", "paper_rule", "predict"]
 
@@ -90,9 +84,9 @@ def _check_a(a: Any) -> float:
     try:
         af = float(a)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"a must be a positive number, got a={a!r}") from exc
+        raise ParameterError("a", a, f"a must be a positive number, got a={a!r}") from exc
     if not math.isfinite(af) or af <= 0:
-        raise ValueError(f"a must be a positive number, got a={a!r}")
+        raise ParameterError("a", a, f"a must be a positive number, got a={a!r}")
     return af
 
 
@@ -124,7 +118,7 @@ def paper_rule(
     """
     af = _check_a(a)
     if not (math.isfinite(factor) and factor > 1):
-        raise ValueError(f"factor must be > 1, got factor={factor!r}")
+        raise ParameterError("factor", factor, f"factor must be > 1, got factor={factor!r}")
     sw = prepare_sweep(mu, sigma2)
     T = 1.0 / np.sqrt(sw.y)
     ratio = T / T[0]
@@ -176,11 +170,11 @@ class Prediction:
     method : str
         ``"profile-likelihood"`` (one law) or ``"model-average"`` (candidates weighted by their
         probabilities).
-    alarm : dict
-        ``t_ratio``: ``T / T0`` at the last point (``T = 1/sqrt|sigma^2|``, ``T0`` at the first);
-        ``distance``: ``(mu* - mu[-1])`` in units of the interval half-width;
-        ``level``: ``"none"``, ``"watch"`` (T > 3 T0), ``"warning"`` (T > 10 T0) or
-        ``"critical"`` (the interval's lower end within one half-width of the last point).
+    alarm : Alarm
+        The alarm at the last point (:class:`service.analysis.alarm.Alarm`): ``t_ratio``
+        (``T / T0``, ``T = 1/sqrt|sigma^2|``), ``distance`` (``(mu* - mu[-1])`` in interval
+        half-widths), ``level`` (``"none"``, ``"watch"`` (T > 3 T0), ``"warning"`` (T > 10 T0)
+        or ``"critical"``: the interval's lower end within one half-width of the last point).
     next_safe_mu : float
         Suggested next measurement: ``mu[-1] + min(step_fraction * (bound - margin - mu[-1]),
         max_step_growth * (mu[-1] - mu[-2]))`` with ``bound`` the smaller of the interval's lower
@@ -207,7 +201,7 @@ class Prediction:
     mu_star_std: float
     a: float
     method: str
-    alarm: dict[str, Any]
+    alarm: Alarm
     next_safe_mu: float
     flags: tuple[Flag, ...]
     transition: str = "undetermined"
@@ -231,7 +225,7 @@ class Prediction:
             "b_std": _clean(c.b_std) if c is not None else None,
             "regime": c.regime if c is not None else None,
             "method": self.method,
-            "alarm": _clean(dict(self.alarm)),
+            "alarm": self.alarm.to_dict(),
             "next_safe_mu": _clean(self.next_safe_mu),
             "transition": self.transition,
             "probabilities": _clean(dict(self.probabilities)),
@@ -278,20 +272,13 @@ def _truncation_spread(sw: Sweep, fit: ModelFit) -> float:
     """Largest |mu* change| over neighbouring fits: one more correction term (same window or
     one point less), the window without its one, two or three farthest points with the same
     number of terms or one less. A series near the edge of its convergence (another
-    singularity close to mu*, e.g. the symmetric case's secondary fold 0.012 beyond mu*) makes
-    these disagree, and the interval says so."""
-    N = sw.mu.size
-    scale = float(sw.mu[-1] - sw.mu[0])
+    singularity close to mu*) makes these disagree, and the interval says so."""
     m0 = fit.profile.mu_star
     out = 0.0
     alternatives = [(fit.n, fit.K + 1), (fit.n - 1, fit.K + 1)]
     alternatives += [(fit.n - d, fit.K - e) for d in (1, 2, 3) for e in (0, 1)]
     for n2, K2 in alternatives:
-        if n2 - K2 - 2 < 1 or n2 < 3 or K2 < 0:
-            continue
-        idx = slice(N - n2, N)
-        comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, K2, fit.conformal)
-        alt = _profile(sw.mu[idx], [comp], scale, with_interval=False).mu_star
+        alt = refit_mu_star(sw, fit, n2, K2)
         if math.isfinite(alt):
             out = max(out, abs(alt - m0))
     return out
@@ -303,17 +290,19 @@ def _law_for(transition: str | None, a: float | None) -> tuple[str, float, float
         if transition in CANDIDATES:
             aa, bb, h = CANDIDATES[transition]
             if a is not None and abs(a - aa) > 1e-12 and abs(a - 2 * aa) > 1e-12:
-                raise ValueError(
+                raise ParameterError(
+                    "a", a,
                     f"a={a!r} contradicts transition={transition!r} (a={aa:g}, or {2 * aa:g} "
-                    "over-damped)"
-                )
+                    "over-damped)",
+                )  # fmt: skip
             return transition, (aa if a is None else a), bb, h
         if transition == "pitchfork":
             return "pitchfork", (0.5 if a is None else a), None, 1.0
-        raise ValueError(
+        raise ParameterError(
+            "transition", transition,
             f"transition must be one of {sorted([*CANDIDATES, 'pitchfork'])}, got "
-            f"transition={transition!r}"
-        )
+            f"transition={transition!r}",
+        )  # fmt: skip
     assert a is not None
     name = "saddle-node" if abs(a - 0.25) < 1e-12 else ("pitchfork" if a == 0.5 else "custom")
     h = 0.5 if name == "saddle-node" else 1.0
@@ -321,7 +310,7 @@ def _law_for(transition: str | None, a: float | None) -> tuple[str, float, float
 
 
 def predict(
-    mu: Sequence[float] | np.ndarray,
+    mu: Sequence[float] | np.ndarray | Sweep,
     sigma2: Sequence[float] | np.ndarray | None = None,
     *,
     sigma2_std: Sequence[float] | np.ndarray | None = None,
@@ -341,8 +330,9 @@ def predict(
 
     Parameters
     ----------
-    mu : array_like, shape (n,)
-        Control parameter, strictly increasing, n >= 3, any unit.
+    mu : array_like, shape (n,), or Sweep
+        Control parameter, strictly increasing, n >= 3, any unit; or a sweep prepared by
+        :func:`service.analysis.classify.prepare_sweep` (the data arguments are then ignored).
     sigma2 : array_like, shape (n,), optional
         Undamped eigenvalue of the fundamental (1/time^2), negative. Give this or ``omega``.
     sigma2_std : array_like, shape (n,), optional
@@ -350,7 +340,7 @@ def predict(
     omega, omega_std : array_like, shape (n,), optional
         Observed rate (rad/time) instead of ``sigma2`` (see :func:`classify`).
     w_static, w_static_std : array_like, optional
-        Static deflection at the probe (used by the classification and the joint fit).
+        Static deflection at the probe (used by the classification).
     transition : str, optional
         ``"saddle-node"``, ``"subcritical-pitchfork"``, ``"supercritical-pitchfork"`` or
         ``"pitchfork"``: fit that law only.
@@ -361,12 +351,9 @@ def predict(
         Damping ``xi`` (1/time) when known.
     level : float
         Confidence level of ``mu_star_interval`` (0.95).
-    step_fraction : float
-        Fraction of the distance to the interval's lower end that ``next_safe_mu`` advances.
-    margin : float
-        Extra distance (unit of ``mu``) kept below the interval's lower end.
-    max_step_growth : float
-        The suggested step is at most this multiple of the last step (trust region).
+    step_fraction, margin, max_step_growth : float
+        The next-measurement policy (:func:`service.analysis.alarm.next_measurement`): a
+        fraction of the way to the safe bound, a distance kept below it, the trust region.
 
     Returns
     -------
@@ -374,34 +361,115 @@ def predict(
 
     Raises
     ------
-    ValueError
-        Invalid measurements (see :func:`classify`), ``a <= 0``, unknown ``transition``,
-        ``level`` or ``step_fraction`` outside (0, 1), ``margin < 0``.
+    ParameterError
+        (a ValueError) Invalid measurements (see :func:`classify`), ``a <= 0``, unknown
+        ``transition``, ``level`` or ``step_fraction`` outside (0, 1), ``margin < 0``.
     """
-    if not 0 < level < 1:
-        raise ValueError(f"level must be in (0, 1), got level={level!r}")
-    if not 0 < step_fraction < 1:
-        raise ValueError(f"step_fraction must be in (0, 1), got step_fraction={step_fraction!r}")
-    if not (math.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin must be finite and >= 0, got margin={margin!r}")
-    if not (math.isfinite(max_step_growth) and max_step_growth > 0):
-        raise ValueError(f"max_step_growth must be > 0, got max_step_growth={max_step_growth!r}")
+    _check_policy(level, step_fraction, margin, max_step_growth)
     if a is not None:
         a = _check_a(a)
-    sw0 = prepare_sweep(
-        mu,
-        sigma2,
-        sigma2_std=sigma2_std,
-        omega=omega,
-        omega_std=omega_std,
-        w_static=w_static,
-        w_static_std=w_static_std,
-        damping=damping,
+    if isinstance(mu, Sweep):
+        sw0 = mu
+    else:
+        sw0 = prepare_sweep(
+            mu, sigma2, sigma2_std=sigma2_std, omega=omega, omega_std=omega_std,
+            w_static=w_static, w_static_std=w_static_std, damping=damping,
+        )  # fmt: skip
+    fit = _fit(sw0, transition, a, level)
+    flags = list(fit.flags)
+    m, std, lo, hi = _interval(sw0, fit, level, flags)
+    last = float(sw0.mu[-1])
+    t_ratio = float(math.sqrt(sw0.y[0] / sw0.y[-1]))
+    alarm = alarm_for(last, t_ratio, m, (lo, hi))
+    if t_ratio < 2.0:
+        flags.append(
+            Flag(
+                "slowdown_not_reached",
+                f"T/T0 = {t_ratio:.3g} < 2: the critical slowing down has barely begun, the "
+                "asymptotic laws may not hold yet and the interval can be over-confident",
+            )
+        )
+    # the next measurement: a fraction of the way to the interval's lower end, never beyond the
+    # model-free sigma^4 bound of the last pair and never more than max_step_growth times the
+    # last step (an interval whose lower end is at the last point leaves the model-free bound
+    # alone in charge)
+    nxt = next_measurement(
+        sw0.mu, sw0.y, trusted_bound=lo if lo > last else None, margin=margin,
+        step_fraction=step_fraction, max_step_growth=max_step_growth,
+    )  # fmt: skip
+    if not math.isfinite(nxt.mu):
+        flags.append(
+            Flag(
+                "no_safe_step",
+                f"the safe bound {nxt.bound:.6g} (interval's lower end or the model-free sigma^4 "
+                f"bound, minus margin {margin:g}) is not beyond the last measured mu={last:.6g}",
+            )
+        )
+    a_used = float(np.sum(np.array(fit.probs) * np.array([f.a for f in fit.fits])) /
+                   np.sum(fit.probs))  # fmt: skip
+    baseline = paper_rule(sw0.mu, -sw0.y, a_used) if sw0.kind == "sigma2" else None
+    if not math.isfinite(m):
+        flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
+    cls = fit.classification
+    return Prediction(
+        mu_star=float(m),
+        mu_star_interval=(float(lo), float(hi)),
+        mu_star_std=float(std),
+        a=a_used,
+        method=fit.method,
+        alarm=alarm,
+        next_safe_mu=float(nxt.mu),
+        flags=tuple(_dedupe(flags)),
+        transition=fit.name,
+        probabilities=(
+            dict(cls.probabilities)
+            if cls is not None
+            else {f.name: float(p) for f, p in zip(fit.fits, fit.probs, strict=True)}
+        ),
+        window=int(fit.window),
+        n_terms=int(fit.fits[int(np.argmax(fit.probs))].K + 1),
+        baseline=baseline,
+        classification=cls,
     )
-    flags: list[Flag] = []
-    cls: Classification | None = None
+
+
+def _check_policy(level: float, step_fraction: float, margin: float, growth: float) -> None:
+    if not 0 < level < 1:
+        raise ParameterError("level", level, f"level must be in (0, 1), got level={level!r}")
+    if not 0 < step_fraction < 1:
+        raise ParameterError(
+            "step_fraction", step_fraction,
+            f"step_fraction must be in (0, 1), got step_fraction={step_fraction!r}",
+        )  # fmt: skip
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ParameterError(
+            "margin", margin, f"margin must be finite and >= 0, got margin={margin!r}"
+        )
+    if not (math.isfinite(growth) and growth > 0):
+        raise ParameterError(
+            "max_step_growth", growth,
+            f"max_step_growth must be > 0, got max_step_growth={growth!r}",
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """The fits that enter the prediction (one law, or the candidates with their weights)."""
+
+    fits: tuple[ModelFit, ...]
+    probs: tuple[float, ...]
+    sweeps: tuple[Sweep, ...]
+    name: str
+    window: int
+    method: str
+    flags: tuple[Flag, ...]
+    classification: Classification | None
+
+
+def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _Fit:
+    """Fit the law given, or classify and refit each probable candidate on its own window."""
     if a is None and transition is None:
-        cls = _classify_sweep(sw0, level=level)
+        cls = classify_sweep(sw0, level=level)
         # each candidate that matters is refitted on its own informative window (the
         # classification compares them on a common one) and averaged with its probability.
         # mu* comes from the eigenvalue law alone: the static law, fitted over its wider window,
@@ -412,49 +480,50 @@ def predict(
             pr = cls.probabilities[f.name]
             if pr <= 1e-3:
                 continue
-            law = (f.name, f.a, None, f.h)
-            sw_fit, own, _, _ = _analyse(sw0, law, level)
+            sw_fit, own, _, _ = analyse(sw0, (f.name, f.a, None, f.h), level)
             fits.append(own[0])
             sweeps.append(sw_fit)
             probs.append(pr)
-        flags.extend(f for f in cls.flags if f.code not in {"no_static_data"})
-        name = cls.transition
-        window = cls.window
+        flags = [f for f in cls.flags if f.code != "no_static_data"]
         method = "model-average" if len(fits) > 1 else "profile-likelihood"
-    else:
-        name, aa, _, hh = _law_for(transition, a)
-        law = (name, aa, None, hh)  # mu* from the eigenvalue law alone (see above)
-        sw_fit, fits, window, fl = _analyse(sw0, law, level)
-        sweeps = [sw_fit]
-        flags.extend(fl)
-        flags.extend(fits[0].profile.flags)
-        fits, probs = fits[:1], [1.0]
-        method = "profile-likelihood"
-        if window < 5:
-            flags.append(
-                Flag("few_points_near", f"only {window} informative points near mu* (want >= 5)")
-            )
-    if len(fits) == 1:
-        f0 = fits[0].profile
+        return _Fit(tuple(fits), tuple(probs), tuple(sweeps), cls.transition, cls.window,
+                    method, tuple(flags), cls)  # fmt: skip
+    name, aa, _, hh = _law_for(transition, a)
+    sw_fit, fits, window, fl = analyse(sw0, (name, aa, None, hh), level)
+    flags = [*fl, *fits[0].profile.flags]
+    if window < 5:
+        flags.append(
+            Flag("few_points_near", f"only {window} informative points near mu* (want >= 5)")
+        )
+    return _Fit((fits[0],), (1.0,), (sw_fit,), name, window, "profile-likelihood",
+                tuple(flags), None)  # fmt: skip
+
+
+def _interval(
+    sw0: Sweep, fit: _Fit, level: float, flags: list[Flag]
+) -> tuple[float, float, float, float]:
+    """(mu*, std, lo, hi): the profile or mixture interval widened by the truncation spread."""
+    if len(fit.fits) == 1:
+        f0 = fit.fits[0].profile
         m, lo, hi = f0.mu_star, f0.lo, f0.hi
         std = 0.5 * (f0.hi68 - f0.lo68)
     else:
-        m, std, lo, hi = _mixture(fits, probs, level)
+        m, std, lo, hi = _mixture(fit.fits, fit.probs, level)
     # truncation uncertainty: the statistical interval assumes the law with K corrections is
     # exact over its window; the spread of mu* when the window loses its farthest points or the
     # series gains a term measures what the truncation does to mu*. It widens the interval on
     # both sides (measured on warn sweeps: coverage of the statistical interval alone was 50 %
     # on the asymmetric beam at 40 dB, the estimate being biased by 2-9 half-widths).
     sys_spread = max(
-        (_truncation_spread(sw, f) for sw, f, pr in zip(sweeps, fits, probs) if pr >= 0.05),
+        (_truncation_spread(sw, f) for sw, f, pr in zip(fit.sweeps, fit.fits, fit.probs)
+         if pr >= 0.05),
         default=0.0,
-    )
+    )  # fmt: skip
     if sys_spread > 0:
         lo, hi = lo - sys_spread, hi + sys_spread
         std = math.hypot(std, sys_spread / float(stats.norm.ppf(0.5 + level / 2)))
     last = float(sw0.mu[-1])
     lo = max(lo, last)
-    a_used = float(np.sum(np.array(probs) * np.array([f.a for f in fits])) / np.sum(probs))
     half = 0.5 * (hi - lo)
     if not (math.isfinite(half) and half > 0):
         half = math.nan
@@ -466,77 +535,7 @@ def predict(
                 f"distance to mu* ({m - last:.3g})",
             )
         )
-    t_ratio = float(math.sqrt(sw0.y[0] / sw0.y[-1]))
-    dist = (m - last) / half if half > 0 else math.nan
-    if lo - last <= half:
-        lvl = "critical"
-    elif t_ratio > 10:
-        lvl = "warning"
-    elif t_ratio > 3:
-        lvl = "watch"
-    else:
-        lvl = "none"
-    alarm = {"t_ratio": t_ratio, "distance": float(dist), "level": lvl}
-    if t_ratio < 2.0:
-        flags.append(
-            Flag(
-                "slowdown_not_reached",
-                f"T/T0 = {t_ratio:.3g} < 2: the critical slowing down has barely begun, the "
-                "asymptotic laws may not hold yet and the interval can be over-confident",
-            )
-        )
-    # the next measurement: a fraction of the way to the interval's lower end, but never beyond
-    # the model-free bound of the last pair (|sigma^2|^2 extrapolated linearly to zero: exact at
-    # leading order near a fold, short of mu* near a pitchfork) and never more than
-    # `max_step_growth` times the last step (a trust region: far from mu* the laws do not hold
-    # yet and the interval can be confidently wrong)
-    # (an interval whose lower end is at the last point, wide from truncation far from mu*,
-    # leaves the model-free bound alone in charge)
-    bound = lo if lo > last else math.inf
-    y1, y2 = float(sw0.y[-2]), float(sw0.y[-1])
-    if y1 > y2:
-        bound = min(bound, last + y2**2 * (last - float(sw0.mu[-2])) / (y1**2 - y2**2))
-    room = bound - margin - last
-    if room > 0:
-        nxt = last + min(step_fraction * room, max_step_growth * (last - float(sw0.mu[-2])))
-    else:
-        nxt = math.nan
-        flags.append(
-            Flag(
-                "no_safe_step",
-                f"the safe bound {bound:.6g} (interval's lower end or the model-free sigma^4 "
-                f"bound, minus margin {margin:g}) is not beyond the last measured mu={last:.6g}",
-            )
-        )
-    baseline = None
-    if sw0.kind == "sigma2" and a_used > 0:
-        try:
-            baseline = paper_rule(sw0.mu, -sw0.y, a_used)
-        except ValueError:  # pragma: no cover - same validation as above
-            baseline = None
-    n_terms = fits[int(np.argmax(probs))].K + 1
-    if not math.isfinite(m):
-        flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
-    return Prediction(
-        mu_star=float(m),
-        mu_star_interval=(float(lo), float(hi)),
-        mu_star_std=float(std),
-        a=a_used,
-        method=method,
-        alarm=alarm,
-        next_safe_mu=float(nxt),
-        flags=tuple(_dedupe(flags)),
-        transition=name,
-        probabilities=(
-            dict(cls.probabilities)
-            if cls is not None
-            else {f.name: float(p) for f, p in zip(fits, probs, strict=True)}
-        ),
-        window=int(window),
-        n_terms=int(n_terms),
-        baseline=baseline,
-        classification=cls,
-    )
+    return m, std, lo, hi
 
 
 def _dedupe(flags: Sequence[Flag]) -> list[Flag]:

@@ -91,9 +91,9 @@ def test_predict_given_law_beats_paper_rule(kind: str) -> None:
     assert p.baseline is not None
     assert abs(p.mu_star - 1.78) * 10 < abs(p.baseline.mu_star - 1.78)
     # the alarm: T / T0 and the distance in half-widths
-    assert p.alarm["t_ratio"] == pytest.approx(math.sqrt(d["sigma2"][0] / d["sigma2"][-1]))
-    assert p.alarm["distance"] == pytest.approx((p.mu_star - d["mu"][-1]) / (0.5 * (hi - lo)))
-    assert p.alarm["level"] in {"watch", "warning", "critical"}
+    assert p.alarm.t_ratio == pytest.approx(math.sqrt(d["sigma2"][0] / d["sigma2"][-1]))
+    assert p.alarm.distance == pytest.approx((p.mu_star - d["mu"][-1]) / (0.5 * (hi - lo)))
+    assert p.alarm.level in {"watch", "warning", "critical"}
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -188,7 +188,7 @@ def test_never_nan_without_a_flag(n: int, seed: int, with_std: bool, a: float | 
     std = np.abs(s2) * rng.uniform(1e-4, 0.3, n) if with_std else None
     p = predict(mu, s2, sigma2_std=std, a=a)
     nums = [p.mu_star, *p.mu_star_interval, p.mu_star_std, p.a, p.next_safe_mu,
-            p.alarm["t_ratio"], p.alarm["distance"]]  # fmt: skip
+            p.alarm.t_ratio, p.alarm.distance]  # fmt: skip
     if not all(math.isfinite(v) for v in nums):
         assert p.flags, p
     json.dumps(p.to_dict(), allow_nan=False)

@@ -1,0 +1,259 @@
+"""Calibration of the predictor on random lab plans: coverage of the 95 % interval, type, error
+against the paper's two-point rule on the same data.
+
+    python bench/calibration.py [--plans N] [--seed S] [--workers W] [--quick]
+
+A lab plan is what an experimenter does without knowing mu*: a fixed grid of control values
+``mu_k = mu_last - k h`` (step ``h`` uniform in [0.02, 0.1], every point >= 0) that stops at
+``mu_last = mu* - d`` (``d`` log-uniform in [1e-3, 1e-1]); at each point ``sigma^2`` with
+relative Gaussian noise ``r`` (log-uniform in [1e-5, 1e-3], ``sigma2_std`` given), and, in half
+of the plans, the static deflection at the probe ``w_static`` with noise ``r max|w|`` (its std
+given). The truth is the Euler beam's own spectrum (``sim.euler_beam.spectrum``, exact sigma^2
+of the U_A branch) and static deflection, for the three actuations, and the normal-form records
+(``sim.normal_form``: sigma^2 and the amplitude of the amplitude equation, exact laws).
+
+Per source and actuation the table gives: coverage of the 95 % interval (target 93-97 %), the
+transition named right (``pitchfork`` without static data counts as right for a pitchfork), a
+confident wrong criticality (a named transition that is wrong), median |mu* error| ours and the
+paper's rule (``T > 10 T0`` and two-point extrapolation with the true exponent, the rule's best
+case), the share of plans where ours is worse than the rule, and how many of those carry a flag.
+
+Writes bench/results/calibration.csv and calibration.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import multiprocessing as mp
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from service.analysis.predict import paper_rule, predict  # noqa: E402
+
+OUT = ROOT / "bench" / "results"
+ACTS = ("asymmetric", "symmetric", "antisymmetric")
+SOURCES = ("euler-beam", "normal-form")
+A_TRUE = {"saddle-node": 0.25, "subcritical-pitchfork": 0.5, "supercritical-pitchfork": 0.5}
+# flags that only inform (no doubt about mu*)
+_INFO = {"no_static_data", "noise_estimated", "w_noise_estimated", "w_noise_underestimated"}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """One random lab plan (see the module docstring)."""
+
+    index: int
+    source: str
+    actuation: str
+    step: float
+    stop: float
+    rel: float
+    with_w: bool
+    seed: int
+
+
+def random_plans(n_per: int, seed: int, sources: tuple[str, ...] = SOURCES) -> list[Plan]:
+    """``n_per`` plans per (source, actuation), drawn from one seeded generator."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for src in sources:
+        for act in ACTS:
+            for _ in range(n_per):
+                out.append(
+                    Plan(
+                        len(out), src, act,
+                        step=float(rng.uniform(0.02, 0.1)),
+                        stop=float(10 ** rng.uniform(-3, -1)),
+                        rel=float(10 ** rng.uniform(-5, -3)),
+                        with_w=bool(rng.integers(2)),
+                        seed=int(rng.integers(2**31)),
+                    )
+                )  # fmt: skip
+    return out
+
+
+def truth(source: str, actuation: str) -> tuple[float, str]:
+    """(mu*, transition) of the source."""
+    from sim.euler_beam import bifurcation
+
+    b = bifurcation(actuation)
+    return b.mu_star, b.transition
+
+
+def exact_sweep(source: str, actuation: str, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact sigma^2 of the fundamental on U_A and the static deflection at X = 1/4."""
+    if source == "euler-beam":
+        from sim.euler_beam import equilibrium, spectrum
+
+        s2 = np.array([spectrum(actuation, m, "U_A", modes=1).sigma2[0] for m in mu])
+        w = np.array([equilibrium(actuation, m, "U_A").w_quarter for m in mu])
+        return s2, w
+    from sim.normal_form import normal_form
+
+    nf = normal_form(actuation)
+    phi = float(nf.phi(np.array([0.25]))[0])
+    s2 = np.array([nf.sigma2(m - nf.mu_star, "U_A") for m in mu])
+    w = np.array([0.1 + phi * nf.equilibria(m - nf.mu_star)["U_A"] for m in mu])
+    return s2, w
+
+
+def plan_grid(mu_star: float, step: float, stop: float) -> np.ndarray:
+    """The lab's fixed grid: steps of ``step`` ending ``stop`` before mu*, all >= 0."""
+    last = mu_star - stop
+    k = np.arange(int(math.floor(last / step + 1e-9)) + 1)[::-1]
+    mu = last - step * k
+    mu[np.abs(mu) < 1e-9] = 0.0
+    return mu
+
+
+def plan_data(plan: Plan) -> dict:
+    """The measurements of a plan (noisy sigma2 and w with their std) and its truth."""
+    mu_star, kind = truth(plan.source, plan.actuation)
+    mu = plan_grid(mu_star, plan.step, plan.stop)
+    s2, w = exact_sweep(plan.source, plan.actuation, mu)
+    rng = np.random.default_rng(plan.seed)
+    sd = plan.rel * np.abs(s2)
+    s2n = s2 + sd * rng.standard_normal(mu.size)
+    s2n = np.minimum(s2n, -1e-300)
+    wsd = plan.rel * max(float(np.max(np.abs(w))), 1e-12)
+    wn = w + wsd * rng.standard_normal(mu.size)
+    return {"mu": mu, "sigma2": s2n, "sigma2_std": sd, "w": wn, "w_std": wsd,
+            "mu_star": mu_star, "kind": kind}  # fmt: skip
+
+
+def run_plan(plan: Plan) -> dict:
+    """Ours and the paper's rule on one plan."""
+    d = plan_data(plan)
+    t0 = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        p = predict(
+            d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"],
+            w_static=d["w"] if plan.with_w else None,
+            w_static_std=d["w_std"] if plan.with_w else None,
+        )  # fmt: skip
+    cpu = time.process_time() - t0
+    rule = paper_rule(d["mu"], d["sigma2"], A_TRUE[d["kind"]])
+    ms = d["mu_star"]
+    lo, hi = p.mu_star_interval
+    err = p.mu_star - ms
+    rerr = rule.mu_star - ms
+    named = p.transition
+    right = named == d["kind"] or (named == "pitchfork" and "pitchfork" in d["kind"])
+    confident_wrong = named not in ("undetermined", "pitchfork") and named != d["kind"]
+    if named == "pitchfork" and "pitchfork" not in d["kind"]:
+        confident_wrong = True
+    flags = [f.code for f in p.flags]
+    worse = bool(not (abs(err) <= abs(rerr))) if math.isfinite(rerr) else False
+    return {
+        **asdict(plan),
+        "n_points": int(d["mu"].size),
+        "kind": d["kind"],
+        "transition": named,
+        "p_true": float(p.probabilities.get(d["kind"], p.probabilities.get("pitchfork", 0.0)))
+        if "pitchfork" in d["kind"] or d["kind"] in p.probabilities
+        else 0.0,
+        "error": err,
+        "lo": lo - ms,
+        "hi": hi - ms,
+        "covered": bool(lo <= ms <= hi),
+        "rule_error": rerr,
+        "worse": worse,
+        "flagged": bool(set(flags) - _INFO),
+        "right": bool(right),
+        "confident_wrong": bool(confident_wrong),
+        "flags": " ".join(flags),
+        "cpu_s": cpu,
+    }
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    out = []
+    groups = sorted({(r["source"], r["actuation"]) for r in rows}, key=lambda g: (
+        SOURCES.index(g[0]), ACTS.index(g[1])))  # fmt: skip
+    for src, act in groups:
+        g = [r for r in rows if r["source"] == src and r["actuation"] == act]
+        n = len(g)
+        worse = [r for r in g if r["worse"]]
+        out.append({
+            "source": src, "actuation": act, "plans": n,
+            "coverage": sum(r["covered"] for r in g) / n,
+            "type_right": sum(r["right"] for r in g) / n,
+            "confident_wrong": sum(r["confident_wrong"] for r in g),
+            "median_err": float(np.median([abs(r["error"]) for r in g])),
+            "median_rule_err": float(np.nanmedian([abs(r["rule_error"]) for r in g])),
+            "worse": len(worse) / n,
+            "worse_flagged": sum(r["flagged"] for r in worse),
+            "median_cpu_s": float(np.median([r["cpu_s"] for r in g])),
+        })  # fmt: skip
+    return out
+
+
+def table_md(summary: list[dict], meta: str) -> str:
+    lines = [
+        "# Predictor calibration on random lab plans",
+        "",
+        meta,
+        "",
+        "| source | actuation | plans | coverage 95 % | type right | confident wrong | "
+        "median abs err ours | median abs err paper's rule | worse than rule | "
+        "of which flagged | median CPU s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for s in summary:
+        lines.append(
+            f"| {s['source']} | {s['actuation']} | {s['plans']} | {100 * s['coverage']:.1f} % | "
+            f"{100 * s['type_right']:.0f} % | {s['confident_wrong']} | {s['median_err']:.2e} | "
+            f"{s['median_rule_err']:.2e} | {100 * s['worse']:.1f} % | {s['worse_flagged']} | "
+            f"{s['median_cpu_s']:.2f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--plans", type=int, default=60, help="plans per (source, actuation)")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--quick", action="store_true", help="10 plans per (source, actuation)")
+    args = ap.parse_args(argv)
+    n_per = 10 if args.quick else args.plans
+    plans = random_plans(n_per, args.seed)
+    t0 = time.perf_counter()
+    rows: list[dict] = []
+    with mp.get_context("fork").Pool(args.workers) as pool:
+        for k, r in enumerate(pool.imap_unordered(run_plan, plans, chunksize=2)):
+            rows.append(r)
+            if (k + 1) % 10 == 0 or k + 1 == len(plans):
+                print(f"[{k + 1}/{len(plans)}] {time.perf_counter() - t0:.0f} s", flush=True)
+    rows.sort(key=lambda r: r["index"])
+    summary = summarise(rows)
+    meta = (
+        f"{len(rows)} plans ({n_per} per source and actuation), seed {args.seed}; "
+        "`python bench/calibration.py"
+        + (" --quick" if args.quick else f" --plans {n_per}")
+        + f"` ({time.perf_counter() - t0:.0f} s wall on {args.workers} workers)."
+    )
+    md = table_md(summary, meta)
+    print(md)
+    OUT.mkdir(parents=True, exist_ok=True)
+    with open(OUT / "calibration.csv", "w", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        wr.writeheader()
+        wr.writerows(rows)
+    (OUT / "calibration.md").write_text(md)
+    return summary
+
+
+if __name__ == "__main__":
+    main()

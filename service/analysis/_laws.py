@@ -1,0 +1,671 @@
+"""The shared profile-likelihood engine: candidate laws, windows, noise, fits.
+
+Laws fitted along the measured stable branch, ``x = mu* - mu > 0`` (paper, Sec. "Asymptotic
+analysis"; eqs. saddleGrowthRate, pitchforkGrowthRate, saddleEquilibriums,
+pitchforkEquilibriums, with regular corrections):
+
+    |sigma^2| = x^(2a) sum_k c_k x^(k h),        w = w* + sum_j g_j x^(e_j)
+
+(``h = 1/2`` near a fold, ``1`` near a pitchfork; see :data:`CANDIDATES`). A pitchfork law also
+comes in a variant that knows a secondary fold of the measured branch at ``mu* + delta``: the
+series run in the conformal variable ``z = 2x / (1 + sqrt(1 + x/delta))`` (``delta`` profiled;
+see :mod:`service.analysis._laws_kernels`). Physics: the trivial branch of a subcritical
+pitchfork, unstable beyond mu*, may fold soon after it (the symmetric beam: U_A folds at
+mu2* = mu* + 0.0119); the equilibrium is then analytic in the fold's amplitude
+``s = sqrt(mu* + delta - mu)``, so every series in ``x`` converges only within ``delta`` of mu*
+and ``sigma^2(mu)`` carries a square-root branch point at ``mu* + delta``, while a series in
+``z ~ s - sqrt(delta)`` converges far beyond. As ``delta -> inf`` the law is the plain one.
+
+The number of correction terms and the window of "informative" points (the nearest points where
+the law holds) are chosen by a chi-square goodness-of-fit test against the measurement noise;
+the candidates are compared on a common window by BIC, which gives the model probabilities.
+
+Public entry points (used by :mod:`service.analysis.classify` and
+:mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_mu_star`,
+:func:`free_exponent_a`, :func:`free_exponent_b`, :class:`ModelFit`, :data:`CANDIDATES`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import optimize, stats
+
+from service.analysis._laws_kernels import REL_FLOOR as _REL_FLOOR
+from service.analysis._likelihood import (
+    _Comp,
+    _exp_grid,
+    _free_exponent,
+    _nll,
+    _Profile,
+    _profile,
+    _sigma_comp,
+    _sigma_exps,
+    _variants,
+    _w_comp,
+    _w_exps,
+)
+from service.analysis._sweep import Sweep
+from service.analysis.common import Flag
+
+__all__ = [
+    "CANDIDATES",
+    "Law",
+    "ModelFit",
+    "analyse",
+    "free_exponent_a",
+    "free_exponent_b",
+    "probabilities",
+    "refit_mu_star",
+]
+
+# name -> (a, b, h): a, b exponents; h the step of the regular corrections in powers of x.
+CANDIDATES: dict[str, tuple[float, float, float]] = {
+    "saddle-node": (0.25, 0.5, 0.5),
+    "subcritical-pitchfork": (0.5, 1.0, 1.0),
+    "supercritical-pitchfork": (0.5, 0.5, 1.0),
+}
+
+_KMAX = 3  # most correction terms in the sigma^2 law
+_KW_MAX = 3  # most terms beyond the constant in the static law
+_ALPHA = 0.05  # goodness-of-fit level for accepting a window
+
+def _window_sizes(n: int) -> list[int]:
+    if n <= 40:
+        return list(range(3, n + 1))
+    sizes = sorted(set(np.unique(np.round(np.geomspace(3, n, 36)).astype(int)).tolist()))
+    return sizes
+
+
+@dataclass(frozen=True)
+class _Sel:
+    """The informative window and number of correction terms for a sigma^2 law."""
+
+    n: int
+    K: int
+    accepted: bool
+    pvalue: float
+    conformal: bool = False
+
+
+def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
+    """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2.
+
+    Windows grow from the 3 nearest points; the scan stops after ``patience`` consecutive
+    window sizes that no number of corrections can fit (the law has stopped holding)."""
+    N = sw.mu.size
+    best: _Sel | None = None
+    fallback: _Sel | None = None
+    misses = 0
+    for n in _window_sizes(N):
+        idx = slice(N - n, N)
+        ok = False
+        for K in range(_KMAX + 1):
+            for cf in _variants(p, h, K):
+                dof = n - K - 2 - int(cf)
+                if dof < 1:
+                    break
+                comp = _sigma_comp(sw, idx, p, h, K, cf)
+                prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
+                pv = float(stats.chi2.sf(prof.nll, dof))
+                if fallback is None or pv > fallback.pvalue:
+                    fallback = _Sel(n, K, False, pv, cf)
+                if pv >= _ALPHA:
+                    best = _Sel(n, K, True, pv, cf)
+                    ok = True
+                    break
+            if ok:
+                break
+        misses = 0 if ok else misses + 1
+        if misses >= patience and (best is not None or n >= 8):
+            break
+    if best is not None:
+        return best
+    assert fallback is not None
+    return fallback
+
+
+def _sigma_chi2(
+    sw: Sweep, p: float, h: float, n: int, K: int, scale: float, conformal: bool | None = None
+) -> float:
+    """Best chi^2 of the law on the nearest n points (over its variants when ``conformal`` is
+    None)."""
+    N = sw.mu.size
+    idx = slice(N - n, N)
+    cfs = _variants(p, h) if conformal is None else (conformal,)
+    return min(
+        _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K, cf)], scale, with_interval=False).nll
+        for cf in cfs
+    )
+
+
+_ASSUMED_REL = 1e-2  # relative noise assumed when it can be neither given nor estimated
+_MIN_NOISE_DOF = 3
+
+
+def _estimate_noise(sw: Sweep) -> Sweep:
+    """Relative noise of |sigma^2| when not given: residual scatter of the nearest points about
+    the best candidate law with two corrections (at least 3 degrees of freedom); with fewer than
+    6 points it cannot be estimated and ``_ASSUMED_REL`` is assumed (see ``_noise_flag``)."""
+    if sw.noise_given:
+        return sw
+    N = sw.mu.size
+    n = min(N, max(8, N // 2))
+    idx = slice(N - n, N)
+    scale = float(sw.mu[-1] - sw.mu[0])
+    best = math.inf
+    K = min(2, n - 2 - _MIN_NOISE_DOF)
+    if K >= 0:
+        for _, (a, _, h) in CANDIDATES.items():
+            for cf in _variants(2 * a, h):
+                if n - K - 2 - int(cf) < 1:
+                    continue
+                c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True,
+                          conformal=cf)  # fmt: skip
+                prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
+                best = min(best, prof.nll / (n - K - 2 - int(cf)))
+    s = math.sqrt(best) if math.isfinite(best) else _ASSUMED_REL
+    s = max(s, _REL_FLOOR)
+    return replace(sw, sd=s * sw.y, noise_given=False)
+
+
+def _noise_flag(sw: Sweep) -> Flag:
+    """The flag telling how the noise of an estimated-noise sweep was obtained."""
+    which = "sigma2_std" if sw.kind == "sigma2" else "omega_std"
+    rel = float(np.median(sw.sd / sw.y))
+    if sw.mu.size < 4 + _MIN_NOISE_DOF:
+        return Flag(
+            "noise_assumed",
+            f"no {which} given and only {sw.mu.size} points: relative noise of |sigma2| "
+            f"assumed to be {rel:.2g}",
+        )
+    return Flag(
+        "noise_estimated",
+        f"no {which} given: relative noise of |sigma2| estimated from the scatter as {rel:.2g}",
+    )
+
+
+def _with_damping(sw: Sweep, xi: float) -> Sweep:
+    """Map observed rates to |sigma^2| for damping ``xi``: omega^2 above xi/2, omega (xi - omega)
+    below it (the slow over-damped pole r satisfies r (xi - r) = s1 s2 = |sigma^2|)."""
+    assert sw.omega is not None
+    r = sw.omega
+    over = r < xi / 2
+    y = np.where(over, r * (xi - r), r**2)
+    if sw.omega_sd is not None:
+        d = np.where(over, np.abs(xi - 2 * r), 2 * r)
+        sd = np.sqrt((d * sw.omega_sd) ** 2 + 2 * sw.omega_sd**4)
+    else:
+        rel = sw.sd / sw.y  # estimated relative noise of omega^2
+        sd = rel * y * np.where(over, np.abs(xi - 2 * r) / np.maximum(xi - r, 1e-300) / 2, 1.0)
+        sd = np.maximum(sd, _REL_FLOOR * y)
+    return replace(sw, y=y, sd=sd, damping=xi)
+
+
+# --------------------------------------------------------------------------------------------
+# model comparison
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """Fit of one candidate transition on the common window (internal, used by ``predict``).
+
+    Attributes
+    ----------
+    name : str
+        Candidate name (``"saddle-node"``, ``"pitchfork"``, ...).
+    a, b : float
+        Exponents of the law (b is NaN without static data).
+    h : float
+        Step of the regular corrections in powers of ``x``.
+    n, K, Kw : int
+        Window size (nearest points), sigma^2 correction terms, static-law terms.
+    bic : float
+        Bayesian information criterion.
+    profile : _Profile
+        mu* and its profile-likelihood intervals.
+    """
+
+    name: str
+    a: float
+    b: float
+    h: float
+    n: int
+    K: int
+    Kw: int
+    bic: float
+    profile: _Profile
+    n_w: int = 0
+    conformal: bool = False
+    weight: float = math.nan  # model probability from the comparison (NaN: from the BIC alone)
+
+
+_K_CRITERION = "aicc"
+
+
+def _crit(nll: float, bic: float, k: int, m: int) -> float:
+    """Criterion choosing the number of correction terms of one candidate: AICc (less biased
+    extrapolation to mu* than BIC, whose heavier penalty truncates corrections too early)."""
+    if _K_CRITERION == "bic":
+        return bic
+    return nll + 2 * k + (2 * k * (k + 1) / (m - k - 1) if m - k - 1 > 0 else math.inf)
+
+
+def _fit_candidate(
+    sw: Sweep,
+    name: str,
+    a: float,
+    b: float | None,
+    h: float,
+    n: int,
+    scale: float,
+    level: float = 0.95,
+    n_w: int | None = None,
+) -> ModelFit:
+    """Fit one candidate: sigma^2 law on the nearest ``n`` points, static law (if any) on the
+    nearest ``n_w``; corrections chosen by BIC; mu* profiled jointly."""
+    N = sw.mu.size
+    idx = slice(N - n, N)
+    n_w = n if n_w is None else n_w
+    idx_w = slice(N - n_w, N)
+    best: ModelFit | None = None
+    best_crit = math.inf
+    kw_range = [0]
+    if sw.w is not None and b is not None:
+        kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
+    for K in range(_KMAX + 1):
+        for cf in _variants(2 * a, h, K):
+            if n - K - 2 - int(cf) < 1:
+                break
+            for Kw in kw_range:
+                comps = [_sigma_comp(sw, idx, 2 * a, h, K, cf)]
+                bic_pen = (K + 2 + int(cf)) * math.log(n)
+                if Kw:
+                    wc = _w_comp(sw, idx_w, float(b), Kw, cf)
+                    assert wc is not None
+                    comps.append(wc)
+                    bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
+                prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
+                bic = prof.nll + bic_pen
+                k_all = K + 2 + int(cf) + (Kw + 1 if Kw else 0)
+                m_all = n + (n_w if Kw else 0)
+                crit = _crit(prof.nll, bic, k_all, m_all)
+                if best is None or crit < best_crit:
+                    best_crit = crit
+                    best = ModelFit(
+                        name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w,
+                        cf,
+                    )  # fmt: skip
+    assert best is not None
+    comps = [_sigma_comp(sw, idx, 2 * a, h, best.K, best.conformal)]
+    if best.Kw:
+        wc = _w_comp(sw, idx_w, float(b), best.Kw, best.conformal)  # type: ignore[arg-type]
+        assert wc is not None
+        comps.append(wc)
+    # a law that misses its window beyond the noise (far, precise points where no truncated
+    # series holds) widens its interval by the reduced chi-square (Birge ratio)
+    inflate = 1.0
+    fl: list[Flag] = []
+    if all(c.known for c in comps):
+        dof = n - best.K - 2 - int(best.conformal) + (n_w - best.Kw - 1 if best.Kw else 0)
+        chi = best.profile.nll
+        if dof >= 1 and chi > dof and stats.chi2.sf(chi, dof) < 0.01:
+            inflate = chi / dof
+            fl.append(
+                Flag(
+                    "law_misfit",
+                    f"the {name} law misses its {n} nearest points beyond the noise (chi^2 = "
+                    f"{chi:.3g} for {dof} degrees of freedom): interval widened by that ratio",
+                )
+            )
+    prof = _profile(sw.mu[idx], comps, scale, level=level, inflate=inflate)
+    if fl:
+        prof = replace(prof, flags=(*prof.flags, *fl))
+    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof, n_w, best.conformal)
+
+
+def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[Flag]]:
+    """Window of the static law (>= n points) and, when not given, the noise of w.
+
+    The noise of w is estimated from the scatter about the widest static series (b = 1/2, five
+    terms, which contains the smooth b = 1 law) on the nearest max(8, n) points. The window then
+    grows while either static law (<= 1 + _KW_MAX terms, mu* fixed at the eigenvalue estimate)
+    passes the chi-square test; the candidates are compared on the largest such window, where
+    the wrong law cannot follow the data."""
+    flags: list[Flag] = []
+    N = sw.mu.size
+    if sw.w is None:
+        return sw, n, flags
+    if sw.w_sd is None:
+        m = min(N, max(8, n))
+        if m - 5 < _MIN_NOISE_DOF:
+            return sw, n, flags
+        idx = slice(N - m, N)
+        c = _Comp(sw.w[idx], np.ones(m), np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
+        rss = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0])
+        sig = max(math.sqrt(rss / (m - 5)), _REL_FLOOR * float(np.max(np.abs(sw.w))), 1e-300)
+        sw = replace(sw, w_sd=np.full(N, sig), w_noise_given=False)
+        flags.append(
+            Flag(
+                "w_noise_estimated", f"no w_static_std given: estimated from the scatter, {sig:.2g}"
+            )
+        )
+    else:
+        # over-dispersion of the static data (e.g. the mean of a kicked, nonlinear record is
+        # shifted by ~ amplitude^2 / |sigma^2|, far above a detector's stated offset error):
+        # scale the given noise by the reduced chi-square of the widest static series
+        m = min(N, max(8, n))
+        if m - 5 >= _MIN_NOISE_DOF:
+            idx = slice(N - m, N)
+            c = _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
+            phi = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0]) / (m - 5)
+            if phi > float(stats.chi2.ppf(0.99, m - 5)) / (m - 5):
+                sw = replace(sw, w_sd=sw.w_sd * math.sqrt(phi))
+                flags.append(
+                    Flag(
+                        "w_noise_underestimated",
+                        f"the static deflections scatter {math.sqrt(phi):.3g} times more than "
+                        "w_static_std: that noise was scaled up by this factor",
+                    )
+                )
+    best_n = n
+    for b in (0.5, 1.0):
+        misses = 0
+        for m in range(n, N + 1):
+            idx = slice(N - m, N)
+            ok = False
+            for Kw in range(1, _KW_MAX + 1):
+                dof = m - Kw - 1
+                if dof < 1:
+                    break
+                wc = _w_comp(sw, idx, b, Kw)
+                assert wc is not None
+                wc = _Comp(wc.y, wc.wt, wc.exps, True, True, 1, False, wc.mu)  # chi^2 test
+                chi = float(_nll(sw.mu[idx], [wc], np.array([mu_star]))[0])
+                if stats.chi2.sf(chi, dof) >= _ALPHA:
+                    ok = True
+                    break
+            if ok:
+                best_n = max(best_n, m)
+                misses = 0
+            else:
+                misses += 1
+                if misses >= 3:
+                    break
+    return sw, best_n, flags
+
+
+def _candidates(sw: Sweep) -> list[tuple[str, float, float | None, float]]:
+    if sw.w is None:
+        return [("saddle-node", 0.25, None, 0.5), ("pitchfork", 0.5, None, 1.0)]
+    return [(k, a, b, h) for k, (a, b, h) in CANDIDATES.items()]
+
+
+Law = tuple[str, float, "float | None", float]  # name, a, b (None: no static law), h
+_Law = Law
+
+
+def _compare(
+    sw: Sweep, scale: float, law: _Law | None = None, level: float = 0.95
+) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
+    """Select the informative window, fit every candidate (or only ``law``) on it, return the
+    fits sorted by BIC (and the sweep as used: noise rescaled, static noise estimated)."""
+    flags: list[Flag] = []
+    sel_laws = (
+        {"saddle-node": (0.5, 0.5), "pitchfork": (1.0, 1.0)}
+        if law is None
+        else {law[0]: (2 * law[1], law[3])}
+    )
+
+    def select(s: Sweep) -> dict[str, _Sel]:
+        return {nm: _select_window(s, p, h, scale) for nm, (p, h) in sel_laws.items()}
+
+    sels = select(sw)
+    if not any(s.accepted for s in sels.values()):
+        # over-dispersion: the data scatter more than their stated noise (or the simulator's
+        # round-off dominates near mu*): scale the noise by the best reduced chi-square
+        N = sw.mu.size
+        m = min(N, max(8, N // 2))
+        phi = math.inf
+        for p, h in sel_laws.values():
+            K = min(2, m - 2 - _MIN_NOISE_DOF)
+            if K < 0:
+                break
+            phi = min(phi, _sigma_chi2(sw, p, h, m, K, scale) / (m - K - 2))
+        if math.isfinite(phi) and phi > 1:
+            sw = replace(sw, sd=sw.sd * math.sqrt(phi))
+            flags.append(
+                Flag(
+                    "noise_underestimated",
+                    f"the nearest points scatter {math.sqrt(phi):.3g} times more than the given "
+                    "noise: the noise was scaled up by that factor",
+                )
+            )
+            sels = select(sw)
+    acc = [s.n for s in sels.values() if s.accepted]
+    if acc:
+        n_c = min(acc) if len(acc) > 1 else acc[0]
+        n_c = max(n_c, min(sw.mu.size, 5))
+    else:
+        n_c = min(sw.mu.size, max(s.n for s in sels.values()))
+        flags.append(
+            Flag(
+                "poor_fit",
+                "no candidate law (with up to "
+                f"{_KMAX} corrections) fits the nearest points within their noise",
+            )
+        )
+    n_w = n_c
+    if sw.w is not None and (law is None or law[2] is not None):
+        # mu* from the eigenvalues alone fixes the static window
+        N = sw.mu.size
+        idx = slice(N - n_c, N)
+        pre = min(
+            (
+                _profile(
+                    sw.mu[idx],
+                    [_sigma_comp(sw, idx, p, h, min(sels[nm].K, n_c - 3), sels[nm].conformal)],
+                    scale,
+                    with_interval=False,
+                )  # fmt: skip
+                for nm, (p, h) in sel_laws.items()
+            ),
+            key=lambda pr: pr.nll,
+        )
+        sw, n_w, fl = _static_window(sw, n_c, pre.mu_star)
+        flags.extend(fl)
+    cands = _candidates(sw) if law is None else [(law[0], law[1], law[2], law[3])]
+    fits = [
+        _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_c, scale, level, n_w)
+        for name, a, b, h in cands
+    ]
+    probs = _bic_weights(fits)
+    if law is None and acc and max(acc) > n_c:
+        # the candidates hold over different windows: compare them on the larger one as well.
+        # On the smaller window a flexible wrong law can follow the data; on the larger one the
+        # law that converges farther (e.g. a pitchfork's series in the conformal variable, or a
+        # true fold's) wins. The probabilities are the mean of both comparisons, so that two
+        # windows that disagree leave the type undetermined instead of confidently wrong.
+        n_x = max(acc)
+        wide = [
+            _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_x, scale,
+                           level, max(n_w, n_x))
+            for name, a, b, h in cands
+        ]  # fmt: skip
+        pw = _bic_weights(wide)
+        probs = [0.5 * (p1 + p2) for p1, p2 in zip(probs, pw, strict=True)]
+    fits = [replace(f, weight=float(pr)) for f, pr in zip(fits, probs, strict=True)]
+    fits.sort(key=lambda f: -f.weight)
+    return sw, fits, n_c, flags
+
+
+def _bic_weights(fits: list[ModelFit]) -> list[float]:
+    bics = np.array([f.bic for f in fits])
+    wts = np.exp(-0.5 * (bics - bics.min()))
+    return (wts / wts.sum()).tolist()
+
+
+def _probabilities(fits: list[ModelFit]) -> dict[str, float]:
+    if all(math.isfinite(f.weight) for f in fits):
+        wts = np.array([f.weight for f in fits])
+    else:
+        wts = np.array(_bic_weights(fits))
+    wts = wts / wts.sum()
+    return {f.name: float(wv) for f, wv in zip(fits, wts, strict=True)}
+
+
+def _analyse(
+    sw: Sweep, law: _Law | None = None, level: float = 0.95
+) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
+    """Noise estimate, damping (omega data), window and candidate fits (all, or ``law``)."""
+    flags: list[Flag] = []
+    sw = _estimate_noise(sw)
+    if not sw.noise_given:
+        flags.append(_noise_flag(sw))
+    scale = float(sw.mu[-1] - sw.mu[0])
+    if sw.kind == "omega":
+        assert sw.omega is not None
+        if sw.damping is not None:
+            sw = _with_damping(sw, sw.damping)
+            sw, fits, n_c, fl = _compare(sw, scale, law, level)
+            return sw, fits, n_c, flags + fl
+
+        # damping unknown: profile it. xi = 0 is the plain law; a point with omega < xi/2 is in
+        # the over-damped layer where the observed rate is the slow pole.
+        def score(s: Sweep) -> tuple[tuple[bool, int, float], tuple[float, float, _Sel]]:
+            out = None
+            for p, h in ((0.5, 0.5), (1.0, 1.0)):
+                sel = _select_window(s, p, h, scale)
+                key = (not sel.accepted, -sel.n, -sel.pvalue)
+                if out is None or key < out[0]:
+                    out = (key, (p, h, sel))
+            assert out is not None
+            return out
+
+        r = np.sort(sw.omega)
+        xis = 2 * np.geomspace(r[0] / 2, r[-1], 20)
+        key0, law0 = score(sw)
+        best = (key0, law0, 0.0)
+        for xi in xis:
+            k, law_x = score(_with_damping(sw, float(xi)))
+            if k < best[0]:
+                best = (k, law_x, float(xi))
+        _, (p, h, sel), xi = best
+        if xi > 0:
+            # refine xi on the chosen law and window
+            j = int(np.argmin(np.abs(xis - xi)))
+            lo_x, hi_x = xis[max(j - 1, 0)], xis[min(j + 1, xis.size - 1)]
+            res = optimize.minimize_scalar(
+                lambda t: _sigma_chi2(_with_damping(sw, math.exp(t)), p, h, sel.n, sel.K, scale),
+                bounds=(math.log(lo_x), math.log(hi_x)),
+                method="bounded",
+                options={"xatol": 1e-4},
+            )
+            xi = math.exp(float(res.x))
+            s = _with_damping(sw, xi)
+            chi_xi = _sigma_chi2(s, p, h, sel.n, sel.K, scale)
+            # the damping is identified only if some point is over-damped, and it must pay for
+            # its parameter against the plain law on the same window
+            p0, h0, sel0 = law0
+            chi_0 = _sigma_chi2(sw, p0, h0, sel.n, sel.K, scale) if sel.n == sel0.n else math.inf
+            if np.any(sw.omega < xi / 2) and chi_xi + math.log(sel.n) < chi_0:
+                s, fits, n_c, fl = _compare(s, scale, law, level)
+                return s, fits, n_c, flags + fl
+        sw, fits, n_c, fl = _compare(sw, scale, law, level)
+        return sw, fits, n_c, flags + fl
+    sw, fits, n_c, fl = _compare(sw, scale, law, level)
+    return sw, fits, n_c, flags + fl
+
+
+# --------------------------------------------------------------------------------------------
+# public entry points
+# --------------------------------------------------------------------------------------------
+
+
+def analyse(
+    sweep: Sweep, law: Law | None = None, level: float = 0.95
+) -> tuple[Sweep, list[ModelFit], int, list[Flag]]:
+    """Fit every candidate law (or only ``law``) to a prepared sweep.
+
+    Parameters
+    ----------
+    sweep : Sweep
+        From :func:`service.analysis._sweep.prepare_sweep`.
+    law : (name, a, b, h), optional
+        One law to fit: its name, time exponent ``a``, static exponent ``b`` (None: the
+        eigenvalues alone) and correction step ``h``.
+    level : float
+        Level of the profile intervals of the final fits.
+
+    Returns
+    -------
+    sweep : Sweep
+        The sweep as used (noise estimated or rescaled, damping applied to ``omega`` data).
+    fits : list of ModelFit
+        Sorted by BIC (best first), each on the common informative window.
+    window : int
+        Size of that window (nearest points).
+    flags : list of Flag
+    """
+    return _analyse(sweep, law, level)
+
+
+def probabilities(fits: list[ModelFit]) -> dict[str, float]:
+    """Model probabilities (BIC weights) of fitted candidates."""
+    return _probabilities(fits)
+
+
+def refit_mu_star(sweep: Sweep, fit: ModelFit, n: int, K: int) -> float:
+    """mu* of ``fit``'s eigenvalue law refitted on the nearest ``n`` points with ``K``
+    corrections (same variant); NaN when that fit has no degrees of freedom left."""
+    if n - K - 2 - int(fit.conformal) < 1 or n < 3 or K < 0 or n > sweep.mu.size:
+        return math.nan
+    N = sweep.mu.size
+    idx = slice(N - n, N)
+    comp = _sigma_comp(sweep, idx, 2 * fit.a, fit.h, K, fit.conformal)
+    scale = float(sweep.mu[-1] - sweep.mu[0])
+    return _profile(sweep.mu[idx], [comp], scale, with_interval=False).mu_star
+
+
+def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
+    """Free time exponent ``a`` (``sqrt|sigma^2| ~ x^a``) and its standard error on the
+    nearest ``n`` points, with ``fit``'s corrections and variant, mu* profiled."""
+    N = sweep.mu.size
+    idx = slice(N - n, N)
+    scale = float(sweep.mu[-1] - sweep.mu[0])
+
+    def make(p: float) -> list[_Comp]:
+        return [
+            _Comp(sweep.y[idx], 1.0 / sweep.sd[idx], _sigma_exps(p, fit.h, fit.K), True, True,
+                  conformal=fit.conformal)
+        ]  # fmt: skip
+
+    a2, a2_se = _free_exponent(sweep.mu[idx], make, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale)
+    return a2 / 2, a2_se / 2
+
+
+def free_exponent_b(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
+    """Free static exponent ``b`` (``|w - w*| ~ x^b``) and its standard error on the nearest
+    ``n`` points at ``fit``'s mu* (NaN without static data)."""
+    if sweep.w is None:
+        return math.nan, math.nan
+    N = sweep.mu.size
+    iw = slice(N - n, N)
+    scale = float(sweep.mu[-1] - sweep.mu[0])
+    wsd = sweep.w_sd
+    w = sweep.w
+
+    def make(b: float) -> list[_Comp]:
+        e = _w_exps(b, max(fit.Kw, 2))
+        wt = 1.0 / wsd[iw] if wsd is not None else np.ones(n)
+        known = wsd is not None and sweep.w_noise_given
+        # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
+        return [_Comp(w[iw], wt, e, known, True, 1, False, conformal=fit.conformal)]
+
+    return _free_exponent(
+        sweep.mu[iw], make, _exp_grid(0.25, 1.9, [0.5, 1.0]), scale,
+        fixed_mu=fit.profile.mu_star,
+    )  # fmt: skip

@@ -1,0 +1,300 @@
+"""The profile likelihood of laws linear in their coefficients (the engine's primitives).
+
+For a trial transition point ``mu*`` every law of :mod:`service.analysis._laws` is linear in its
+coefficients, so ``-2 log L`` is a weighted linear least-squares residual (compiled:
+:mod:`service.analysis._laws_kernels`) and the likelihood is profiled over ``mu*`` (variable
+projection): a 1-D search on a logarithmic grid of ``mu* - mu[-1]``, refined by Brent's method,
+with profile-likelihood intervals. A law that knows a secondary fold beyond ``mu*`` (conformal
+variable, see the kernels) profiles the fold distance as well, inside the kernel.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, stats
+
+from service.analysis._laws_kernels import nll_rows
+from service.analysis._sweep import Sweep
+from service.analysis.common import Flag
+
+_GRID = 111
+
+@dataclass(frozen=True)
+class _Comp:
+    """One data component: y ~ sum_j beta_j x^e_j, weights 1/sd (``known``) or unknown scale."""
+
+    y: np.ndarray
+    wt: np.ndarray
+    exps: np.ndarray
+    known: bool
+    lead: bool = False  # constrain the corrections to stay below _RHO of the leading term
+    lead_col: int = 0  # column of the leading term (the columns after it are corrections)
+    signed: bool = True  # the leading term must have the sign of y (|sigma^2| > 0)
+    mu: np.ndarray | None = None  # own control values (a suffix of the sweep); None: the window
+    conformal: bool = False  # series in z (a secondary fold at mu* + delta, delta profiled)
+
+
+_LOGU = np.linspace(math.log(1e-4), math.log(10.0), 11)  # u = (mu* - mu_last) / delta
+
+
+def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple:
+    mus = [np.asarray(mu_w if c.mu is None else c.mu, dtype=float) for c in comps]
+    start = np.zeros(len(comps) + 1, dtype=np.int64)
+    start[1:] = np.cumsum([m.size for m in mus])
+    kmax = max(c.exps.size for c in comps)
+    exps = np.zeros((len(comps), kmax))
+    for i, c in enumerate(comps):
+        exps[i, : c.exps.size] = c.exps
+    nexp = np.array([c.exps.size for c in comps], dtype=np.int64)
+    opts = np.array(
+        [[c.known, c.lead, c.lead_col, c.signed, c.conformal] for c in comps], dtype=np.int64
+    )
+    return (
+        np.concatenate(mus),
+        np.concatenate([np.asarray(c.y, dtype=float) for c in comps]),
+        np.concatenate([np.asarray(c.wt, dtype=float) for c in comps]),
+        start,
+        exps,
+        nexp,
+        opts,
+    )
+
+
+def _nll_u(
+    mu_w: np.ndarray, comps: list[_Comp], mu_star: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """-2 log L (up to constants) at each mu* and the secondary-fold parameter
+    ``u = (mu* - mu_w[-1]) / delta`` profiled there (0: none, or no conformal component)."""
+    ms = np.ascontiguousarray(np.atleast_1d(np.asarray(mu_star, dtype=float)))
+    return nll_rows(ms, *_pack(mu_w, comps), float(mu_w[-1]), _LOGU)
+
+
+def _nll(mu_w: np.ndarray, comps: list[_Comp], mu_star: np.ndarray) -> np.ndarray:
+    return _nll_u(mu_w, comps, mu_star)[0]
+
+
+@dataclass(frozen=True)
+class _Profile:
+    mu_star: float
+    nll: float
+    lo: float  # 95 % (profile) interval
+    hi: float
+    lo68: float
+    hi68: float
+    flags: tuple[Flag, ...] = ()
+
+
+def _profile(
+    mu_w: np.ndarray,
+    comps: list[_Comp],
+    scale: float,
+    *,
+    level: float = 0.95,
+    inflate: float = 1.0,
+    with_interval: bool = True,
+    xatol: float | None = None,
+) -> _Profile:
+    """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals."""
+    last = float(mu_w[-1])
+    # a conformal law profiles the secondary fold at every mu* (some 25 fits each): a coarser
+    # grid around the same seeds keeps its cost near the plain laws'
+    cf = any(c.conformal for c in comps)
+    t = np.linspace(math.log(scale * 1e-9), math.log(scale * 30.0), 61 if cf else _GRID)
+    seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
+    if seeds:
+        k1, k2 = (15, 9) if cf else (41, 41)
+        extra = [
+            np.log(d0) + np.concatenate([np.linspace(-1, 1, k1), np.linspace(-0.01, 0.01, k2)])
+            for d0 in seeds
+        ]
+        t = np.unique(np.concatenate([t, *extra]))
+        t = t[(t >= math.log(scale * 1e-12)) & (t <= math.log(scale * 30.0))]
+    f = _nll(mu_w, comps, last + np.exp(t))
+    f = np.where(np.isfinite(f), f, np.inf)
+    i = int(np.argmin(f))
+    G = t.size
+    flags: list[Flag] = []
+
+    def g(tt: float) -> float:
+        v = float(_nll(mu_w, comps, np.array([last + math.exp(tt)]))[0])
+        return v if math.isfinite(v) else 1e300
+
+    a_, b_ = t[max(i - 1, 0)], t[min(i + 1, G - 1)]
+    # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-6 for model selection
+    tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-6)
+    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": tol})
+    th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
+    if i == 0:
+        flags.append(
+            Flag("mu_star_at_last_point", f"the fit puts mu* at the last measured mu={last:.6g}")
+        )
+    if i == G - 1:
+        flags.append(Flag("mu_star_far", "the fit puts mu* far beyond the measured range"))
+    if not with_interval:
+        mh = last + math.exp(th)
+        return _Profile(mh, fh, mh, mh, mh, mh, tuple(flags))
+
+    def bounds(delta: float) -> tuple[float, float, bool, bool]:
+        # lower side
+        j = int(np.searchsorted(t, th)) - 1
+        while j >= 0 and f[j] - fh < delta:
+            j -= 1
+        if j < 0:
+            lo, lo_open = last, True
+        else:
+            tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-9)
+            lo, lo_open = last + math.exp(tl), False
+        j = int(np.searchsorted(t, th))
+        while j < G and f[j] - fh < delta:
+            j += 1
+        if j >= G:
+            hi, hi_open = last + math.exp(t[-1]), True
+        else:
+            tu = optimize.brentq(lambda s: g(s) - fh - delta, th, t[j], xtol=1e-9)
+            hi, hi_open = last + math.exp(tu), False
+        return lo, hi, lo_open, hi_open
+
+    d95 = float(stats.chi2.ppf(level, 1)) * inflate
+    lo, hi, lo_open, hi_open = bounds(d95)
+    lo68, hi68, _, _ = bounds(1.0 * inflate)
+    if hi_open:
+        flags.append(
+            Flag("interval_unbounded", "the profile likelihood does not bound mu* from above")
+        )
+    if lo_open:
+        flags.append(
+            Flag(
+                "interval_reaches_last_point",
+                f"the {100 * level:.0f}% interval reaches the last measured mu={last:.6g}",
+            )
+        )
+    return _Profile(last + math.exp(th), fh, lo, hi, lo68, hi68, tuple(flags))
+
+
+def _seeds(mu_w: np.ndarray, c: _Comp) -> list[float]:
+    """Distances mu* - mu[-1] from the paper's two-point extrapolation of |sigma^2|^(1/p) through
+    the last pairs of points: starting points that bracket the (possibly very narrow) valley of
+    the profile likelihood of precise data."""
+    p = float(c.exps[0])
+    z = c.y ** (1.0 / p)
+    out = []
+    for k in range(1, min(4, mu_w.size)):
+        dz = z[-k - 1] - z[-k]
+        if dz > 0:
+            d = z[-k] * (mu_w[-k] - mu_w[-k - 1]) / dz + (mu_w[-k] - mu_w[-1])
+            if d > 0 and math.isfinite(d):
+                out.append(float(d))
+    return out
+
+
+def _sigma_exps(p: float, h: float, K: int) -> np.ndarray:
+    return p + h * np.arange(K + 1, dtype=float)
+
+
+def _w_exps(b: float, Kw: int) -> np.ndarray:
+    if b == 0.5:
+        e = [0.0, 0.5, 1.0, 1.5, 2.0]
+    elif b == 1.0:
+        e = [0.0, 1.0, 2.0, 3.0, 4.0]
+    else:  # free exponent: w - w* a series in x^b
+        e = [0.0, b, 2 * b, 3 * b, 4 * b]
+    return np.asarray(e[: Kw + 1], dtype=float)
+
+
+_KCF = 2  # most corrections of a conformal law (one parameter more than the plain law: with
+# three corrections it out-fits a true fold's series over a fixed grid's far points)
+
+
+def _variants(p: float, h: float, K: int = 0) -> tuple[bool, ...]:
+    """Plain law, and for a pitchfork (|sigma^2| ~ x) also the law that knows a secondary fold
+    of the measured branch beyond mu* (series in the conformal variable z; see
+    :mod:`service.analysis._laws_kernels`). A subcritical pitchfork's trivial branch, unstable
+    past mu*, may fold soon after it (the symmetric beam: mu2* = mu* + 0.012); the series in
+    x = mu* - mu then converges only within that distance, the series in z much farther."""
+    return (False, True) if (p == 1.0 and h == 1.0 and K <= _KCF) else (False,)
+
+
+def _sigma_comp(
+    sw: Sweep, idx: slice, p: float, h: float, K: int, conformal: bool = False
+) -> _Comp:
+    return _Comp(
+        sw.y[idx], 1.0 / sw.sd[idx], _sigma_exps(p, h, K), True, True, conformal=conformal
+    )
+
+
+def _w_comp(
+    sw: Sweep, idx: slice, b: float, Kw: int, conformal: bool = False
+) -> _Comp | None:
+    """Static-deflection component on the window ``idx`` (its own: the static law holds farther
+    from mu* than the eigenvalue law, and near mu* w hardly moves)."""
+    if sw.w is None:
+        return None
+    # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window, otherwise the
+    # b = 1/2 series (which contains x, x^2 ...) would fit a smooth deflection as well as b = 1
+    if sw.w_sd is not None:
+        return _Comp(
+            sw.w[idx],
+            1.0 / sw.w_sd[idx],
+            _w_exps(b, Kw),
+            sw.w_noise_given,  # an estimated noise is profiled in the final fits
+            True,
+            1,
+            False,
+            sw.mu[idx],
+            conformal and b == 1.0,
+        )
+    return _Comp(
+        sw.w[idx], np.ones(sw.w[idx].size), _w_exps(b, Kw), False, True, 1, False, sw.mu[idx],
+        conformal and b == 1.0,
+    )  # fmt: skip
+
+
+def _exp_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
+    """Grid for a free exponent: uniform, plus the candidate values and their close neighbours
+    (precise data give valleys far narrower than the uniform step)."""
+    extra = [c + d for c in cands for d in (-0.02, -0.005, 0.0, 0.005, 0.02)]
+    return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
+
+
+def _free_exponent(
+    mu_w: np.ndarray,
+    make: Callable[[float], list[_Comp]],
+    grid: np.ndarray,
+    scale: float,
+    fixed_mu: float | None = None,
+) -> tuple[float, float]:
+    """Profile -2 log L over an exponent; return (estimate, standard error from Delta = 1)."""
+
+    def prof(e: float) -> float:
+        comps = make(e)
+        if fixed_mu is not None:
+            return float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
+        return _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7).nll
+
+    f = np.array([prof(e) for e in grid])
+    f = np.where(np.isfinite(f), f, np.inf)
+    i = int(np.argmin(f))
+    a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = optimize.minimize_scalar(prof, bounds=(a_, b_), method="bounded", options={"xatol": 1e-4})
+    eh, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(grid[i]), float(f[i]))
+
+    def cross(sign: int) -> float:
+        j = int(np.searchsorted(grid, eh)) + (0 if sign > 0 else -1)
+        while 0 <= j < grid.size and f[j] - fh < 1.0:
+            j += sign
+        if not 0 <= j < grid.size:
+            return math.inf
+        return abs(
+            optimize.brentq(
+                lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j]), xtol=1e-5
+            )
+            - eh
+        )
+
+    up, dn = cross(+1), cross(-1)
+    se = 0.5 * (up + dn) if math.isfinite(up) and math.isfinite(dn) else min(up, dn)
+    return eh, se

@@ -1,0 +1,209 @@
+"""Validated measurements along an upward sweep of the control parameter.
+
+:func:`prepare_sweep` checks a sweep at the door (finite values, matching lengths, strictly
+increasing control, stable eigenvalues, positive standard deviations) and returns a frozen
+:class:`Sweep`, the input of the profile-likelihood engine (:mod:`service.analysis._laws`), the
+classification and the predictor. A bad value raises
+:class:`service.analysis.errors.ParameterError` naming the parameter and the value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from service.analysis.errors import ParameterError
+
+__all__ = ["Sweep", "prepare_sweep"]
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Validated measurements along an upward sweep (input of the engine, the classification
+    and the predictor; rebuild with ``dataclasses.replace``).
+
+    Attributes
+    ----------
+    mu : ndarray, shape (n,)
+        Control parameter, strictly increasing, any unit.
+    y : ndarray, shape (n,)
+        ``|sigma^2|`` (1/time^2), positive; for ``kind == "omega"`` this is ``omega^2``.
+    sd : ndarray, shape (n,)
+        Standard deviation of ``y`` (given, or estimated when ``noise_estimated``).
+    kind : {"sigma2", "omega"}
+        What the caller gave.
+    omega, omega_sd : ndarray or None
+        The observed rates (``kind == "omega"`` only).
+    w, w_sd : ndarray or None
+        Static deflection at the probe and its standard deviation (``None``: unknown).
+    noise_given : bool
+        Whether the caller gave the noise of ``sigma2`` / ``omega``.
+    damping : float or None
+        Damping ``xi`` (1/time) in ``s^2 + xi s - sigma^2 = 0`` when known.
+    w_noise_given : bool
+        False when ``w_sd`` was estimated (the static fits then profile their variance).
+    """
+
+    mu: np.ndarray
+    y: np.ndarray
+    sd: np.ndarray
+    kind: str
+    omega: np.ndarray | None
+    omega_sd: np.ndarray | None
+    w: np.ndarray | None
+    w_sd: np.ndarray | None
+    noise_given: bool
+    damping: float | None
+    w_noise_given: bool = True
+
+
+def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(
+            name, value, f"{name} must be an array of numbers, got {value!r}"
+        ) from exc
+    if arr.ndim != 1:
+        raise ParameterError(
+            name, arr.shape, f"{name} must be one-dimensional, got shape {arr.shape}"
+        )
+    if n is not None and arr.size != n:
+        raise ParameterError(
+            name, arr.size, f"{name} must have the length of mu ({n}), got {arr.size}"
+        )
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(
+            name, float(arr[i]), f"{name} must be finite, got {name}[{i}]={arr[i]!r}"
+        )
+    return arr
+
+
+def prepare_sweep(
+    mu: Sequence[float] | np.ndarray,
+    sigma2: Sequence[float] | np.ndarray | None = None,
+    *,
+    sigma2_std: Sequence[float] | np.ndarray | None = None,
+    omega: Sequence[float] | np.ndarray | None = None,
+    omega_std: Sequence[float] | np.ndarray | None = None,
+    w_static: Sequence[float] | np.ndarray | None = None,
+    w_static_std: Sequence[float] | np.ndarray | float | None = None,
+    damping: float | None = None,
+) -> Sweep:
+    """Validate a sweep at the door; raise ``ValueError`` naming the parameter and the value.
+
+    Parameters
+    ----------
+    mu : array_like, shape (n,)
+        Control parameter, strictly increasing, n >= 3.
+    sigma2 : array_like, shape (n,), optional
+        Undamped eigenvalue of the fundamental (1/time^2), < 0 on the stable branch.
+    sigma2_std : array_like, shape (n,), optional
+        Its standard deviation, > 0.
+    omega, omega_std : array_like, shape (n,), optional
+        Instead of ``sigma2``: the observed angular rate (rad/time), > 0; ``sigma2 = -omega^2``.
+    w_static, w_static_std : array_like, optional
+        Static deflection at the probe (any length unit) and its standard deviation.
+    damping : float, optional
+        Damping ``xi`` (1/time), >= 0.
+
+    Returns
+    -------
+    Sweep
+    """
+    m = _as_1d("mu", mu)
+    n = m.size
+    if n < 3:
+        raise ParameterError("mu", n, f"mu needs at least 3 points, got {n}")
+    step = np.diff(m)
+    if np.any(step <= 0):
+        i = int(np.flatnonzero(step <= 0)[0])
+        raise ParameterError(
+            "mu", float(m[i + 1]),
+            f"mu must be strictly increasing (an upward sweep), got mu[{i}]={m[i]!r} "
+            f"then mu[{i + 1}]={m[i + 1]!r}",
+        )  # fmt: skip
+    if (sigma2 is None) == (omega is None):
+        given = "neither" if sigma2 is None else "both"
+        raise ParameterError("sigma2", given, f"give exactly one of sigma2 and omega, got {given}")
+    if sigma2_std is not None and omega is not None:
+        raise ParameterError(
+            "sigma2_std", "given", "sigma2_std=... goes with sigma2, not with omega (use omega_std)"
+        )
+    if omega_std is not None and sigma2 is not None:
+        raise ParameterError(
+            "omega_std", "given", "omega_std=... goes with omega, not with sigma2 (use sigma2_std)"
+        )
+    om = om_sd = None
+    if sigma2 is not None:
+        s2 = _as_1d("sigma2", sigma2, n)
+        pos = np.flatnonzero(s2 >= 0)
+        if pos.size:
+            i = int(pos[0])
+            raise ParameterError(
+                "sigma2", float(s2[i]),
+                f"sigma2 must be < 0 (a stable mode on the measured branch), got sigma2[{i}]="
+                f"{s2[i]!r}",
+            )  # fmt: skip
+        y = -s2
+        kind = "sigma2"
+        sd = None
+        if sigma2_std is not None:
+            sd = _as_1d("sigma2_std", sigma2_std, n)
+            if np.any(sd <= 0):
+                i = int(np.flatnonzero(sd <= 0)[0])
+                raise ParameterError(
+                    "sigma2_std",
+                    float(sd[i]),
+                    f"sigma2_std must be > 0, got sigma2_std[{i}]={sd[i]!r}",
+                )
+    else:
+        om = _as_1d("omega", omega, n)
+        if np.any(om <= 0):
+            i = int(np.flatnonzero(om <= 0)[0])
+            raise ParameterError(
+                "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={om[i]!r}"
+            )
+        y = om**2
+        kind = "omega"
+        sd = None
+        if omega_std is not None:
+            om_sd = _as_1d("omega_std", omega_std, n)
+            if np.any(om_sd <= 0):
+                i = int(np.flatnonzero(om_sd <= 0)[0])
+                raise ParameterError(
+                    "omega_std", float(om_sd[i]),
+                    f"omega_std must be > 0, got omega_std[{i}]={om_sd[i]!r}",
+                )  # fmt: skip
+            sd = np.sqrt((2 * om * om_sd) ** 2 + 2 * om_sd**4)
+    w = w_sd = None
+    if w_static is not None:
+        w = _as_1d("w_static", w_static, n)
+        if w_static_std is not None:
+            w_sd = np.broadcast_to(np.asarray(w_static_std, dtype=float), (n,)).copy()
+            w_sd = _as_1d("w_static_std", w_sd, n)
+            if np.any(w_sd <= 0):
+                i = int(np.flatnonzero(w_sd <= 0)[0])
+                raise ParameterError(
+                    "w_static_std", float(w_sd[i]),
+                    f"w_static_std must be > 0, got w_static_std[{i}]={w_sd[i]!r}",
+                )  # fmt: skip
+    elif w_static_std is not None:
+        raise ParameterError("w_static_std", "given", "w_static_std=... was given without w_static")
+    if damping is not None:
+        xi = float(damping)
+        if not math.isfinite(xi) or xi < 0:
+            raise ParameterError(
+                "damping", damping, f"damping must be finite and >= 0, got damping={damping!r}"
+            )
+        damping = xi
+    noise_given = sd is not None
+    if sd is None:
+        sd = np.full(n, np.nan)  # filled by _estimate_noise
+    return Sweep(m, y, sd, kind, om, om_sd, w, w_sd, noise_given, damping)
