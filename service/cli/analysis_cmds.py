@@ -266,6 +266,9 @@ def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
                     except queue_mod.Empty:
                         break
                     bars[act](frac, msg)
+                for f in done:  # each bar ends (100 %) when its own sweep ends
+                    if show_progress and f.exception() is None:
+                        bars[acts[futs.index(f)]].close()
             runs = [f.result() for f in futs]
     for bar in bars.values():
         bar.close()

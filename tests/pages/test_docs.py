@@ -44,3 +44,20 @@ def test_readme_starts_with_the_two_commands() -> None:
 def test_license_is_the_declared_one() -> None:
     assert (ROOT / "LICENSE").read_text().startswith("MIT License")
     assert 'license = "MIT"' in (ROOT / "pyproject.toml").read_text()
+
+
+def test_package_data_ships_every_page_asset() -> None:
+    """An installed wheel serves the pages: pyproject's package-data covers every template and
+    static file (Swagger UI included)."""
+    import fnmatch
+    import tomllib
+
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    globs = conf["tool"]["setuptools"]["package-data"]["service.api.pages"]
+    pages = ROOT / "service" / "api" / "pages"
+    files = [p for d in ("templates", "static") for p in (pages / d).rglob("*") if p.is_file()]
+    assert any(p.name == "swagger-ui-bundle.js" for p in files)
+    for p in files:
+        rel = p.relative_to(pages).as_posix()
+        assert any(fnmatch.fnmatchcase(rel, g) and rel.count("/") == g.count("/")
+                   for g in globs), rel  # fmt: skip

@@ -286,8 +286,8 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
     req = sweep.request or {}
     if req.get("simulate") is not None or not req.get("measurements"):
         return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
-                "mixed": []}  # fmt: skip
-    names, cunits, tunits = set(), set(), set()
+                "value_unit": NONDIM, "mixed": []}  # fmt: skip
+    names, cunits, tunits, vunits = set(), set(), set(), set()
     for m in req["measurements"]:
         row = await to_thread.run_sync(
             lambda sid=m["signal_id"]: state.store.get_signal_meta(sid, scope=scope)
@@ -297,8 +297,10 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
         names.add(row.control_name)
         cunits.add(row.control_unit)
         tunits.add(row.unit)
+        vunits.add(row.value_unit)
     mixed = [what for what, s in (("control name", names), ("control unit", cunits),
-                                  ("time unit", tunits)) if len(s) > 1]  # fmt: skip
+                                  ("time unit", tunits), ("value unit", vunits))
+             if len(s) > 1]  # fmt: skip
 
     def one(s: set) -> str | None:
         vals = sorted(v for v in s if v)
@@ -308,6 +310,7 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
         "control_name": one(names) or "control",
         "control_unit": one(cunits),
         "time_unit": one(tunits),
+        "value_unit": one(vunits),
         "mixed": mixed,
     }
 
