@@ -245,6 +245,7 @@ def next_measurement(
     max_step_growth: float = 2.0,
     max_step: float = math.inf,
     min_t_ratio: float = 1.0,
+    sigma4_when_trusted: bool = True,
 ) -> NextMeasurement:
     """The next control value of an upward sweep.
 
@@ -271,6 +272,11 @@ def next_measurement(
         Absolute cap on the step (unit of ``mu``), > 0 (``inf``: none).
     min_t_ratio : float
         Slowdown ``T/T0`` from which the sigma^4 bound applies (see :func:`sigma4_bound`).
+    sigma4_when_trusted : bool
+        Whether the sigma^4 bound also caps a step that a trusted bound already limits (True:
+        the smaller of both, a single prediction; False: a sequential sweep whose intervals
+        were checked against each other, since near a pitchfork the sigma^4 bound lands about
+        halfway to mu* and would halve every step).
 
     Returns
     -------
@@ -291,6 +297,8 @@ def next_measurement(
     if trusted_bound is not None and math.isfinite(trusted_bound) and trusted_bound > last:
         bound, source = float(trusted_bound), "interval"
     b4 = sigma4_bound(m, y, min_t_ratio=min_t_ratio)
+    if source == "interval" and not sigma4_when_trusted:
+        b4 = math.inf
     if b4 < bound:
         bound, source = b4, "sigma4"
     cap, why = max_step, "max_step"

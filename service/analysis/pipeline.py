@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_measurement
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
@@ -114,9 +115,9 @@ class WarnResult:
     measurements : tuple of Measurement
     prediction : Prediction
         The final prediction (with its classification and the paper's rule).
-    alarm : tuple of dict
-        After each measurement: mu, T/T0, and (once predicted) mu*, the interval, and the
-        distance to mu* in units of the interval half-width.
+    alarm : tuple of Alarm
+        After each measurement: level, mu, T/T0, and (once predicted) mu*, the interval, and
+        the distance to mu* in units of the interval half-width.
     stopped : str
         "converged" (interval narrow enough), "budget" (max measurements), "no-safe-step",
         or "snapped" (a measurement found no equilibrium: the sweep crossed mu*).
@@ -129,7 +130,7 @@ class WarnResult:
     model: str | None
     measurements: tuple[Measurement, ...]
     prediction: Prediction | None
-    alarm: tuple[dict, ...]
+    alarm: tuple[Alarm, ...]
     stopped: str
     truth: dict | None = None
     flags: tuple[Flag, ...] = ()
@@ -149,7 +150,7 @@ class WarnResult:
             "n_measurements": len(self.measurements),
             "stopped": self.stopped,
             "measurements": [m.to_dict() for m in self.measurements],
-            "alarm": list(self.alarm),
+            "alarm": [a.to_dict() for a in self.alarm],
             "baseline": p.baseline.to_dict() if p and p.baseline else None,
             "flags": [f.to_dict() for f in self.flags]
             + ([f.to_dict() for f in p.flags] if p else []),
@@ -183,53 +184,40 @@ def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | N
         return None
 
 
-def _alarm(ms: Sequence[Measurement], pred: Prediction | None) -> dict:
-    t_ratio = ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
-    out = {"mu": ms[-1].mu, "t_ratio": t_ratio}
+def _t_ratio(ms: Sequence[Measurement]) -> float:
+    return ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
+
+
+def _alarm(ms: Sequence[Measurement], pred: Prediction | None) -> Alarm:
+    """The alarm after the last measurement (:func:`service.analysis.alarm.alarm_for`)."""
     if pred is not None and math.isfinite(pred.mu_star):
-        lo, hi = pred.mu_star_interval
-        half = max(0.5 * (hi - lo), 1e-300)
-        out.update({"mu_star": pred.mu_star, "mu_star_interval": [lo, hi],
-                    "distance_in_half_widths": (pred.mu_star - ms[-1].mu) / half})  # fmt: skip
-    return out
+        return alarm_for(ms[-1].mu, _t_ratio(ms), pred.mu_star, pred.mu_star_interval)
+    return alarm_for(ms[-1].mu, _t_ratio(ms))
 
 
-def _extrapolate_sigma4(ms: Sequence[Measurement]) -> float | None:
-    """Two-point linear extrapolation of sigma^4 to zero through the last two points.
-
-    Exact near a fold (sigma^4 ~ mu* - mu); near a pitchfork (sigma^2 ~ mu* - mu) it lands
-    short of mu*: a model-free, conservative bound on where the transition can be (checked on
-    the beam for all three actuations once T/T0 >= 1.05 and four points exist; the first pairs,
-    before the slowdown shows, can overshoot).
-    """
-    if len(ms) < 4 or ms[0].omega < 1.05 * ms[-1].omega:
-        return None  # the slowdown has not begun: the first pairs can overshoot
-    (m1, m2) = ms[-2], ms[-1]
-    f1, f2 = m1.sigma2**2, m2.sigma2**2
-    if not f1 > f2:
-        return None  # no slowing down yet: no bound
-    return m2.mu + f2 * (m2.mu - m1.mu) / (f1 - f2)
-
-
-def _safe_bound(
-    ms: Sequence[Measurement], pred: Prediction | None, prev: Prediction | None
-) -> tuple[float | None, bool]:
-    """(bound below which the next measurement must stay, whether the predictor is trusted).
-
-    The predictor is trusted once the alarm has risen (T/T0 >= 2) and two consecutive 95 %
-    intervals overlap; before that, the conservative sigma^4 extrapolation bounds the step.
-    """
-    e4 = _extrapolate_sigma4(ms)
-    t_ratio = ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
-    trusted = False
-    if (pred is not None and prev is not None and t_ratio >= 2.0
-            and math.isfinite(pred.mu_star) and math.isfinite(prev.mu_star)):  # fmt: skip
-        lo, hi = pred.mu_star_interval
-        plo, phi = prev.mu_star_interval
-        trusted = lo <= phi and plo <= hi and lo > ms[-1].mu
-    if trusted:
-        return pred.mu_star_interval[0], True
-    return e4, False
+def _next_mu(
+    ms: Sequence[Measurement], pred: Prediction | None, prev: Prediction | None, first_step: float
+) -> tuple[float, bool]:
+    """(next control value, whether the predictor's interval was trusted) by the one policy
+    (:func:`service.analysis.alarm.next_measurement`): half the way to the safe bound, at most
+    ``first_step``. The interval bounds the step once the slowdown has begun (T/T0 >= 2) and
+    two consecutive intervals overlap; before that the model-free sigma^4 bound does (from four
+    points and T/T0 >= 1.05: the first pairs, before the slowdown shows, can overshoot)."""
+    last = ms[-1].mu
+    trusted = (
+        pred is not None and prev is not None
+        and math.isfinite(pred.mu_star) and math.isfinite(prev.mu_star)
+        and interval_trusted(pred.mu_star_interval, prev.mu_star_interval, last, _t_ratio(ms))
+    )  # fmt: skip
+    if len(ms) < 2:
+        return last + first_step, False
+    nxt = next_measurement(
+        [m.mu for m in ms], [abs(m.sigma2) for m in ms],
+        trusted_bound=pred.mu_star_interval[0] if (trusted and pred is not None) else None,
+        step_fraction=0.5, max_step_growth=math.inf, max_step=first_step,
+        min_t_ratio=1.05 if len(ms) >= 4 else math.inf, sigma4_when_trusted=False,
+    )  # fmt: skip
+    return nxt.mu, trusted
 
 
 def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tuple[float, float]:
@@ -316,7 +304,7 @@ def warn(
     base = Scene(actuation=actuation, mu=0.0, damping=damping, kick=kick, snr_db=snr_db,
                  **(scene_options or {}))  # fmt: skip
     ms: list[Measurement] = []
-    alarm: list[dict] = []
+    alarm: list[Alarm] = []
     flags: list[Flag] = []
     pred: Prediction | None = None
     prev_pred: Prediction | None = None
@@ -342,23 +330,20 @@ def warn(
         pred = _predict(ms, None)
         alarm.append(_alarm(ms, pred))
         if progress is not None:
-            msg = f"mu={m.mu:.6g} T/T0={alarm[-1]['t_ratio']:.3g}"
-            if "mu_star" in alarm[-1]:
-                lo, hi = alarm[-1]["mu_star_interval"]
-                msg += f" mu*={alarm[-1]['mu_star']:.8g} [{lo:.8g}, {hi:.8g}]"
+            al = alarm[-1]
+            msg = f"mu={m.mu:.6g} T/T0={al.t_ratio:.3g}"
+            if math.isfinite(al.mu_star):
+                lo, hi = al.mu_star_interval
+                msg += f" mu*={al.mu_star:.8g} [{lo:.8g}, {hi:.8g}]"
             progress((k + 1) / max_measurements, msg)
         # next control value: a fraction of the way to a safe bound on mu*
-        lo_bound, trusted = _safe_bound(ms, pred, prev_pred)
+        cand, trusted = _next_mu(ms, pred, prev_pred, first_step)
         prev_pred = pred
         if trusted and pred is not None:
             lo, hi = pred.mu_star_interval
             if hi - lo < rel_width:
                 stopped = "converged"
                 break
-        if lo_bound is None:
-            cand = m.mu + first_step
-        else:
-            cand = m.mu + min(first_step, 0.5 * (lo_bound - m.mu))
         if not cand > m.mu or cand - m.mu < 1e-12 * max(1.0, abs(m.mu)):
             stopped = "no-safe-step"
             break

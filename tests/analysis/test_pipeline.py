@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis.pipeline import _extrapolate_sigma4, sweep_from_signals, warn
+from service.analysis.alarm import next_measurement, sigma4_bound
+from service.analysis.pipeline import sweep_from_signals, warn
 from service.cli import main
 from sim import simulate
 from sim.euler_beam import bifurcation, spectrum
@@ -17,18 +18,19 @@ from sim.scene import Scene
 
 def test_sigma4_bound_is_conservative_on_the_beam() -> None:
     """The model-free safety bound never lies beyond mu* once the slowdown has begun."""
-    from service.analysis.pipeline import Measurement
 
     for act in ("asymmetric", "symmetric", "antisymmetric"):
         mu_star = bifurcation(act).mu_star
         mus = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.7, 1.75, 1.77])
         mus = mus[mus < mu_star]
-        ms = [Measurement(m, 0.0, spectrum(act, m, "U_A", modes=1).sigma2[0], 0.0, 0.0, 0.0,
-                          "underdamped", 1.0, 1.0) for m in mus]  # fmt: skip
-        for k in range(2, len(ms) + 1):
-            bound = _extrapolate_sigma4(ms[:k])
-            assert bound is None or bound < mu_star, (act, mus[k - 1], bound)
-        assert _extrapolate_sigma4(ms) is not None  # it does engage near mu*
+        y = np.array([-spectrum(act, m, "U_A", modes=1).sigma2[0] for m in mus])
+        for k in range(4, len(mus) + 1):
+            bound = sigma4_bound(mus[:k], y[:k], min_t_ratio=1.05)
+            assert bound == math.inf or bound < mu_star, (act, mus[k - 1], bound)
+            # the policy never steps past it
+            nxt = next_measurement(mus[:k], y[:k], max_step=0.2, min_t_ratio=1.05)
+            assert nxt.mu < min(bound, mu_star)
+        assert sigma4_bound(mus, y, min_t_ratio=1.05) < mu_star  # it does engage near mu*
 
 
 def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
@@ -46,6 +48,8 @@ def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
     # the alarm rises as the strip slows down
     ratios = [a["t_ratio"] for a in doc["alarm"]]
     assert ratios[-1] > 5 and ratios[-1] == max(ratios)
+    assert res.alarm[-1].level == "watch"  # T/T0 = 6.5: between 3 and 10
+    assert res.alarm[-1] == res.prediction.alarm  # one alarm rule for the pipeline and predict
 
 
 @pytest.mark.slow
