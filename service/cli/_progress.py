@@ -21,7 +21,7 @@ from typing import Any, TextIO
 
 COMPILE_STAGE = "compiling kernels (first run only)"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-BAR_FORMAT = "{desc}{percentage:3.0f}%|{bar}| {postfix} [{elapsed}]"
+BAR_FORMAT = "{desc}{percentage:3.0f}%|{bar}| [{elapsed}]{postfix}"  # postfix: ", message"
 
 
 def stage_key(message: str) -> str:
