@@ -132,79 +132,92 @@ def _record_flags(
 ) -> list[Flag]:
     """The flags that read the final modes: few_periods, low_snr, unstable, overdamped,
     combination_tone, aliasing and numerical (``modes[0]`` is the fundamental)."""
-    flags: list[Flag] = []
-    T = n * dt
-    if modes:
-        m0 = modes[0]
-        root = math.sqrt(abs(m0.sigma2))
-        periods = T * root / (2 * math.pi)
-        if periods < FEW_PERIODS:
-            flags.append(
-                Flag(
-                    "few_periods",
-                    f"the record spans {periods:.3g} fundamental period(s) "
-                    f"(T = {T:.4g}, sqrt|sigma^2| = {root:.4g}); "
-                    f"at least {FEW_PERIODS:g} are advised",
-                )
+    flags = _fundamental_flags(modes[0], n * dt) if modes else []
+    flags += _mode_flags(modes)
+    alias = _aliasing_flag(modes, dt, spec)
+    if alias is not None:
+        flags.append(alias)
+    if not (math.isfinite(static) and math.isfinite(static_std)):
+        flags.append(Flag("numerical", "the static level could not be estimated"))
+    return flags
+
+
+def _fundamental_flags(m0: Mode, T: float) -> list[Flag]:
+    """few_periods (record shorter than FEW_PERIODS periods) and low_snr (record SNR)."""
+    flags = []
+    root = math.sqrt(abs(m0.sigma2))
+    periods = T * root / (2 * math.pi)
+    if periods < FEW_PERIODS:
+        flags.append(
+            Flag(
+                "few_periods",
+                f"the record spans {periods:.3g} fundamental period(s) "
+                f"(T = {T:.4g}, sqrt|sigma^2| = {root:.4g}); "
+                f"at least {FEW_PERIODS:g} are advised",
             )
-        if math.isfinite(m0.snr_db) and m0.snr_db < LOW_SNR_DB:
-            flags.append(
-                Flag(
-                    "low_snr",
-                    f"the fundamental's record SNR is {m0.snr_db:.1f} dB (< {LOW_SNR_DB:g} dB): "
-                    "estimates may be off the Cramer-Rao regime",
-                )
+        )
+    if math.isfinite(m0.snr_db) and m0.snr_db < LOW_SNR_DB:
+        flags.append(
+            Flag(
+                "low_snr",
+                f"the fundamental's record SNR is {m0.snr_db:.1f} dB (< {LOW_SNR_DB:g} dB): "
+                "estimates may be off the Cramer-Rao regime",
             )
-        grow = [m for m in modes if m.sigma2 > 3.0 * m.sigma2_std]
-        if grow:
-            txt = ", ".join(f"{m.sigma2:.4g} +- {m.sigma2_std:.2g}" for m in grow)
-            flags.append(
-                Flag(
-                    "unstable",
-                    f"{len(grow)} mode(s) with sigma^2 > 0 ({txt}): a real pole grows, the "
-                    "equilibrium is unstable",
-                )
+        )
+    return flags
+
+
+def _mode_flags(modes: list[Mode]) -> list[Flag]:
+    """unstable (sigma^2 > 3 standard errors above 0), overdamped (not counting decaying
+    offsets of a nonlinear response) and combination_tone."""
+    flags = []
+    grow = [m for m in modes if m.sigma2 > 3.0 * m.sigma2_std]
+    if grow:
+        txt = ", ".join(f"{m.sigma2:.4g} +- {m.sigma2_std:.2g}" for m in grow)
+        flags.append(
+            Flag(
+                "unstable",
+                f"{len(grow)} mode(s) with sigma^2 > 0 ({txt}): a real pole grows, the "
+                "equilibrium is unstable",
             )
-        od = [
-            m
-            for m in modes
-            if m.regime == "overdamped" and m.real_poles is not None and m.combination is None
-        ]
-        if od:
-            txt = ", ".join(
-                f"sigma^2 = {m.sigma2:.4g} (poles {m.real_poles[0]:.4g}, {m.real_poles[1]:.4g})"
-                for m in od
+        )
+    od = [m for m in modes if m.regime == "overdamped" and m.real_poles and not m.combination]
+    if od:
+        txt = ", ".join(
+            f"sigma^2 = {m.sigma2:.4g} (poles {m.real_poles[0]:.4g}, {m.real_poles[1]:.4g})"
+            for m in od
+        )
+        flags.append(
+            Flag(
+                "overdamped",
+                f"{len(od)} overdamped mode(s): {txt}; no FFT peak, sigma^2 = -s1 s2",
             )
-            flags.append(
-                Flag(
-                    "overdamped",
-                    f"{len(od)} overdamped mode(s): {txt}; no FFT peak, sigma^2 = -s1 s2",
-                )
+        )
+    comb = [(k, m) for k, m in enumerate(modes) if m.combination is not None]
+    if comb:
+        txt = ", ".join(f"omega[{k}] = {m.omega:.6g} = {m.combination}" for k, m in comb)
+        flags.append(
+            Flag(
+                "combination_tone",
+                f"{len(comb)} mode(s) are combination tones of stronger modes ({txt}): "
+                "a nonlinear (quadratic) response; they are not eigenfrequencies",
             )
-        comb = [(k, m) for k, m in enumerate(modes) if m.combination is not None]
-        if comb:
-            txt = ", ".join(f"omega[{k}] = {m.omega:.6g} = {m.combination}" for k, m in comb)
-            flags.append(
-                Flag(
-                    "combination_tone",
-                    f"{len(comb)} mode(s) are combination tones of stronger modes ({txt}): "
-                    "a nonlinear (quadratic) response; they are not eigenfrequencies",
-                )
-            )
-    # aliasing: energy in the top of the band, or a mode close to Nyquist
+        )
+    return flags
+
+
+def _aliasing_flag(modes: list[Mode], dt: float, spec: _Spectrum) -> Flag | None:
+    """Energy in the top of the band (2+ significant bins), or a mode above ALIAS_FRACTION x
+    Nyquist."""
     nyq = math.pi / dt
     kb = int(ALIAS_FRACTION * (spec.hann.size - 1))
     hot = int(np.sum(spec.significant[kb:])) if kb > 0 else 0
     near = [m.omega for m in modes if m.omega > ALIAS_FRACTION * nyq]
     if hot >= 2 or near:
-        flags.append(
-            Flag(
-                "aliasing",
-                f"energy above {ALIAS_FRACTION:g} x Nyquist ({nyq:.4g} rad/time): "
-                f"{hot} significant bin(s), {len(near)} mode(s) there; sample faster or "
-                f"low-pass filter before sampling",
-            )
+        return Flag(
+            "aliasing",
+            f"energy above {ALIAS_FRACTION:g} x Nyquist ({nyq:.4g} rad/time): "
+            f"{hot} significant bin(s), {len(near)} mode(s) there; sample faster or "
+            f"low-pass filter before sampling",
         )
-    if not (math.isfinite(static) and math.isfinite(static_std)):
-        flags.append(Flag("numerical", "the static level could not be estimated"))
-    return flags
+    return None

@@ -140,7 +140,6 @@ def _fit_parametric(
 ) -> tuple[_Fit | None, np.ndarray]:
     """ESPRIT initialisation, MDL pruning, varpro fit; then up to two rounds of residual
     ESPRIT (multi-scale: a slow residual gets a long strided window) to add missed modes."""
-    N = y.shape[0]
     p, q = _initial_candidates(y, spec, max_modes)
     fit: _Fit | None = None
     energy = np.zeros(0)
@@ -176,34 +175,11 @@ def _fit_parametric(
                 return None, energy
         if not refine or round_ == 2:
             break
-        # residual: is anything left that the current model misses?
-        r = y.copy()
-        if fit is not None:
-            mv = np.empty(N)
-            model_values(fit.ev.p, fit.ev.q, fit.ev.c, mv)
-            r -= mv
-        rspec = _spectrum(r)
-        base_p = fit.ev.p if fit is not None else np.zeros(0)
-        base_q = fit.ev.q if fit is not None else np.zeros(0)
-        # a weak mode that decays within the record: seen in a matched head's periodogram
-        hp, hq = _head_peaks(r, rspec, base_p, base_q, max_modes)
-        head = r[: N // 8]
-        if (
-            not hp.size
-            and not rspec.significant.any()
-            and not (
-                head.size >= 128
-                and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
-                and _spectrum(head).significant.any()
-            )
-        ):
+        new_p, new_q = _residual_candidates(y, fit, max_modes)
+        if new_p.size == 0:
             break
-        p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
-        p_new, q_new = np.concatenate((p_new, hp)), np.concatenate((q_new, hq))
-        if p_new.size == 0:
-            break
-        p = np.concatenate((base_p, p_new))
-        q = np.concatenate((base_q, q_new))
+        p = np.concatenate((fit.ev.p if fit is not None else np.zeros(0), new_p))
+        q = np.concatenate((fit.ev.q if fit is not None else np.zeros(0), new_q))
     if fit is not None and refine:
         fit = _merge_close_modes(y, fit, max_iter)
         fit = _repair_real_poles(y, fit, max_iter)
@@ -217,3 +193,34 @@ def _fit_parametric(
     return fit, energy
 
 
+
+
+def _residual_candidates(
+    y: np.ndarray, fit: _Fit | None, max_modes: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate modes that the current fit misses: ESPRIT on the residual (and its head), and
+    the peaks of the residual's head periodograms (a weak mode that decays within the record
+    is seen in the head matched to its decay). Empty when the residual looks like noise."""
+    N = y.shape[0]
+    r = y.copy()
+    base_p, base_q = np.zeros(0), np.zeros(0)
+    if fit is not None:
+        mv = np.empty(N)
+        model_values(fit.ev.p, fit.ev.q, fit.ev.c, mv)
+        r -= mv
+        base_p, base_q = fit.ev.p, fit.ev.q
+    rspec = _spectrum(r)
+    hp, hq = _head_peaks(r, rspec, base_p, base_q, max_modes)
+    head = r[: N // 8]
+    if (
+        not hp.size
+        and not rspec.significant.any()
+        and not (
+            head.size >= 128
+            and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
+            and _spectrum(head).significant.any()
+        )
+    ):
+        return np.zeros(0), np.zeros(0)
+    p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
+    return np.concatenate((p_new, hp)), np.concatenate((q_new, hq))

@@ -23,85 +23,83 @@ from service.analysis.detect._varpro import _Fit, _levenberg_marquardt
 def _modes_from_fit(
     fit: _Fit, energies: np.ndarray, dt: float, scale: float
 ) -> tuple[list[Mode], float, float]:
-    ev = fit.ev
-    K = ev.p.shape[0]
-    cov = fit.cov
-    nth = fit.ntheta
+    """Physical modes of a fit (rates per time unit of ``dt``, amplitudes times ``scale``),
+    the static level (normalised units) and its standard error (times ``scale``)."""
+    ev, cov, nth = fit.ev, fit.cov, fit.ntheta
     modes: list[Mode] = []
-    for k in range(K):
+    for k in range(ev.p.shape[0]):
         jp = 0 if fit.common else 2 * k
         jq = 1 + k if fit.common else 2 * k + 1
         p, q = float(ev.p[k]), float(ev.q[k])
-        vpp, vqq, vpq = cov[jp, jp], cov[jq, jq], cov[jp, jq]
-        c1 = float(ev.c[1 + 2 * k])
-        c2 = float(ev.c[2 + 2 * k])
-        ic1, ic2 = nth + 1 + 2 * k, nth + 2 + 2 * k
-        D = 0.25 * p * p - q
-        gamma = 0.5 * p / dt
-        gamma_std = 0.5 * math.sqrt(max(vpp, 0.0)) / dt
-        sigma2 = -q / dt**2
-        sigma2_std = math.sqrt(max(vqq, 0.0)) / dt**2
-        snr = 10.0 * math.log10(max(energies[k], 1e-300)) if energies.size else math.nan
-        if D < 0:
-            om = math.sqrt(-D)
-            # d om / d p = p / (4 om) ; d om / d q = -1 / (2 om)   (om^2 = q - p^2/4)
-            gp, gq = -p / (4.0 * om), 1.0 / (2.0 * om)
-            var_om = gp * gp * vpp + gq * gq * vqq + 2 * gp * gq * vpq
-            a_cos, a_sin = c1, -c2 / om  # A cos(phi), A sin(phi)
-            amp = math.hypot(a_cos, a_sin)
-            phase = math.atan2(a_sin, a_cos)
-            # amplitude std: gradient of |(c1, c2/om)| in (c1, c2) (om treated as exact)
-            if amp > 0:
-                g1, g2 = c1 / amp, (c2 / om**2) / amp
-                var_a = g1 * g1 * cov[ic1, ic1] + g2 * g2 * cov[ic2, ic2]
-                var_a += 2 * g1 * g2 * cov[ic1, ic2]
-            else:
-                var_a = 0.0
-            modes.append(
-                Mode(
-                    omega=om / dt,
-                    frequency=om / dt / (2 * math.pi),
-                    damping=gamma,
-                    sigma2=sigma2,
-                    amplitude=amp * scale,
-                    phase=phase,
-                    omega_std=math.sqrt(max(var_om, 0.0)) / dt,
-                    damping_std=gamma_std,
-                    sigma2_std=sigma2_std,
-                    amplitude_std=math.sqrt(max(var_a, 0.0)) * scale,
-                    regime="underdamped",
-                    snr_db=snr,
-                )
-            )
+        ic = nth + 1 + 2 * k  # first amplitude coefficient of the mode in cov
+        common = {
+            "damping": 0.5 * p / dt,
+            "damping_std": 0.5 * math.sqrt(max(cov[jp, jp], 0.0)) / dt,
+            "sigma2": -q / dt**2,
+            "sigma2_std": math.sqrt(max(cov[jq, jq], 0.0)) / dt**2,
+            "snr_db": 10.0 * math.log10(max(energies[k], 1e-300)) if energies.size else math.nan,
+        }
+        c1, c2 = float(ev.c[1 + 2 * k]), float(ev.c[2 + 2 * k])
+        if 0.25 * p * p - q < 0:
+            v = (cov[jp, jp], cov[jq, jq], cov[jp, jq], cov[ic, ic], cov[ic + 1, ic + 1],
+                 cov[ic, ic + 1])  # fmt: skip
+            modes.append(_underdamped(p, q, c1, c2, v, dt, scale, common))
         else:
-            lam = math.sqrt(D)
-            r1, r2 = 0.5 * p - lam, 0.5 * p + lam
-            if lam > 0:
-                b1 = 0.5 * (c1 + c2 / lam)
-                b2 = 0.5 * (c1 - c2 / lam)
-            else:  # critically damped: c1 + c2 t ; report as equal split
-                b1 = b2 = 0.5 * c1
-            amp = max(abs(b1), abs(b2))
-            modes.append(
-                Mode(
-                    omega=0.0,
-                    frequency=0.0,
-                    damping=gamma,
-                    sigma2=sigma2,
-                    amplitude=amp * scale,
-                    phase=0.0,
-                    omega_std=0.0,
-                    damping_std=gamma_std,
-                    sigma2_std=sigma2_std,
-                    amplitude_std=math.sqrt(max(cov[ic1, ic1], 0.0)) * scale,
-                    regime="overdamped",
-                    real_poles=(-r1 / dt, -r2 / dt),
-                    real_amplitudes=(b1 * scale, b2 * scale),
-                    snr_db=snr,
-                )
-            )
+            modes.append(_overdamped(p, q, c1, c2, cov[ic, ic], dt, scale, common))
     static_std = math.sqrt(max(cov[nth, nth], 0.0)) * scale
     return modes, float(ev.c[0]), static_std
+
+
+def _underdamped(
+    p: float, q: float, c1: float, c2: float, v: tuple, dt: float, scale: float, common: dict
+) -> Mode:
+    """An underdamped mode from ``(p, q)``, its basis coefficients ``c1, c2`` and the
+    variances ``v = (pp, qq, pq, c1c1, c2c2, c1c2)`` (sample units, normalised record)."""
+    vpp, vqq, vpq, v11, v22, v12 = v
+    om = math.sqrt(q - 0.25 * p * p)
+    # d om / d p = -p / (4 om) ; d om / d q = 1 / (2 om)   (om^2 = q - p^2/4)
+    gp, gq = -p / (4.0 * om), 1.0 / (2.0 * om)
+    var_om = gp * gp * vpp + gq * gq * vqq + 2 * gp * gq * vpq
+    a_cos, a_sin = c1, -c2 / om  # A cos(phi), A sin(phi)
+    amp = math.hypot(a_cos, a_sin)
+    var_a = 0.0
+    if amp > 0:  # gradient of |(c1, c2/om)| in (c1, c2) (om treated as exact)
+        g1, g2 = c1 / amp, (c2 / om**2) / amp
+        var_a = g1 * g1 * v11 + g2 * g2 * v22 + 2 * g1 * g2 * v12
+    return Mode(
+        omega=om / dt,
+        frequency=om / dt / (2 * math.pi),
+        amplitude=amp * scale,
+        phase=math.atan2(a_sin, a_cos),
+        omega_std=math.sqrt(max(var_om, 0.0)) / dt,
+        amplitude_std=math.sqrt(max(var_a, 0.0)) * scale,
+        regime="underdamped",
+        **common,
+    )
+
+
+def _overdamped(
+    p: float, q: float, c1: float, c2: float, v11: float, dt: float, scale: float, common: dict
+) -> Mode:
+    """An overdamped mode (two real poles) from ``(p, q)`` and its basis coefficients."""
+    lam = math.sqrt(0.25 * p * p - q)
+    r1, r2 = 0.5 * p - lam, 0.5 * p + lam
+    if lam > 0:
+        b1, b2 = 0.5 * (c1 + c2 / lam), 0.5 * (c1 - c2 / lam)
+    else:  # critically damped: c1 + c2 t ; report as equal split
+        b1 = b2 = 0.5 * c1
+    return Mode(
+        omega=0.0,
+        frequency=0.0,
+        amplitude=max(abs(b1), abs(b2)) * scale,
+        phase=0.0,
+        omega_std=0.0,
+        amplitude_std=math.sqrt(max(v11, 0.0)) * scale,
+        regime="overdamped",
+        real_poles=(-r1 / dt, -r2 / dt),
+        real_amplitudes=(b1 * scale, b2 * scale),
+        **common,
+    )
 
 
 def _model_at_lag0(fit: _Fit) -> float:

@@ -202,6 +202,20 @@ def _cross(P: np.ndarray, i0: int, i1: int, level: float) -> float:
     return i0 + (level - a0) / (a1 - a0) * (i1 - i0) if a1 != a0 else float(i0)
 
 
+def _half_power_width(P: np.ndarray, j: int) -> float:
+    """Width (in bins) of the peak ``j`` of ``P`` at half its power (linear interpolation)."""
+    half = 0.5 * P[j]
+    lo = j
+    while lo > 0 and P[lo] > half:
+        lo -= 1
+    hi = j
+    while hi < P.size - 1 and P[hi] > half:
+        hi += 1
+    x_lo = _cross(P, lo, lo + 1, half) if lo < j else float(j)
+    x_hi = _cross(P, hi, hi - 1, half) if hi > j else float(j)
+    return max(x_hi - x_lo, 0.0)
+
+
 def _fft_modes(
     y: np.ndarray, dt: float, scale: float, parabolic: bool, spec: _Spectrum
 ) -> tuple[list[Mode], list[Flag]]:
@@ -241,17 +255,7 @@ def _fft_modes(
             if den < 0:
                 delta = float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
         om = (j + delta) * d_om
-        # half-power width
-        half = 0.5 * P[j]
-        lo = j
-        while lo > 0 and P[lo] > half:
-            lo -= 1
-        hi = j
-        while hi < nb - 1 and P[hi] > half:
-            hi += 1
-        x_lo = _cross(P, lo, lo + 1, half) if lo < j else float(j)
-        x_hi = _cross(P, hi, hi - 1, half) if hi > j else float(j)
-        width = max(x_hi - x_lo, 0.0) * d_om
+        width = _half_power_width(P, j) * d_om
         gamma = 0.5 * width
         if width < 1.5 * d_om:
             unresolved.append(om)

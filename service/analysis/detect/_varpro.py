@@ -109,6 +109,31 @@ def _heavy_pass(
     return B
 
 
+def _normal_equations(
+    B: np.ndarray, c: np.ndarray, nth: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``J^T J``, the gradient ``J^T r`` (``r = y - Phi c``, ``c`` exact at theta) and the
+    Marquardt scaling (the diagonal, zeros replaced by 1) from a heavy-pass Gram ``B``."""
+    A = B[:-1, :-1]
+    g = B[:-1, -1] - B[:-1, nth:-1] @ c
+    dA = np.diag(A).copy()
+    dA[dA == 0] = 1.0
+    return A, g, dA
+
+
+def _finish(
+    B: np.ndarray, p: np.ndarray, q: np.ndarray, c: np.ndarray, rss: float, nth: int,
+    it: int, common: bool, N: int,
+) -> _Fit:  # fmt: skip
+    """The fit at convergence: Gauss-Newton covariance ``s^2 (J^T J)^-1`` with the noise
+    variance ``s^2`` at least the numerical floor."""
+    npar = nth + c.size  # theta, the static level and two amplitudes per mode
+    s2 = max(rss / max(N - npar, 1), S2_FLOOR)
+    cov = _pinv_psd(B[:-1, :-1]) * s2
+    ev = _Eval(p, q, np.ascontiguousarray(B[nth:, nth:]), c, rss)
+    return _Fit(ev, cov, nth, s2, it, common)
+
+
 def _levenberg_marquardt(
     y: np.ndarray,
     p0: np.ndarray,
@@ -146,11 +171,7 @@ def _levenberg_marquardt(
     small = False
     lagged = False  # B's Jacobian built with an earlier iterate's c
     for it in range(1, max_iter + 1):  # noqa: B007
-        A = B[:-1, :-1]
-        # gradient J^T r with r = y - Phi c (c exact at theta)
-        g = B[:-1, -1] - B[:-1, nth:-1] @ c
-        dA = np.diag(A).copy()
-        dA[dA == 0] = 1.0
+        A, g, dA = _normal_equations(B, c, nth)
         accepted = False
         while lam < 1e12:
             Ainv = _pinv_psd(A + lam * np.diag(dA))
@@ -169,10 +190,7 @@ def _levenberg_marquardt(
                 if B_ex is None:
                     break
                 B, lagged = B_ex, False
-                A = B[:-1, :-1]
-                g = B[:-1, -1] - B[:-1, nth:-1] @ c
-                dA = np.diag(A).copy()
-                dA[dA == 0] = 1.0
+                A, g, dA = _normal_equations(B, c, nth)
                 continue
             lam *= 8.0
         if not accepted:
@@ -200,12 +218,7 @@ def _levenberg_marquardt(
         B_fin = _heavy_pass(y, p, q, c, common)
         if B_fin is not None:
             B = B_fin
-    A = B[:-1, :-1]
-    npar = nth + 1 + 2 * K
-    s2 = max(rss / max(N - npar, 1), S2_FLOOR)
-    cov = _pinv_psd(A) * s2
-    ev = _Eval(p, q, np.ascontiguousarray(B[nth:, nth:]), c, rss)
-    return _Fit(ev, cov, nth, s2, it, common)
+    return _finish(B, p, q, c, rss, nth, it, common, N)
 
 
 def _mode_energy(ev: _Eval) -> np.ndarray:
