@@ -23,7 +23,7 @@ def client(server) -> Client:  # noqa: ANN001
         yield c
 
 
-def test_create_add_and_close_is_an_ordinary_sweep(client: Client) -> None:
+def test_create_add_and_close_is_an_ordinary_sweep(client: Client, server) -> None:  # noqa: ANN001
     live = client.live_sweep("bench strip", control="angle", unit="deg", step=0.3)
     assert live.sweep.status == "open"
     assert live.sweep.request["control"] == {"name": "angle", "unit": "deg"}
@@ -53,6 +53,7 @@ def test_create_add_and_close_is_an_ordinary_sweep(client: Client) -> None:
     # the open sweep is a sweep
     got = client.get_sweep(live.id)
     assert got.status == "open"
+    assert httpx2.get(f"{server.url}/sweeps/{live.id}").status_code == 200  # its page
     closed = live.close()
     assert closed.status == "succeeded"
     assert closed.result is not None
@@ -68,6 +69,13 @@ def test_create_add_and_close_is_an_ordinary_sweep(client: Client) -> None:
     page = live.records()
     assert page.total == 5 and page.status == "closed"
     assert [u.seq for u in page.items] == [1, 2, 3, 4, 5]
+    # a closed live sweep is an ordinary sweep: chart, page, listing
+    r = httpx2.get(f"{server.url}/v1/sweeps/{live.id}/plot.png")
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+    r = httpx2.get(f"{server.url}/sweeps/{live.id}")
+    assert r.status_code == 200 and "bench strip" in r.text
+    r = httpx2.get(f"{server.url}/v1/sweeps", params={"limit": 100})
+    assert live.id in [x["id"] for x in r.json()["items"]]
 
 
 def test_flags_out_of_order_repeated_and_past_the_safe_value(client: Client) -> None:
