@@ -191,21 +191,41 @@ def snap(scene: Scene, model: str, dmu: float, *, duration: float | None = None,
 
 
 def _rod_snap(scene: Scene, dmu: float, duration: float, dt: float) -> SnapResult:
-    """The rod's released-indenter snap (asymmetric actuation only, for now)."""
+    """The rod: asymmetric, the paper's released indenter (``cosserat.snap_through``);
+    pitchforks, the state at the rod's own mu* with the control stepped to mu* +- dmu and the
+    symmetry-breaking impulse (``PERTURBATION * dmu`` at X = 1/4)."""
     from sim.backends import BACKENDS
-    from sim.cosserat.dynamics import snap_through
+    from sim.cosserat import statics as S
+    from sim.cosserat.dynamics import integrate, kick_velocity, snap_through
+    from sim.cosserat.rod import Rod
 
-    if scene.actuation != "asymmetric":
-        raise ParameterError("actuation", scene.actuation,
-                             "the Cosserat snap is implemented for the asymmetric actuation "
-                             "only; use --model euler-beam or normal-form")  # fmt: skip
     bif = BACKENDS["cosserat"].bifurcation(scene)
-    st = snap_through(dmu, end_shortening=scene.end_shortening, slenderness=scene.slenderness,
-                      elements=bif.resolution.size, damping=scene.damping, duration=duration,
-                      dt=dt, mu_star=bif.mu_star)  # fmt: skip
-    k = bif.w_star.size // 2
-    amp = st.w_mid - float(bif.w_star[k])
-    level = 0.5 * abs(st.w_mid_final - float(bif.w_star[k]))
-    return SnapResult("asymmetric", "cosserat", float(dmu), st.mu, st.mu_star, "U_A", "U_B",
-                      _first_crossing(st.t, amp, level), st.t, amp, 0.5, bif.resolution,
-                      {"level": level, **st.info})  # fmt: skip
+    n = bif.resolution.size
+    if scene.actuation == "asymmetric":
+        st = snap_through(dmu, end_shortening=scene.end_shortening,
+                          slenderness=scene.slenderness, elements=n, damping=scene.damping,
+                          duration=duration, dt=dt, mu_star=bif.mu_star)  # fmt: skip
+        k = bif.w_star.size // 2
+        amp = st.w_mid - float(bif.w_star[k])
+        level = 0.5 * abs(st.w_mid_final - float(bif.w_star[k]))
+        return SnapResult("asymmetric", "cosserat", float(dmu), st.mu, st.mu_star, "U_A", "U_B",
+                          _first_crossing(st.t, amp, level), st.t, amp, 0.5, bif.resolution,
+                          {"level": level, **st.info})  # fmt: skip
+    side, frm, to, probe = _protocol(scene.actuation)
+    rod = Rod(elements=n, end_shortening=scene.end_shortening, slenderness=scene.slenderness,
+              actuation=scene.actuation, poisson=scene.poisson)
+    mu = bif.mu_star + side * dmu
+    z0 = bif.info["z_star"]
+    w0 = rod.w_at(z0, probe)
+    target = S.branch_state(rod, mu, "U_B" if to == "U_B" else "U_A")
+    level = 0.5 * abs(rod.w_at(target, probe) - w0)
+    pert = PERTURBATION * dmu
+    (i, j), (wi, wj) = rod.interp_weights(probe)
+    r = math.sqrt(rod.end_shortening)
+    run = integrate(rod, z0, kick_velocity(rod, 0.25, pert), mu, xi=scene.damping, dt=dt,
+                    nsteps=int(round(duration / dt)), probes=[((i, j), (wi / r, wj / r))])
+    amp = run.rec[:, 0] - w0
+    return SnapResult(scene.actuation, "cosserat", float(dmu), mu, bif.mu_star, frm, to,
+                      _first_crossing(run.t, amp, level), run.t, amp, probe, bif.resolution,
+                      {"level": level, "perturbation": pert, "stop": run.stop,
+                       "cpu_s": run.cpu_s})  # fmt: skip

@@ -220,9 +220,13 @@ def integrate(
     dt, nsteps, every : step, number of steps; a sample is recorded every ``every`` steps.
     probes, weights : (P, 2) int / float: recorded value p = sum_k weights[p, k] z[probes[p, k]].
     rho_inf : spectral radius at infinite frequency (1: trapezoidal rule, no dissipation).
-    tol, maxit : Newton tolerance on max |dz| and iteration cap per step.
+    tol, maxit : Newton tolerance on the error left in max |z| (the last correction times
+        theta / (1 - theta), theta its contraction) and iteration cap per step.
     full_its : the tangent is re-assembled and factorised for the first ``full_its``
-        iterations of a step, then kept (modified Newton).
+        iterations of a step; otherwise the last factorisation is kept, across steps too
+        (modified Newton), and refreshed when an iteration contracts the correction by less
+        than a factor 10 (``full_its = 0``: that adaptive reuse from the first iteration;
+        slower to converge on stiff, thin rods, so not the default).
     rec : (nsteps // every + 1, P) output samples; stats : (3,) float -> [steps done,
         total Newton iterations, 0 ok / 1 Newton failure].
     """
@@ -247,11 +251,14 @@ def integrate(
     k_rec = 1
     total_it = 0
     stats[2] = 0.0
+    have_factor = False
+    refresh = False
     for step in range(nsteps):
         for i in range(N):
             zn[i] = z[i]
-            znew[i] = z[i] + dt * v[i]  # predictor: constant velocity
+            znew[i] = z[i] + dt * v[i]  # predictor: constant velocity (robust for stiff modes)
         converged = False
+        prev = math.inf
         for it in range(maxit):
             for i in range(N):
                 if fixed[i] == 0:
@@ -271,7 +278,8 @@ def integrate(
                     r[i] = -(mass[i] * (am_i + xi * vf_i) + g[i])
                 else:
                     r[i] = 0.0
-            if it < full_its:  # tangent refreshed for the first full_its iterations
+            fresh = it < full_its or not have_factor or refresh
+            if fresh:  # tangent refreshed; else the last factorisation is reused
                 hessian_band(za, n, ds, EA, GA, B, kL, kR, ab)
                 for j in range(N):
                     for d in range(2 * KU + 1):
@@ -286,6 +294,8 @@ def integrate(
                             ab[d, i] = 0.0  # column i
                         ab[KU, i] = 1.0
                 band_factor(ab)
+                have_factor = True
+                refresh = False
             band_lusolve(ab, r)
             dmax = 0.0
             for i in range(N):
@@ -293,9 +303,16 @@ def integrate(
                 if not abs(r[i]) <= dmax:  # also catches NaN
                     dmax = abs(r[i]) if math.isfinite(r[i]) else math.inf
             total_it += 1
-            if dmax < tol:
+            # error left after this correction: theta / (1 - theta) * dmax, theta the
+            # contraction of this step's last iteration (none at the first; a kept tangent
+            # contracts irregularly: then only the correction itself counts)
+            theta = dmax / prev if it > 0 and prev > 0.0 else 1.0
+            if dmax < tol or (fresh and theta < 0.5 and theta / (1.0 - theta) * dmax < tol):
                 converged = True
                 break
+            if not fresh and dmax > 0.1 * prev:
+                refresh = True  # the kept tangent contracts too slowly: refresh it
+            prev = dmax
         if not converged and dmax < 1e3 * tol:
             converged = True  # round-off floor of a stiff rod
         if not converged or not math.isfinite(dmax):

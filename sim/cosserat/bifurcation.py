@@ -172,6 +172,7 @@ def find_bifurcation(rod: Rod, *, xtol: float = 1e-12,
     P = -rod.axial_force(z_star)
     info["min_eigenvalue_at_root"] = _lam_min(rod, z_star)
     info["newton_solves"] = solves
+    info["z_star"] = z_star.copy()  # the state at mu* (snap-through initial condition)
     info["clamp"] = rod.clamp
     return Bifurcation(
         actuation=act,
