@@ -222,3 +222,14 @@ def test_time_bound(site: Site) -> None:
                    timeout=60)  # fmt: skip
     assert r.status_code == 200
     assert time.monotonic() - t0 < 30
+
+
+def test_api_chart_routes_carry_the_users_units(site: Site) -> None:
+    """``/v1/sweeps/{id}/plot.svg|png``: the same chart as the page, the user's names."""
+    with site.client(site.key_a) as c:
+        svg = c.get(f"/v1/sweeps/{site.sweep_id}/plot.svg")
+        png = c.get(f"/v1/sweeps/{site.sweep_id}/plot.png")
+    assert svg.status_code == 200 and svg.headers["content-type"].startswith("image/svg+xml")
+    for label in ("theta [deg]", "period T = 2 pi / omega [ms]", "95 % interval of theta*"):
+        assert label in svg.text, label
+    assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
