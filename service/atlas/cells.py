@@ -1,7 +1,9 @@
 """The kinds of atlas cells: their parameters (validated) and the function that computes one.
 
-- ``bifurcation``: mu* and the transition of a backend (``euler-beam``, or the ``cosserat``
-  rod at its end-shortening dL/L, slenderness h/L, elements and clamp): the paper's Table 1.
+- ``bifurcation``: mu* and the transition of a backend of ``sim.backends`` (``normal-form``,
+  ``euler-beam``, or the ``cosserat`` rectangular strip at its end-shortening dL/L,
+  slenderness h/L, Poisson ratio, and elements or requested accuracy ``rtol``), with the
+  estimated discretisation error of mu*: the paper's Table 1.
 - ``warn``: one simulated early-warning sweep (``service.analysis.pipeline.warn``): the
   prediction's error against the model's own mu*, whether the 95 % interval covers it, the
   impulse responses used, and the paper's two-point rule on the same measurements.
@@ -26,7 +28,7 @@ from typing import Any
 
 ACTUATIONS = ("asymmetric", "symmetric", "antisymmetric")
 WARN_MODELS = ("normal-form", "euler-beam", "cosserat", "auto")
-BIFURCATION_MODELS = ("euler-beam", "cosserat")
+BIFURCATION_MODELS = ("normal-form", "euler-beam", "cosserat")
 DETECT_METHODS = ("auto", "varpro", "esprit", "fft", "fft-parabolic")
 
 
@@ -169,6 +171,12 @@ def _rod_params() -> dict[str, ParamSpec]:
                                     help="dL/L (Cosserat rod)"),
         "slenderness": ParamSpec("float", 1e-3, lo=0.0, hi=0.49, open_lo=True,
                                  help="h/L of the rectangular strip (Cosserat rod)"),
+        "poisson": ParamSpec("float", 0.5, lo=0.0, hi=0.5,
+                             help="Poisson ratio (shear modulus, Cowper shear coefficient)"),
+        "elements": ParamSpec("int", None, lo=4, hi=4000, nullable=True,
+                              help="elements of the rod (even); null: chosen from rtol"),
+        "rtol": ParamSpec("float", 2e-4, lo=1e-8, hi=0.1, open_lo=True,
+                          help="requested relative accuracy of mu* (picks the elements)"),
     }  # fmt: skip
 
 
@@ -176,43 +184,46 @@ BIFURCATION_PARAMS = {
     "actuation": ParamSpec("choice", required=True, choices=ACTUATIONS),
     "model": ParamSpec("choice", "cosserat", choices=BIFURCATION_MODELS),
     **_rod_params(),
-    "elements": ParamSpec("int", 200, lo=4, hi=4000, help="elements of the rod (even)"),
-    "clamp": ParamSpec("choice", "node", choices=("node", "element")),
 }
 
 
-def _bifurcation_check(inp: dict[str, Any]) -> None:
+def _rod_check(inp: dict[str, Any]) -> None:
     from service.analysis.errors import ParameterError
 
-    if inp["model"] == "cosserat" and inp["elements"] % 2:
-        raise ParameterError("elements", inp["elements"],
-                             f"elements must be even for the Cosserat rod, got {inp['elements']}")
+    n = inp.get("elements")
+    if inp["model"] in ("cosserat", "auto") and n is not None and n % 2:
+        raise ParameterError("elements", n,
+                             f"elements must be even for the Cosserat rod, got {n}")
+
+
+def _scene(inp: dict[str, Any], **extra: Any) -> Any:
+    from sim.scene import Scene
+
+    rod = {k: inp[k] for k in ("end_shortening", "slenderness", "poisson", "elements", "rtol")}
+    return Scene(actuation=inp["actuation"], **rod, **extra)
 
 
 def _run_bifurcation(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    """mu* of the backend's own model at its resolution (``sim.backends``)."""
+    from sim.backends import BACKENDS
+
+    b = BACKENDS[inp["model"]].bifurcation(_scene(inp))
     flags: list[dict[str, str]] = []
-    if inp["model"] == "euler-beam":
-        from sim.euler_beam import bifurcation
-
-        b = bifurcation(inp["actuation"])
-        info: dict[str, Any] = {}
-    else:
-        from sim import cosserat
-
-        b = cosserat.bifurcation(inp["actuation"], end_shortening=inp["end_shortening"],
-                                 slenderness=inp["slenderness"], elements=inp["elements"],
-                                 clamp=inp["clamp"])  # fmt: skip
-        info = dict(b.info)
-        if "note" in info:
-            flags.append({"code": "transition_changed", "message": str(info["note"])})
-    doc = b.to_dict()
-    sec = doc.get("secondary") or []
+    if "note" in b.info:
+        flags.append({"code": "transition_changed", "message": str(b.info["note"])})
+    err = b.mu_star_error
+    if err is not None and inp["model"] == "cosserat" and err > inp["rtol"] * abs(b.mu_star):
+        flags.append({"code": "coarse", "message": f"estimated discretisation error of mu* "
+                      f"{err:.2e} with elements={b.elements} exceeds rtol x mu* = "
+                      f"{inp['rtol'] * abs(b.mu_star):.2e}"})
     res = {
-        "mu_star": _num(doc["mu_star"]),
-        "lambda_star": _num(doc.get("lambda_star")),
-        "transition": doc["transition"],
-        "secondary_mu_star": _num(sec[0]["mu_star"]) if sec else None,
-        "newton_solves": _num(info.get("newton_solves")),
+        "mu_star": _num(b.mu_star),
+        "lambda_star": _num(b.lambda_star),
+        "transition": b.transition,
+        "secondary_mu_star": _num(b.secondary[0].mu_star) if b.secondary else None,
+        "mu_star_error": _num(err),
+        "elements": b.elements,
+        "newton_solves": _num(b.info.get("newton_solves")),
     }
     return res, flags
 
@@ -228,7 +239,6 @@ WARN_PARAMS = {
     "max_measurements": ParamSpec("int", 30, lo=5, hi=200),
     "kick": ParamSpec("float", 1e-2, lo=0.0, hi=1.0, open_lo=True),
     **_rod_params(),
-    "elements": ParamSpec("int", 50, lo=4, hi=4000, help="elements of the rod (Cosserat)"),
 }
 
 
@@ -237,7 +247,8 @@ def _run_warn(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]
 
     opts = None
     if inp["model"] in ("cosserat", "auto"):
-        opts = {k: inp[k] for k in ("end_shortening", "slenderness", "elements")}
+        opts = {k: inp[k] for k in ("end_shortening", "slenderness", "poisson", "elements",
+                                    "rtol")}
     res = warn(inp["actuation"], model=inp["model"], damping=inp["damping"],
                snr_db=inp["snr_db"], seed=inp["seed"], max_measurements=inp["max_measurements"],
                kick=inp["kick"], scene_options=opts)  # fmt: skip
@@ -344,9 +355,9 @@ def _run_sweep(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]
 
 KINDS: dict[str, KindSpec] = {
     "bifurcation": KindSpec("bifurcation", BIFURCATION_PARAMS, _run_bifurcation,
-                            _bifurcation_check, ("mu_star", "type"),
+                            _rod_check, ("mu_star", "type"),
                             "mu* and the transition of a backend"),
-    "warn": KindSpec("warn", WARN_PARAMS, _run_warn, metrics=(
+    "warn": KindSpec("warn", WARN_PARAMS, _run_warn, _rod_check, metrics=(
         "error", "coverage", "responses", "type", "paper_error"),
         doc="a simulated early-warning sweep against the model's mu* and the paper's rule"),
     "sweep": KindSpec("sweep", SWEEP_PARAMS, _run_sweep,
