@@ -1,4 +1,5 @@
-# snapwarn: the REST API and its job worker (one image, two commands; see docker-compose.yml).
+# snapwarn: the REST API, its job worker and the dask scheduler/workers of atlases (one image,
+# four commands; see docker-compose.yml and docs/atlas.md).
 FROM python:3.11-slim AS base
 
 ENV PYTHONDONTWRITEBYTECODE=1 \

@@ -9,7 +9,7 @@ import subprocess
 
 import httpx2
 import pytest
-from conftest import REPO, SNAPWARN, env_one_thread
+from _atlas_helpers import REPO, SNAPWARN, env_one_thread
 
 from service.api import Settings, create_app
 from service.api.storage import Store

@@ -14,7 +14,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from conftest import MU_ATOL, REPO, SNAPWARN, env_one_thread, free_port
+from _atlas_helpers import MU_ATOL, REPO, SNAPWARN, env_one_thread, free_port
 
 from service.atlas import parse_spec, run_atlas
 

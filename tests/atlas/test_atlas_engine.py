@@ -9,7 +9,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import MU_ATOL, REPO, SNAPWARN, env_one_thread
+from _atlas_helpers import MU_ATOL, REPO, SNAPWARN, env_one_thread
 
 from service.atlas import JsonlSink, parse_spec, run_atlas
 from service.atlas.charts import heatmap, write_heatmaps

@@ -1,4 +1,4 @@
-"""Shared helpers of the atlas tests (real processes: LocalCluster, dask scheduler/workers)."""
+"""Helpers of the atlas tests (a module with a unique name: real processes, LocalCluster, dask)."""
 
 from __future__ import annotations
 
