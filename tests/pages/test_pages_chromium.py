@@ -134,16 +134,19 @@ def test_signal_page_shows_the_apis_detection(browser: Browser, site: Site, shot
 
 def test_job_page_refreshes_while_the_job_runs(browser: Browser, site: Site, shots) -> None:
     with site.client(site.key_a) as c:
-        r = c.post("/v1/sweeps", json={
-            "name": "second pass",
-            "measurements": [{"signal_id": i} for i in site.signals],
-        })  # fmt: skip
-        assert r.status_code == 202, r.text
-        job_id = r.json()["id"]
+        ids = []
+        for name in ("second pass", "third pass"):  # one job runner: the third waits its turn
+            r = c.post("/v1/sweeps", json={
+                "name": name, "measurements": [{"signal_id": i} for i in site.signals],
+            })  # fmt: skip
+            assert r.status_code == 202, r.text
+            ids.append(r.json()["id"])
+        job_id = ids[-1]
         tab = _open(browser, site, f"/jobs/{job_id}", site.key_a)
         first = tab.evaluate("document.querySelector('[data-key=status]').textContent.trim()")
-        if first in ("queued", "running"):  # the script polls, then reloads the finished page
-            assert tab.evaluate("!!document.getElementById('job-script')")
+        assert first in ("queued", "running"), first
+        assert tab.evaluate("!!document.getElementById('job-script')")
+        # the page's script polls and reloads the finished page by itself
         tab.wait_for(
             "document.querySelector('[data-key=status]').textContent.trim() === 'succeeded'",
             timeout=180,
