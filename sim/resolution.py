@@ -30,7 +30,7 @@ MAX_ELEMENTS = 2000
 @lru_cache(maxsize=256)
 def rod_error_constant(actuation: str, end_shortening: float, slenderness: float,
                        poisson: float = 0.5, clamp: str = "node"
-                       ) -> tuple[float, float, int, str]:
+                       ) -> tuple[float, float, float, str]:
     """(C, mu*_extrapolated, order, quantity) of the rod's mu*(n) = mu*_inf + C / n^order.
 
     Richardson from n = 16 and 32 on mu* itself; where the coarse rods find no transition, on
@@ -40,12 +40,16 @@ def rod_error_constant(actuation: str, end_shortening: float, slenderness: float
     from sim.cosserat.bifurcation import find_bifurcation
     from sim.cosserat.rod import Rod
 
-    order = 2 if clamp == "node" else 1
+    order = 2 if clamp == "node" else 1  # the element clamp is first order
     n1, n2 = COARSE
+    levels = COARSE if clamp != "centre" else (*COARSE, 2 * COARSE[1])
     rods = [Rod(elements=n, end_shortening=end_shortening, slenderness=slenderness,
-                actuation=actuation, clamp=clamp, poisson=poisson) for n in COARSE]
+                actuation=actuation, clamp=clamp, poisson=poisson) for n in levels]
     try:
         mus = [find_bifurcation(rod, xtol=1e-10).mu_star for rod in rods]
+        if clamp == "centre":  # its mu* converges at an order between 1 and 2: measured
+            order = max(1.0, min(2.0, math.log2(abs((mus[0] - mus[1]) / (mus[1] - mus[2])))))
+            n1, n2, mus = COARSE[1], levels[2], mus[1:]
         c = (mus[0] - mus[1]) / (n1**-order - n2**-order)
         return c, mus[1] - c * n2**-order, order, "mu*"
     except (SimulationError, ValueError, ArithmeticError):
@@ -85,7 +89,7 @@ def rod_resolution(actuation: str, *, end_shortening: float, slenderness: float,
     c, mu_inf, order, quantity = rod_error_constant(actuation, float(end_shortening),
                                                     float(slenderness), float(poisson), clamp)
     method = (f"Richardson on {quantity} from n = {COARSE[0]}, {COARSE[1]}: mu*(n) = "
-              f"{mu_inf:.8f} {'+' if c >= 0 else '-'} {abs(c):.4g} / n^{order}")
+              f"{mu_inf:.8f} {'+' if c >= 0 else '-'} {abs(c):.4g} / n^{order:.3g}")
     if elements is not None:
         n = int(elements)
         used_rtol = None
@@ -94,6 +98,7 @@ def rod_resolution(actuation: str, *, end_shortening: float, slenderness: float,
         if not 0.0 < used_rtol < 0.1:
             raise ParameterError("rtol", rtol, f"rtol must lie in (0, 0.1), got {rtol!r}")
         n = math.ceil((abs(c) / (0.5 * used_rtol * abs(mu_inf))) ** (1.0 / order))
+        n = int(n)
         n = max(MIN_ELEMENTS, n + (n % 2))
         if n > MAX_ELEMENTS:
             raise ParameterError(

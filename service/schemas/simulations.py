@@ -32,7 +32,13 @@ class SimulationRequest(BaseModel):
     seed: int | None = None
     end_shortening: float = 1e-2
     slenderness: float = 1e-3
-    elements: int = 50
+    width: float = Field(default=1e-1, description="b/L of the rectangular strip (>= h/L).")
+    poisson: float = Field(default=0.5, description="Poisson ratio (the rod's shear).")
+    rtol: float = Field(default=2e-4, description="Requested relative accuracy of mu* and "
+                        "sigma^2: the rod's resolution when elements is null and, for "
+                        "model='auto', the backend (the signal's metadata.info names the "
+                        "backend, the estimate and the reason).")
+    elements: int | None = 50
     background: bool | None = Field(
         default=None,
         description="Force a job (true) or an immediate answer (false); by default cheap "

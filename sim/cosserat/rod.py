@@ -20,6 +20,9 @@ Clamp conventions (``clamp``):
 - ``"element"``: the end node and the end element's director are fixed (PyElastica's
   ``OneEndFixedBC`` / ``FixedConstraint``): the prescribed angle acts half an element inside the
   rod, a first-order clamp (its frequency bias is about +2/n).
+- ``"centre"``: the end elements straddle the clamp points: both nodes and the director of each
+  end element are fixed, their centres at s = 0 and s = L (nodes at s_i = (i - 1/2) ds,
+  ds = L / (n - 1)). Second order, with a smaller constant than the node clamp.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from sim.scene import ACTUATION_ENDS, check_actuation
 from . import _kernels as K
 
 ACTUATION_SIGNS = ACTUATION_ENDS  # (left, right) end-angle signs, from sim.scene's table
-CLAMPS = ("node", "element")
+CLAMPS = ("node", "element", "centre")
 
 
 def cowper_rectangle(poisson: float) -> float:
@@ -125,7 +128,14 @@ class Rod:
 
     @property
     def ds(self) -> float:
-        return 1.0 / self.elements
+        """Element length: L / n (L / (n - 1) for the centre clamp)."""
+        return 1.0 / (self.elements - 1 if self.clamp == "centre" else self.elements)
+
+    @property
+    def s_nodes(self) -> np.ndarray:
+        """Reference arclength of the nodes (n+1,): i ds, or (i - 1/2) ds (centre clamp)."""
+        i = np.arange(self.n + 1, dtype=float)
+        return (i - 0.5) * self.ds if self.clamp == "centre" else i * self.ds
 
     @property
     def EA(self) -> float:
@@ -151,11 +161,14 @@ class Rod:
 
     # ---- layout ------------------------------------------------------------------------------
     def fixed_mask(self) -> np.ndarray:
-        """Boolean (N,): end-node positions, and end-element angles for the element clamp."""
+        """Boolean (N,): end-node positions, end-element angles (element and centre clamps),
+        the second and last-but-one node positions (centre clamp)."""
         m = np.zeros(self.N, dtype=bool)
         m[[0, 1, 3 * self.n, 3 * self.n + 1]] = True
-        if self.clamp == "element":
+        if self.clamp in ("element", "centre"):
             m[[2, 3 * (self.n - 1) + 2]] = True
+        if self.clamp == "centre":
+            m[[3, 4, 3 * (self.n - 1), 3 * (self.n - 1) + 1]] = True
         return m
 
     def mass(self) -> np.ndarray:
@@ -166,22 +179,40 @@ class Rod:
 
     def apply_bc(self, z: np.ndarray, mu: float) -> np.ndarray:
         """Write the prescribed values (end nodes, clamp angles for "element") into ``z``."""
+        aL, aR = self.end_angles(mu)
+        if self.clamp == "centre":
+            h, n, xr = 0.5 * self.ds, self.n, 1.0 - self.end_shortening
+            z[0], z[1], z[3], z[4] = -h * math.cos(aL), -h * math.sin(aL), h * math.cos(aL), \
+                h * math.sin(aL)
+            z[3 * (n - 1)], z[3 * (n - 1) + 1] = xr - h * math.cos(aR), -h * math.sin(aR)
+            z[3 * n], z[3 * n + 1] = xr + h * math.cos(aR), h * math.sin(aR)
+            z[2], z[3 * (n - 1) + 2] = aL, aR
+            return z
         z[0] = z[1] = 0.0
         z[3 * self.n] = 1.0 - self.end_shortening
         z[3 * self.n + 1] = 0.0
         if self.clamp == "element":
-            aL, aR = self.end_angles(mu)
             z[2] = aL
             z[3 * (self.n - 1) + 2] = aR
         return z
 
-    def dbc_dmu(self) -> np.ndarray:
-        """d(prescribed values)/dmu (N,), zero on free dofs."""
+    def dbc_dmu(self, z: np.ndarray | None = None) -> np.ndarray:
+        """d(prescribed values)/dmu (N,), zero on free dofs (the centre clamp's depend on the
+        end angles, read from ``z``)."""
         d = np.zeros(self.N)
-        if self.clamp == "element":
+        if self.clamp in ("element", "centre"):
             sl, sr = ACTUATION_SIGNS[self.actuation]
-            d[2] = sl * math.sqrt(self.end_shortening)
-            d[3 * (self.n - 1) + 2] = sr * math.sqrt(self.end_shortening)
+            r = math.sqrt(self.end_shortening)
+            d[2] = sl * r
+            d[3 * (self.n - 1) + 2] = sr * r
+            if self.clamp == "centre":
+                aL, aR = (0.0, 0.0) if z is None else (z[2], z[3 * (self.n - 1) + 2])
+                h, n = 0.5 * self.ds, self.n
+                dl, dr = sl * r, sr * r
+                d[0], d[1] = h * math.sin(aL) * dl, -h * math.cos(aL) * dl
+                d[3], d[4] = -h * math.sin(aL) * dl, h * math.cos(aL) * dl
+                d[3 * (n - 1)], d[3 * (n - 1) + 1] = h * math.sin(aR) * dr, -h * math.cos(aR) * dr
+                d[3 * n], d[3 * n + 1] = -h * math.sin(aR) * dr, h * math.cos(aR) * dr
         return d
 
     def pack(self, x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -235,7 +266,7 @@ class Rod:
         r = math.sqrt(self.end_shortening)
         d[2] -= self.k_clamp * sl * r
         d[3 * (self.n - 1) + 2] -= self.k_clamp * sr * r
-        db = self.dbc_dmu()
+        db = self.dbc_dmu(z)
         if np.any(db):
             d += self.hessian(z) @ db
         return d
@@ -245,7 +276,7 @@ class Rod:
         """Indices into ``z`` of the y of the two nodes around reference arclength X, weights."""
         if not 0.0 <= X <= 1.0:
             raise ParameterError("X", X, f"X must lie in [0, 1], got {X!r}")
-        u = X * self.n
+        u = X / self.ds + (0.5 if self.clamp == "centre" else 0.0)
         i = min(int(math.floor(u)), self.n - 1)
         f = u - i
         if abs(f - 1.0) < 1e-12:
@@ -259,10 +290,11 @@ class Rod:
         return float((a * z[i] + b * z[j]) / math.sqrt(self.end_shortening))
 
     def axial_force(self, z: np.ndarray) -> float:
-        """x-component of the internal force (tension > 0), units of B / L^2, from element 0."""
-        j = 0
-        dx = (z[3] - z[0]) / self.ds
-        dy = (z[4] - z[1]) / self.ds
+        """x-component of the internal force (tension > 0), units of B / L^2, from element 0
+        (element 1 with the centre clamp, whose end elements are rigid)."""
+        j = 3 if self.clamp == "centre" else 0
+        dx = (z[j + 3] - z[j]) / self.ds
+        dy = (z[j + 4] - z[j + 1]) / self.ds
         c, s = math.cos(z[j + 2]), math.sin(z[j + 2])
         a = dx * c + dy * s - 1.0
         b = -dx * s + dy * c
@@ -281,14 +313,15 @@ class Rod:
 
     def guess(self, branch: str, mu: float = 0.0) -> np.ndarray:
         """First-Euler-mode initial guess: U_A buckled to negative w, U_B to positive w."""
-        s = np.linspace(0.0, 1.0, self.n + 1)
+        s = self.s_nodes
         sign = -1.0 if branch == "U_A" else 1.0
         amp = sign * math.sqrt(self.end_shortening) / math.pi
         y = amp * (1.0 - np.cos(2.0 * np.pi * s))
-        sc = (np.arange(self.n) + 0.5) * self.ds
+        sc = 0.5 * (s[:-1] + s[1:])
         th = np.arctan(amp * 2.0 * np.pi * np.sin(2.0 * np.pi * sc))
         x = np.concatenate([[0.0], np.cumsum(np.cos(th)) * self.ds])
-        x *= (1.0 - self.end_shortening) / x[-1]
+        span = (1.0 - self.end_shortening) + (s[-1] - s[0] - 1.0)  # end-to-end of the nodes
+        x = s[0] + (x - x[0]) * span / (x[-1] - x[0])
         return self.apply_bc(self.pack(x, y, th), mu)
 
 

@@ -152,7 +152,7 @@ def tangent_mu(rod: Rod, z: np.ndarray) -> np.ndarray:
     """dz/dmu along a branch parametrised by mu (N,), including the prescribed dofs."""
     fixed = rod.fixed_mask()
     ab = _dirichlet_band(rod, rod.hessian_band(z), fixed)
-    db = rod.dbc_dmu()
+    db = rod.dbc_dmu(z)
     rhs = -rod.dgrad_dmu(z)
     rhs[fixed] = 0.0
     t = sla.solve_banded((4, 4), ab, rhs)
@@ -284,7 +284,7 @@ def make_equilibrium(
     return Equilibrium(
         mu=float(mu),
         branch=branch,
-        s=np.linspace(0.0, 1.0, rod.n + 1),
+        s=rod.s_nodes,
         x=x,
         y=y,
         theta=th,

@@ -184,3 +184,24 @@ def test_shape_and_spectrum_match_the_euler_beam_backend(actuation):
     # fundamental frequency within 0.5% (target); measured ~4e-4 on sigma^2 (2e-4 on omega)
     assert abs(math.sqrt(s_rod[0] / s_beam[0]) - 1) < 5e-3
     assert np.all(np.abs(s_rod / s_beam - 1) < 3e-3)
+
+
+def test_centre_clamp_is_second_order_in_frequency_and_meets_the_node_clamp():
+    """The element-centre clamp (end elements straddling the clamp points) converges at second
+    order with a smaller constant than the node clamp, to the same limit."""
+    import math
+
+    from sim.cosserat import statics as S
+    from sim.cosserat.rod import Rod
+
+    def omega(n, clamp):
+        rod = Rod(elements=n, slenderness=1e-2, end_shortening=1e-2, clamp=clamp)
+        return math.sqrt(-S.sigma2(rod, S.branch_state(rod, 0.0), 1)[0][0])
+
+    c = [omega(n, "centre") for n in (48, 96, 192, 384)]
+    nd = [omega(n, "node") for n in (96, 192)]
+    assert math.log2((c[1] - c[0]) / (c[2] - c[1])) == pytest.approx(2.0, abs=0.15)
+    lim_c = c[3] + (c[3] - c[2]) / 3
+    lim_n = nd[1] + (nd[1] - nd[0]) / 3
+    assert lim_c == pytest.approx(lim_n, rel=1e-5)
+    assert abs(c[0] - lim_c) < 0.5 * abs(omega(48, "node") - lim_n)
