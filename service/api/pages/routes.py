@@ -167,11 +167,7 @@ async def index(request: Request) -> Response:
         jobs, n_jobs = await to_thread.run_sync(
             lambda: store.list_jobs(None, None, RECENT, 0, scope=scope)
         )
-        atlases, n_atlases = [], 0
-        if hasattr(store, "list_atlases"):
-            atlases, n_atlases = await to_thread.run_sync(
-                lambda: store.list_atlases(RECENT, 0, scope=scope)
-            )
+        atlases, n_atlases = await to_thread.run_sync(lambda: _atlases(store, scope))
         ctx = {
             "caller": caller,
             "signals": [signal_meta(r) for r in signals],
@@ -180,7 +176,7 @@ async def index(request: Request) -> Response:
             "n_sweeps": n_sweeps,
             "jobs": [job_doc(j) for j in jobs],
             "n_jobs": n_jobs,
-            "atlases": [_atlas_row(a) for a in atlases],
+            "atlases": atlases,
             "n_atlases": n_atlases,
         }
         return _page(request, "index.html", ctx)
@@ -200,9 +196,18 @@ def _sweep_row(sweep: Any, job: Any) -> dict[str, Any]:
     }
 
 
-def _atlas_row(row: Any) -> dict[str, Any]:
-    """An atlas row, whatever its table holds beyond id, name, status and created_at."""
-    return {k: getattr(row, k, None) for k in ("id", "name", "status", "created_at")}
+def _atlases(store: Any, scope: str | None) -> tuple[list[dict[str, Any]], int]:
+    """The caller's recent atlases (none where this installation has no atlas store)."""
+    try:
+        from service.api.storage import atlases as atlas_store
+    except ImportError:
+        return [], 0
+    rows, total = atlas_store.list_atlases(store, RECENT, 0, scope=scope)
+    return [
+        {"id": a.id, "name": a.name, "kind": a.kind, "status": job.status, "done": done,
+         "total": a.cells_total, "created_at": a.created_at}
+        for a, job, done in rows
+    ], total  # fmt: skip
 
 
 # ------------------------------------------------------------------------------ jobs
