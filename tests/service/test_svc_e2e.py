@@ -52,12 +52,12 @@ def test_sdk_end_to_end(live_server, recorded, tmp_path, capsys) -> None:  # noq
         assert "100%" in capsys.readouterr().err
         assert done.status == "succeeded", done.job.error
         assert len(done.measurements) == len(MUS)
-        assert [m["mu"] for m in done.measurements] == list(MUS)
+        assert [m.mu for m in done.measurements] == list(MUS)
         p = done.prediction
-        assert p is not None and math.isfinite(p["mu_star"]) and p["mu_star"] > MUS[-1]
-        lo, hi = p["mu_star_interval"]
-        assert lo <= p["mu_star"] <= hi
-        assert done.alarm is not None and done.alarm["mu"] == MUS[-1]
+        assert p is not None and math.isfinite(p.mu_star) and p.mu_star > MUS[-1]
+        lo, hi = p.mu_star_interval
+        assert lo <= p.mu_star <= hi
+        assert done.alarm is not None and done.alarm.mu == MUS[-1]
         png = c.sweep_plot(done.id)
         svg = c.sweep_plot(done.id, format="svg")
         assert png[:4] == b"\x89PNG" and b"<svg" in svg[:2000]
@@ -72,10 +72,10 @@ def test_simulated_sweep_job(live_server) -> None:  # noqa: ANN001
         )
         done = c.wait(sweep, progress=False, timeout=300)
         assert done.status == "succeeded", done.job.error
-        assert done.result["n_measurements"] == len(done.measurements) <= 6
+        assert len(done.result.measurements) == len(done.measurements) <= 6
         assert done.job.progress.fraction == 1.0
-        if done.prediction is not None and done.prediction.get("mu_star") is not None:
-            assert done.prediction["mu_star"] > done.measurements[-1]["mu"]
+        if done.prediction is not None and done.prediction.mu_star is not None:
+            assert done.prediction.mu_star > done.measurements[-1].mu
 
 
 def test_raw_http_end_to_end(live_server, recorded) -> None:  # noqa: ANN001
