@@ -728,6 +728,41 @@ def _from_mapping(
     )
 
 
+def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:
+    """Refuse an NPZ or MAT file whose arrays unpack beyond ``limit`` bytes, from their
+    headers alone (zip directory sizes; MAT variable shapes), before inflating anything."""
+    total = 0
+    if fmt == "npz":
+        import zipfile
+
+        try:
+            with zipfile.ZipFile(io.BytesIO(data)) as z:
+                infos = z.infolist()
+        except Exception as exc:  # noqa: BLE001 - not a zip: np.load names the failure
+            raise _load_failed(".npz", data, exc) from None
+        if len(infos) > 256:
+            raise RecordingTooLarge("file", len(infos), "holds more than 256 arrays")
+        total = sum(i.file_size for i in infos)
+    else:
+        from scipy.io import whosmat
+
+        try:
+            for _name, shape, cls in whosmat(io.BytesIO(data)):
+                size = int(np.prod([int(d) for d in shape], dtype=object))
+                total += size * (16 if "complex" in cls else 8)
+        except RecordingError:
+            raise
+        except Exception as exc:  # noqa: BLE001
+            raise _load_failed(".mat", data, exc) from None
+    if total > limit:
+        raise RecordingTooLarge(
+            "file",
+            f"{len(data)} bytes",
+            f"unpacks to {total} bytes, over the limit of {limit} "
+            "(setting SNAPWARN_MAX_DECOMPRESSED_BYTES)",
+        )
+
+
 def _load_failed(fmt: str, data: bytes, exc: Exception) -> RecordingError:
     return RecordingError("file", f"{len(data)} bytes", f"is not a valid {fmt} file ({exc})")
 
@@ -740,6 +775,7 @@ def _parse(
     time_column: str | None,
     channel: Any,
     has_dt: bool,
+    max_decompressed_bytes: int | None = None,
 ) -> _Raw:
     if not data:
         raise RecordingError("file", "", "is empty")
@@ -760,6 +796,8 @@ def _parse(
             return _Raw(w=a2[:, 1], t=a2[:, 0], source="npy", metadata={"time_column": "t"})
         raise RecordingError("file", list(a.shape), "must be a 1-D array (w) or 2 columns (t, w)")
     if fmt == "npz":
+        if max_decompressed_bytes is not None:
+            _check_unpacked_size(data, fmt, max_decompressed_bytes)
         try:
             with np.load(buf, allow_pickle=False) as z:
                 arrs = {k: z[k] for k in z.files}
@@ -769,6 +807,8 @@ def _parse(
     if fmt == "mat":
         from scipy.io import loadmat
 
+        if max_decompressed_bytes is not None:
+            _check_unpacked_size(data, fmt, max_decompressed_bytes)
         try:
             arrs = {k: v for k, v in loadmat(buf).items() if not k.startswith("__")}
         except Exception as exc:  # noqa: BLE001
@@ -811,6 +851,7 @@ def read_bytes(
     uniform_rtol: float | None = None,
     resample: bool = False,
     max_samples: int | None = None,
+    max_decompressed_bytes: int | None = None,
 ) -> Recording:
     """Read and validate a file's bytes (``fmt``: one of :data:`FORMATS`).
 
@@ -822,7 +863,8 @@ def read_bytes(
         raise UnsupportedFormat("format", fmt, f"is not one of {FORMATS}")
     rtol = uniform_rtol_from_env() if uniform_rtol is None else float(uniform_rtol)
     raw = _parse(data, fmt, column=column, time_column=time_column, channel=channel,
-                 has_dt=dt is not None)  # fmt: skip
+                 has_dt=dt is not None,
+                 max_decompressed_bytes=max_decompressed_bytes)  # fmt: skip
     return _validate(raw, dt=dt, t0=t0, rtol=rtol, resample=resample, max_samples=max_samples)
 
 

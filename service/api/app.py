@@ -28,6 +28,7 @@ from service.api.settings import Settings
 from service.api.state import AppState
 from service.api.storage import Store
 from service.schemas import DetectionRequest, Problem, SignalIn
+from service.schemas.common import PROBLEM_MEDIA_TYPE
 
 log = logging.getLogger("snapwarn.api")
 
@@ -138,8 +139,47 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         for name, sub in schema.pop("$defs", {}).items():
             comps.setdefault(name, sub)
         comps.setdefault(model.__name__, schema)
+    _document_common_problems(doc)
     app.openapi_schema = doc
     return doc
+
+
+#: Answers any /v1 operation may give, from the middlewares and the framework (RFC 9457).
+_COMMON = {
+    "401": "Missing, wrong or revoked API key.",
+    "403": "Cross-site request or foreign Host refused.",
+    "422": "Invalid input: the field and the value are named.",
+}
+_WITH_BODY = {
+    "400": "The body could not be read (not UTF-8, malformed).",
+    "409": "A request with the same Idempotency-Key is still running.",
+    "413": "Payload over the limits (settings).",
+    "415": "Unsupported media type (send JSON or multipart).",
+}
+_CREATES_JOBS = ("/v1/simulations", "/v1/sweeps", "/v1/atlases")
+
+
+def _document_common_problems(doc: dict[str, Any]) -> None:
+    """Every operation documents the problems the layers around it may answer; the framework's
+    own 422 schema is replaced by the problem document that is really sent."""
+    problem = {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    for path, ops in doc.get("paths", {}).items():
+        for method, op in ops.items():
+            if not isinstance(op, dict) or "responses" not in op:
+                continue
+            responses = op["responses"]
+            for code, resp in responses.items():
+                if code.startswith(("4", "5")):
+                    resp["content"] = problem
+            if not path.startswith("/v1/"):
+                continue
+            extra = dict(_COMMON)
+            if method in ("post", "put", "patch"):
+                extra.update(_WITH_BODY)
+                if path in _CREATES_JOBS:
+                    extra["429"] = "Too many queued or running jobs of this owner; retry later."
+            for code, text in extra.items():
+                responses.setdefault(code, {"description": text, "content": problem})
 
 
 def openapi_document() -> dict[str, Any]:

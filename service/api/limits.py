@@ -71,3 +71,70 @@ def check_queue(store: Store, owner: str, settings: Settings) -> None:
             value=n,
             headers={"Retry-After": "10"},
         )
+
+
+#: Bounds of a time axis: the step and every time stay where their squares and inverses are
+#: finite (the numerics form 1/dt and omega^2 ~ 1/dt^2).
+DT_MIN, DT_MAX, T_ABS_MAX = 1e-100, 1e100, 1e100
+
+
+def check_time_axis(n: int, dt: float, t0: float, t: Any = None, field: str = "dt") -> None:
+    """422 unless ``n >= 2``, ``DT_MIN <= dt <= DT_MAX`` and every time is within
+    ``T_ABS_MAX`` (so the duration, the rates and the stored values are finite)."""
+    if n < 2:
+        raise invalid("w", n, "needs at least 2 samples (one sample has no duration)")
+    if not (math.isfinite(dt) and DT_MIN <= dt <= DT_MAX):
+        raise invalid(field, dt, f"must lie in [{DT_MIN:g}, {DT_MAX:g}]")
+    end = t0 + dt * (n - 1)
+    if not (math.isfinite(end) and abs(t0) <= T_ABS_MAX and abs(end) <= T_ABS_MAX):
+        raise invalid(
+            "t0" if abs(t0) > T_ABS_MAX else field,
+            t0 if abs(t0) > T_ABS_MAX else dt,
+            f"puts the time axis (t0={t0:g} to {end:g}) beyond +-{T_ABS_MAX:g}",
+        )
+    if t is not None:
+        import numpy as np
+
+        if np.size(t) and float(np.max(np.abs(t))) > T_ABS_MAX:
+            raise invalid("t", float(np.max(np.abs(t))), f"has times beyond +-{T_ABS_MAX:g}")
+
+
+def check_depth(obj: Any, field: str, max_depth: int) -> None:
+    """422 when ``obj`` (parsed JSON) nests deeper than ``max_depth`` (checked iteratively)."""
+    stack = [(obj, 1)]
+    while stack:
+        x, d = stack.pop()
+        if isinstance(x, (dict, list)):
+            if d > max_depth:
+                raise invalid(field, f"<nested {d} deep>", f"nests deeper than {max_depth} levels")
+            stack.extend((v, d + 1) for v in (x.values() if isinstance(x, dict) else x))
+
+
+def loads_bounded(text: str, field: str, max_depth: int) -> Any:
+    """``json.loads`` that refuses nesting beyond ``max_depth`` before parsing (no recursion)."""
+    import json
+
+    depth = deepest = 0
+    in_str = esc = False
+    for ch in text:  # metadata fields are small (form fields); a linear scan is cheap
+        if in_str:
+            if esc:
+                esc = False
+            elif ch == "\\":
+                esc = True
+            elif ch == '"':
+                in_str = False
+        elif ch == '"':
+            in_str = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+            if deepest > max_depth:
+                raise invalid(field, f"<nested over {max_depth} deep>",
+                              f"nests deeper than {max_depth} levels")
+        elif ch in "]}":
+            depth -= 1
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise invalid(field, text, f"is not JSON ({getattr(exc, 'msg', exc)})") from None

@@ -63,18 +63,6 @@ class SecurityMiddleware:
         host = headers.get("host", "")
         fetch_site = headers.get("sec-fetch-site")
         browser = origin is not None or fetch_site is not None
-        if browser and not keys_required(self.settings):
-            name = _host_of(host)
-            if not (is_loopback(name) or name in self.settings.allowed_hosts):
-                return ApiProblem(
-                    403,
-                    f"Host {host!r} is not this loopback server's: a browser request must "
-                    "name localhost or 127.0.0.1 (setting SNAPWARN_ALLOWED_HOSTS)",
-                    title="Forbidden",
-                    slug="forbidden",
-                    field="host",
-                    value=host,
-                )
         if method in UNSAFE:
             if origin is not None and origin != "null":
                 key = _origin_key(origin)
@@ -96,7 +84,19 @@ class SecurityMiddleware:
                         field="content-type",
                         value=ctype,
                     )
-        return None
+        if browser and not keys_required(self.settings):
+            name = _host_of(host)
+            if not (is_loopback(name) or name in self.settings.allowed_hosts):
+                return ApiProblem(
+                    403,
+                    f"Host {host!r} is not this loopback server's: a browser request must "
+                    "name localhost or 127.0.0.1 (setting SNAPWARN_ALLOWED_HOSTS)",
+                    title="Forbidden",
+                    slug="forbidden",
+                    field="host",
+                    value=host,
+                )
+        return _nul_check(scope)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "http":
@@ -119,3 +119,22 @@ def _cross_site(field: str, value: str) -> ApiProblem:
         field=field,
         value=value,
     )
+
+
+def _nul_check(scope: Scope) -> ApiProblem | None:
+    """422 for a NUL character in the path or the query (no database column can hold it)."""
+    if "\x00" in scope.get("path", ""):
+        return ApiProblem(422, "the path holds a NUL character", field="path", value=None)
+    query = scope.get("query_string", b"")
+    if b"%00" in query or b"\x00" in query:
+        from urllib.parse import parse_qsl
+
+        for name, value in parse_qsl(query.decode("latin-1"), keep_blank_values=True):
+            if "\x00" in name or "\x00" in value:
+                return ApiProblem(
+                    422,
+                    f"{name.replace(chr(0), '?')}: a NUL character is not allowed",
+                    field=name.replace("\x00", "?"),
+                    value=value.replace("\x00", "\\0"),
+                )
+    return None

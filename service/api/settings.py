@@ -86,6 +86,11 @@ class Settings(BaseSettings):
     max_active_jobs_per_owner: int = Field(
         default=16, ge=1, description="Queued + running jobs one owner may have (429 beyond)."
     )
+    request_time_limit_s: float = Field(
+        default=60.0,
+        gt=0,
+        description="Time limit of the work of one request (answered at once, not a job).",
+    )
     job_time_limit_s: float = Field(
         default=1800.0, gt=0, description="Time limit of a job (failed with a reason beyond it)."
     )

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import asyncio
+import logging
 import time
+import uuid
 from collections.abc import Callable
 from concurrent.futures import Executor
 from concurrent.futures.process import BrokenProcessPool
@@ -18,6 +21,7 @@ from service.api.settings import Settings
 from service.api.storage import JobRow, SignalRow, Store, as_utc
 
 T = TypeVar("T")
+log = logging.getLogger("snapwarn.api")
 
 
 @dataclass
@@ -30,16 +34,61 @@ class AppState:
     extra: dict[str, Any] = field(default_factory=dict)
 
     async def run(self, fn: Callable[..., T], *args: Any) -> T:
-        """Await ``fn(*args)`` in the analysis pool; a broken pool is replaced once."""
+        """Await ``fn(*args)`` in the analysis pool, within ``request_time_limit_s``.
+
+        A broken pool is replaced once. Work past the time limit is stopped (the pool's
+        processes are ended and the pool replaced) and answered 422: send the work as a job.
+        Arithmetic errors of the numerics (overflow, division by zero) are the input's doing:
+        422 too, with a correlation id in the log.
+        """
         try:
-            return await run_in_pool(self.pool, fn, *args)
+            return await self._run_limited(fn, *args)
         except BrokenProcessPool:
-            old = self.pool
-            self.pool = make_pool(
-                self.settings.executor, self.settings.analysis_workers, "snapwarn-analysis"
-            )
-            old.shutdown(wait=False, cancel_futures=True)
-            return await run_in_pool(self.pool, fn, *args)
+            self._replace_pool()
+            return await self._run_limited(fn, *args)
+        except ArithmeticError as exc:
+            cid = uuid.uuid4().hex[:12]
+            log.warning("numerics failed on the input [correlation id %s]", cid, exc_info=exc)
+            raise ApiProblem(
+                422,
+                f"the numerics failed on these values ({type(exc).__name__}): the input is out "
+                f"of the range they handle (correlation id {cid})",
+                slug="numerics-out-of-range",
+                field="body",
+                value=None,
+            ) from None
+
+    async def _run_limited(self, fn: Callable[..., T], *args: Any) -> T:
+        limit = self.settings.request_time_limit_s
+        fut = run_in_pool(self.pool, fn, *args)
+        try:
+            return await asyncio.wait_for(fut, timeout=limit)
+        except TimeoutError:
+            log.warning("%s passed the request time limit of %g s: its pool is replaced",
+                        getattr(fn, "__name__", fn), limit)
+            self._replace_pool(kill=True)
+            raise ApiProblem(
+                422,
+                f"the computation passed the request time limit of {limit:g} s (setting "
+                "SNAPWARN_REQUEST_TIME_LIMIT_S) and was stopped; run it as a job "
+                "(e.g. \"background\": true) or ask for less",
+                slug="time-limit",
+                field="body",
+                value=None,
+            ) from None
+
+    def _replace_pool(self, kill: bool = False) -> None:
+        old = self.pool
+        self.pool = make_pool(
+            self.settings.executor, self.settings.analysis_workers, "snapwarn-analysis"
+        )
+        if kill:
+            for p in list((getattr(old, "_processes", None) or {}).values()):
+                try:
+                    p.kill()
+                except Exception:  # noqa: BLE001 - already gone
+                    pass
+        old.shutdown(wait=False, cancel_futures=True)
 
     def numerics_status(self, max_age: float = 60.0) -> dict[str, bool]:
         """Which numerics the workers can load, as last seen ({} until known).

@@ -17,7 +17,7 @@ class DetectionRequest(BaseModel):
     signal_id: str | None = None
     w: list[StrictFloat] | None = None
     t: list[StrictFloat] | None = None
-    dt: StrictFloat | None = None
+    dt: StrictFloat | None = Field(default=None, ge=1e-100, le=1e100)
     method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = Field(
         default="auto", description="Detector method ('auto' resolves to 'varpro')."
     )

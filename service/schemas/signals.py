@@ -25,7 +25,9 @@ class SignalIn(BaseModel):
     t: list[StrictFloat] | None = Field(
         default=None, description="Sample times (same length as w)."
     )
-    dt: StrictFloat | None = Field(default=None, description="Sampling step, when t is not given.")
+    dt: StrictFloat | None = Field(
+        default=None, ge=1e-100, le=1e100, description="Sampling step, when t is not given."
+    )
     t0: float | None = Field(default=None, description="Time of the first sample (with dt).")
     unit: str | None = Field(default=None, max_length=100, description="Time unit, e.g. 's'.")
     value_unit: str | None = Field(default=None, max_length=100, description="Unit of w.")

@@ -16,29 +16,33 @@ Model = Literal["normal-form", "euler-beam", "cosserat", "auto"]
 class SimulationRequest(BaseModel):
     """A scene (see ``sim.scene.Scene``) and the backend to run it; non-dimensional units."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
+    # The bounds are the wire's hard limits; the server's settings may bound tighter
+    # (SNAPWARN_MAX_ELEMENTS, SNAPWARN_MAX_SIM_DURATION, SNAPWARN_MAX_SIM_WORK).
     model: Model = "auto"
     actuation: Actuation = "asymmetric"
-    mu: float = 0.0
-    branch: str = "U_A"
-    damping: float = 2e-4
-    kick: float = 1e-2
-    kick_position: float = 0.25
-    probe: float = 0.25
-    duration: float | None = None
-    dt: float | None = None
-    snr_db: float | None = None
-    seed: int | None = None
-    end_shortening: float = 1e-2
-    slenderness: float = 1e-3
-    width: float = Field(default=1e-1, description="b/L of the rectangular strip (>= h/L).")
-    poisson: float = Field(default=0.5, description="Poisson ratio (the rod's shear).")
-    rtol: float = Field(default=2e-4, description="Requested relative accuracy of mu* and "
-                        "sigma^2: the rod's resolution when elements is null and, for "
-                        "model='auto', the backend (the signal's metadata.info names the "
-                        "backend, the estimate and the reason).")
-    elements: int | None = 50
+    mu: float = Field(default=0.0, ge=-1e3, le=1e3)
+    branch: str = Field(default="U_A", max_length=20)
+    damping: float = Field(default=2e-4, ge=0.0, le=1e3)
+    kick: float = Field(default=1e-2, ge=-10.0, le=10.0)
+    kick_position: float = Field(default=0.25, gt=0.0, lt=1.0)
+    probe: float = Field(default=0.25, gt=0.0, lt=1.0)
+    duration: float | None = Field(default=None, gt=0.0, le=1e6)
+    dt: float | None = Field(default=None, gt=1e-12, le=1e3)
+    snr_db: float | None = Field(default=None, ge=-100.0, le=400.0)
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1)
+    end_shortening: float = Field(default=1e-2, gt=0.0, le=1.0)
+    slenderness: float = Field(default=1e-3, gt=0.0, le=1.0)
+    width: float = Field(default=1e-1, gt=0.0, le=1.0,
+                         description="b/L of the rectangular strip (>= h/L).")
+    poisson: float = Field(default=0.5, ge=0.0, le=0.5,
+                           description="Poisson ratio (the rod's shear stiffness).")
+    rtol: float = Field(default=2e-4, gt=0.0, lt=0.1, description="Requested relative "
+                        "accuracy of mu* and sigma^2: the rod's resolution when elements is "
+                        "null and, for model='auto', the backend (the signal's metadata.info "
+                        "names the backend, the estimate and the reason).")
+    elements: int | None = Field(default=50, ge=4, le=100_000, multiple_of=2)
     background: bool | None = Field(
         default=None,
         description="Force a job (true) or an immediate answer (false); by default cheap "

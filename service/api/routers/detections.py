@@ -11,6 +11,7 @@ from pydantic import ValidationError
 
 from service import convert, recordings
 from service.analysis.detect import detect
+from service.api import limits
 from service.api.auth import CallerDep
 from service.api.problems import as_problems, invalid, not_found
 from service.api.routers._common import body_validation_error, problems
@@ -76,6 +77,7 @@ async def create_detection(
         else:
             rec = await to_thread.run_sync(clean)
         w, dt, notes = rec.w, rec.dt, [convert.plain(f) for f in rec.flags]
+        limits.check_time_axis(len(w), dt, rec.t0, rec.t)
     return await state.run(detection_doc, w, dt, req.method, notes)
 
 

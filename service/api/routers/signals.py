@@ -12,7 +12,7 @@ from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
 from service import convert, recordings
-from service.api import plots
+from service.api import limits, plots
 from service.api.auth import CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
 from service.api.routers._common import MAX_OFFSET, body_validation_error
@@ -156,10 +156,7 @@ async def _from_form(request: Request, state: AppState) -> CleanSignal:
     meta_text = _form_str(form, "metadata")
     metadata: dict[str, Any] = {}
     if meta_text:
-        try:
-            metadata = json.loads(meta_text)
-        except json.JSONDecodeError as exc:
-            raise invalid("metadata", meta_text, f"is not JSON ({exc.msg})") from None
+        metadata = limits.loads_bounded(meta_text, "metadata", s.max_json_depth)
         if not isinstance(metadata, dict):
             raise invalid("metadata", meta_text, "must be a JSON object")
 
@@ -170,6 +167,7 @@ async def _from_form(request: Request, state: AppState) -> CleanSignal:
             data, fmt, dt=dt, t0=t0, column=column, time_column=time_column,
             channel=0 if channel is None else channel, uniform_rtol=s.uniform_rtol,
             resample=resample, max_samples=s.max_samples,
+            max_decompressed_bytes=s.max_decompressed_bytes,
         )  # fmt: skip
 
     clean = CleanSignal.of(await to_thread.run_sync(work), {})
@@ -230,6 +228,8 @@ async def create_signal(request: Request, state: StateDep, caller: CallerDep) ->
         )
     name = clean.metadata.pop("_name", None)
     control = clean.metadata.pop("_control", None)
+    limits.check_time_axis(len(clean.w), clean.dt, clean.t0, clean.t)
+    limits.check_depth(clean.metadata, "metadata", state.settings.max_json_depth)
     if control is not None and control.get("value") is not None:
         v = control["value"]
         if v != v or abs(v) == float("inf"):

@@ -1,0 +1,124 @@
+"""Hostile and malformed input: every case is a clear 4xx naming the field, never a 5xx.
+
+The corpus is ``_svc_attacks.CASES`` (the cases a fuzzer and a hand-made corpus found); the
+zip bomb must be refused cheaply; concurrent DELETEs answer 204 once; a retried POST with an
+``Idempotency-Key`` does not create a duplicate.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+from _svc_attacks import CASES, W, npz_bomb
+
+pytestmark = pytest.mark.anyio
+
+
+def _field_named(doc: dict, field: str) -> bool:
+    return any(
+        e.get("field") == field or str(e.get("field", "")).startswith(field + "[")
+        or str(e.get("field", "")).startswith(field + ".")
+        for e in doc.get("errors", [])
+    )
+
+
+@pytest.mark.parametrize(
+    ("label", "method", "path", "kw", "allowed", "field"), CASES, ids=[c[0] for c in CASES]
+)
+async def test_attack_is_a_clear_4xx(asgi, label, method, path, kw, allowed, field) -> None:  # noqa: ANN001
+    _, client = asgi
+    r = await client.request(method, path, **kw)
+    assert r.status_code in allowed, (label, r.status_code, r.text[:500])
+    if r.status_code >= 400:
+        doc = r.json()
+        assert r.headers["content-type"].startswith("application/problem+json")
+        assert doc["status"] == r.status_code and doc["detail"]
+        if field is not None:
+            assert _field_named(doc, field), (label, doc)
+        assert "Traceback" not in r.text and "/work/" not in r.text and ".py" not in r.text
+    else:  # accepted: the answer is strict JSON (no NaN/Infinity tokens)
+        assert "Infinity" not in r.text and "NaN" not in r.text
+
+
+async def test_npz_zip_bomb_is_refused_cheaply(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    bomb = npz_bomb(1 << 30)  # 1 GiB of zeros in a ~1 MB file
+    assert len(bomb) < 2_000_000
+    t0 = time.perf_counter()
+    r = await client.post(
+        "/v1/signals", files={"file": ("bomb.npz", bomb, "application/octet-stream")}
+    )
+    took = time.perf_counter() - t0
+    assert r.status_code == 413, r.text
+    assert _field_named(r.json(), "file"), r.json()
+    assert took < 5.0, f"the bomb cost {took:.1f} s"
+
+
+async def test_concurrent_deletes_answer_204_once(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    sid = (await client.post("/v1/signals", json={"dt": 0.1, "w": W})).json()["id"]
+    rs = await asyncio.gather(*[client.delete(f"/v1/signals/{sid}") for _ in range(8)])
+    codes = sorted(r.status_code for r in rs)
+    assert codes == [204] + [404] * 7, codes
+    assert (await client.delete(f"/v1/signals/{sid}")).status_code == 404
+
+
+async def test_idempotency_key_replays_the_first_answer(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    key = {"idempotency-key": f"upload-{time.time_ns()}"}
+    doc = {"dt": 0.1, "w": W, "name": "retried"}
+    total0 = (await client.get("/v1/signals", params={"limit": 1})).json()["total"]
+    first = await client.post("/v1/signals", json=doc, headers=key)
+    again = await client.post("/v1/signals", json=doc, headers=key)
+    assert first.status_code == again.status_code == 201
+    assert again.json()["id"] == first.json()["id"]
+    assert again.headers["idempotent-replayed"] == "true"
+    assert again.headers["location"] == f"/v1/signals/{first.json()['id']}"
+    total1 = (await client.get("/v1/signals", params={"limit": 1})).json()["total"]
+    assert total1 == total0 + 1
+    other = await client.post("/v1/signals", json={**doc, "name": "other"}, headers=key)
+    assert other.status_code == 422 and _field_named(other.json(), "idempotency-key")
+    # a failed first request does not hold the key: the corrected retry runs
+    key2 = {"idempotency-key": f"bad-{time.time_ns()}"}
+    bad = await client.post("/v1/signals", json={"dt": -1, "w": W}, headers=key2)
+    assert bad.status_code == 422
+    good = await client.post("/v1/signals", json={"dt": 0.1, "w": W}, headers=key2)
+    assert good.status_code == 201 and "idempotent-replayed" not in good.headers
+
+
+async def test_concurrent_retries_with_one_key_create_one_signal(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    key = {"idempotency-key": f"race-{time.time_ns()}"}
+    rs = await asyncio.gather(
+        *[client.post("/v1/signals", json={"dt": 0.1, "w": W}, headers=key) for _ in range(6)]
+    )
+    ids = {r.json()["id"] for r in rs if r.status_code == 201}
+    assert len(ids) == 1, [(r.status_code, r.text[:100]) for r in rs]
+    assert all(r.status_code in (201, 409) for r in rs)
+
+
+async def test_500_closes_the_connection_and_hides_the_traceback() -> None:
+    """An unexpected error: a correlation id, no traceback or path, ``Connection: close``."""
+    import httpx2
+    from fastapi import APIRouter
+
+    from service.api import create_app
+    from service.api.settings import Settings
+
+    app = create_app(Settings(db_url="sqlite://", warm_pool=False, run_jobs=False))
+    boom = APIRouter()
+
+    @boom.get("/v1/boom")
+    async def _boom() -> None:
+        raise RuntimeError("secret at /srv/app/service/x.py")
+
+    app.include_router(boom)
+    transport = httpx2.ASGITransport(app=app, raise_app_exceptions=False)
+    async with httpx2.AsyncClient(transport=transport, base_url="http://127.0.0.1") as c:
+        r = await c.get("/v1/boom")
+    assert r.status_code == 500
+    assert r.headers["connection"] == "close"
+    doc = r.json()
+    assert "correlation id" in doc["detail"] and "/srv/" not in r.text and "secret" not in r.text
