@@ -34,7 +34,7 @@ def npz_bomb(uncompressed: int = 1 << 30) -> bytes:
     """An NPZ whose one array inflates to ``uncompressed`` bytes (zeros compress ~1000x)."""
     n = uncompressed // 8
     header = b"\x93NUMPY\x01\x00"
-    text = ("{'descr': '<f8', 'fortran_order': False, 'shape': (%d,), }" % n).encode()
+    text = f"{{'descr': '<f8', 'fortran_order': False, 'shape': ({n},), }}".encode()
     text += b" " * (64 - (len(header) + 2 + len(text) + 1) % 64) + b"\n"
     head = header + len(text).to_bytes(2, "little") + text
     out = io.BytesIO()
