@@ -286,7 +286,7 @@ def _predict(ms: Sequence[Measurement], level: float) -> tuple[Prediction | None
             w_static_std=np.maximum(col["w_static_std"], 1e-15),
             level=level,
         )
-    except ValueError as exc:
+    except (ValueError, ArithmeticError) as exc:  # ParameterError, LinAlgError, overflow
         return None, [Flag("predictor_failed", f"no prediction from {len(ms)} records: {exc}")]
     return pred, []
 
@@ -396,9 +396,12 @@ def assess(
     if pred is not None:
         uflags.extend(pred.flags)
     duration = dt = math.nan
-    if last is not None:
+    if last is not None and last.omega > 0 and math.isfinite(last.omega):
         target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
-        duration, dt = _sampling(last, target, pred)
+        try:
+            duration, dt = _sampling(last, target, pred)
+        except (ArithmeticError, ValueError):  # a degenerate record: no advice on sampling
+            duration = dt = math.nan
     record = LiveRecord(
         seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan
     )

@@ -20,7 +20,7 @@ from functools import partial
 from typing import Annotated, Any
 
 from anyio import to_thread
-from fastapi import APIRouter, Header, Query, Request
+from fastapi import APIRouter, Header, Path, Query, Request
 from fastapi.responses import JSONResponse, StreamingResponse
 from pydantic import ValidationError
 
@@ -40,6 +40,8 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 
 #: Attempts of the optimistic append before answering 503 (each loser recomputes).
 MAX_ATTEMPTS = 50
+#: Largest record number a query may name (records per sweep are far fewer).
+MAX_SEQ = 2**31 - 1
 #: How often an event stream looks for new stored updates (s), and its keep-alive comment.
 POLL_S = 0.1
 KEEPALIVE_S = 15.0
@@ -355,7 +357,9 @@ async def list_records(
     sweep_id: str,
     state: StateDep,
     caller: CallerDep,
-    after: Annotated[int, Query(ge=0, description="Only records with seq > after.")] = 0,
+    after: Annotated[
+        int, Query(ge=0, le=MAX_SEQ, description="Only records with seq > after.")
+    ] = 0,
     limit: Annotated[int, Query(ge=1, le=1000)] = 1000,
 ) -> dict[str, Any]:
     await _live_row(state, sweep_id, caller)
@@ -370,7 +374,9 @@ async def list_records(
     summary="One update of a live sweep",
     responses=problems(401, 404),
 )
-async def get_record(sweep_id: str, seq: int, state: StateDep, caller: CallerDep) -> Any:
+async def get_record(
+    sweep_id: str, seq: Annotated[int, Path(ge=1, le=MAX_SEQ)], state: StateDep, caller: CallerDep
+) -> Any:
     await _live_row(state, sweep_id, caller)
     _, recs = await to_thread.run_sync(store_live.records_after, state.store, sweep_id,
                                        seq - 1, 1)  # fmt: skip
@@ -438,7 +444,9 @@ async def events(
     request: Request,
     state: StateDep,
     caller: CallerDep,
-    after: Annotated[int | None, Query(ge=0, description="Resume after this seq.")] = None,
+    after: Annotated[
+        int | None, Query(ge=0, le=MAX_SEQ, description="Resume after this seq.")
+    ] = None,
     timeout: Annotated[
         float, Query(gt=0, le=3600, description="The stream ends after this many seconds.")
     ] = 300.0,
@@ -448,9 +456,12 @@ async def events(
     start = after or 0
     if last_event_id:
         try:
-            start = max(start, int(last_event_id))
+            given = int(last_event_id)
         except ValueError:
-            raise invalid("Last-Event-ID", last_event_id, "is not a record number") from None
+            given = -1
+        if not 0 <= given <= MAX_SEQ:
+            raise invalid("Last-Event-ID", last_event_id, "is not a record number")
+        start = max(start, given)
     return StreamingResponse(
         _stream(request, state, sweep_id, start, timeout),
         media_type="text/event-stream",

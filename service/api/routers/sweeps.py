@@ -99,7 +99,10 @@ async def _resolve_measurements(
     status_code=202,
     response_model=Sweep,
     summary="Start a sweep: recorded signals with their control values, or a simulated one",
-    responses=problems(401, 413, 422),
+    responses={
+        201: {"model": Sweep, "description": "A live sweep, open for records."},
+        **problems(401, 413, 422),
+    },
 )
 async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
     """Answers 202 with the sweep and its job; poll ``/v1/sweeps/{id}`` or ``/v1/jobs/{id}``.
