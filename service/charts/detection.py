@@ -105,8 +105,22 @@ def fit_figure(
         ax.set_xlabel(tlabel, fontsize=6, labelpad=1)
         ax.set_ylabel(wlabel, fontsize=6, labelpad=1)
         return fig
-    fig = figure(9.0, 5.2)
-    ax, rx = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
+    keep = _first_periods(t, detection, 6)
+    zoom = fit is not None and keep.stop is not None and keep.stop < 0.5 * t.size
+    if zoom:
+        fig = figure(9.0, 7.4)
+        ax, zx, rx = fig.subplots(3, 1, height_ratios=(3, 2.4, 1.3))
+        rx.sharex(ax)
+        zx.plot(t[keep], w[keep], ".", ms=2.5, color="0.35", label="record (samples)")
+        zx.plot(t[keep], fit[keep], lw=0.9, color="tab:red", label="detector's fit")
+        zx.set_ylabel(wlabel)
+        zx.set_xlabel(tlabel)
+        zx.set_title("the first six periods", fontsize=8)
+        zx.legend(fontsize=7, loc="upper right")
+        zx.grid(alpha=0.3)
+    else:
+        fig = figure(9.0, 5.2)
+        ax, rx = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
     td, wd = _decimate(t, w)
     ax.plot(td, wd, lw=0.6, color="0.45", label="record")
     if fit is not None:
