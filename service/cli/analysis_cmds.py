@@ -37,12 +37,6 @@ def read_record(
         raise err from None
 
 
-def read_signal(path: str, option: str = "FILE") -> tuple[np.ndarray, float]:
-    """``(w, dt)`` of a record (see :func:`read_record`)."""
-    rec = read_record(path, option)
-    return rec.w, rec.dt
-
-
 def _read_table(path: str, option: str) -> dict[str, np.ndarray]:
     p = Path(path)
     if not p.is_file():
