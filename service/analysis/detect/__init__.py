@@ -63,6 +63,15 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        (or twice one): a quadratic nonlinearity; it is marked
                        (``Mode.combination``) and never chosen as the fundamental.
 
+Detection limit: the record SNR of a mode is its energy over the noise variance,
+``10 log10(A^2 N_eff / (2 s^2))`` = the per-sample SNR ``A^2 / (2 s^2)`` in dB plus
+``10 log10(N_eff)``, ``N_eff = sum_n exp(-2 gamma n dt)`` (``Mode.snr_db``). A mode is kept when
+its fitted energy exceeds the MDL threshold ``4 ln N`` noise variances (15.2 dB at N = 4000,
+16.6 dB at N = 1e5); with the scatter of the fitted energy, a mode is kept in >= 95 % of records
+from a record SNR of about 20 dB, at about 0.01 spurious modes per record (measured in the
+tests). Weak modes that decay within the record are found in the periodograms of the record's
+heads ``N/2, N/4, ...`` matched to their decay.
+
 Normalisation: the record is divided by a power of two (exact) and by its rms inside, and
 every computation runs in sample units, so the result is equivariant under ``w -> k w`` and
 ``t -> c t`` (rates scale as ``1/c``, amplitudes as ``k``, flags unchanged), with no overflow at

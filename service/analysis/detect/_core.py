@@ -86,13 +86,19 @@ def _validate(
     return arr, float(dt), method.lower(), kind, int(max_modes)
 
 
+_SAFE = (2.0**-400, 2.0**400)  # magnitudes whose squares summed over any record stay finite
+
+
 def _prepare(arr: np.ndarray, kind: str, max_modes: int) -> Record | None:
-    """Normalise the record: divide by a power of two (exact, so that no square overflows at
-    any finite magnitude), remove the mean, and for ambient records take the autocorrelation;
-    ``y`` has rms 1. ``None`` for a constant record."""
-    peak = float(np.max(np.abs(arr)))
-    unit = math.ldexp(1.0, math.frexp(peak)[1]) if peak > 0 else 1.0
-    a = arr / unit
+    """Normalise the record: outside ``2^-400 .. 2^400`` divide it by a power of two (exact, so
+    that no square overflows or underflows at any finite magnitude), remove the mean, and for
+    ambient records take the autocorrelation; ``y`` has rms 1. A constant record gets
+    ``scale = 0``."""
+    peak = max(float(arr.max()), -float(arr.min()))
+    unit = 1.0
+    if peak > 0 and not _SAFE[0] < peak < _SAFE[1]:
+        unit = math.ldexp(1.0, math.frexp(peak)[1])
+    a = arr / unit if unit != 1.0 else arr
     N0 = a.size
     mean = float(np.mean(a))
     x = a - mean

@@ -210,17 +210,16 @@ def _residual_candidates(
         r -= mv
         base_p, base_q = fit.ev.p, fit.ev.q
     rspec = _spectrum(r)
-    hp, hq = _head_peaks(r, rspec, base_p, base_q, max_modes)
     head = r[: N // 8]
-    if (
-        not hp.size
-        and not rspec.significant.any()
-        and not (
-            head.size >= 128
-            and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
-            and _spectrum(head).significant.any()
-        )
+    p_new, q_new = np.zeros(0), np.zeros(0)
+    if rspec.significant.any() or (
+        head.size >= 128
+        and float(np.mean(head * head)) > 3.0 * float(np.mean(r * r))
+        and _spectrum(head).significant.any()
     ):
-        return np.zeros(0), np.zeros(0)
-    p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
+        p_new, q_new = _initial_candidates(r, rspec, max_modes, peaks=False)
+    # head peaks that neither the fit nor the residual's ESPRIT explains
+    hp, hq = _head_peaks(
+        r, rspec, np.concatenate((base_p, p_new)), np.concatenate((base_q, q_new)), max_modes
+    )
     return np.concatenate((p_new, hp)), np.concatenate((q_new, hq))
