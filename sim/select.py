@@ -13,11 +13,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from sim.backends import NONLINEAR_SHIFT_COEFF
 from sim.errors import ParameterError
 from sim.results import ErrorEstimate
 from sim.scene import Scene
 
-NONLINEAR_SHIFT_COEFF = 77.0  # (kick / omega)^2 coefficient, re-measured by tests/sim
+__all__ = ["LADDER", "NONLINEAR_SHIFT_COEFF", "Choice", "choose_model", "estimate_errors"]
 LADDER = (("normal-form", "normal-form", None), ("euler-beam", "euler-beam", "modal"),
           ("euler-beam-nonlinear", "euler-beam", "nonlinear"), ("cosserat", "cosserat", None))
 
