@@ -661,6 +661,8 @@ def _parse_csv(
     cells: dict[int, list[str]] = {}
     for idx in ([ti] if ti is not None else []) + [wi]:
         texts = [r[idx].strip() for r in body]
+        if delim in (";", "\t") and any("," in c for c in texts[:50]):
+            texts = [c.replace(",", ".") for c in texts]  # decimal commas (spreadsheet exports)
         vals = np.empty(len(body))
         for k, cell in enumerate(texts):
             try:

@@ -289,3 +289,12 @@ def test_units_do_not_change_the_physics() -> None:
     a, b = detect(s.w, dt=s.dt), detect(ms.w, dt=ms.dt)
     assert a.fundamental.omega == pytest.approx(44.0, rel=1e-6)
     assert b.fundamental.omega * 1e3 == pytest.approx(a.fundamental.omega, rel=1e-8)
+
+
+def test_decimal_commas_of_a_spreadsheet_export() -> None:
+    t, w = _grid(n=100)
+    rows = ["Zeit [s];Weg [mm]"] + [f"{a:.9g};{b:.9g}".replace(".", ",")
+                                    for a, b in zip(t.tolist(), w.tolist())]  # fmt: skip
+    rec = R.read_bytes(("\n".join(rows) + "\n").encode(), "csv", time_column="Zeit")
+    assert rec.dt == pytest.approx(DT, rel=1e-8) and (rec.unit, rec.value_unit) == ("s", "mm")
+    np.testing.assert_allclose(rec.w, w, rtol=1e-8)
