@@ -1,0 +1,152 @@
+"""Bounded work: job time limits (the job's process is stopped), cancellation, no re-run after
+restarts, a queue bound per owner, budgets checked at the door, progress that moves."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import AsyncIterator
+from datetime import timedelta
+
+import httpx2
+import pytest
+from _svc_helpers import test_settings
+
+from service.api import create_app
+from service.api.storage import Store, utcnow
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture(scope="module")
+async def runner_app(tmp_path_factory) -> AsyncIterator[tuple[object, httpx2.AsyncClient]]:  # noqa: ANN001
+    """An app whose job runner runs each job in its own process (two at a time)."""
+    db = tmp_path_factory.mktemp("limits") / "l.db"
+    app = create_app(
+        test_settings(f"sqlite:///{db}", job_workers=2, warm_pool=False, max_active_jobs_per_owner=3)
+    )
+    async with app.router.lifespan_context(app):
+        transport = httpx2.ASGITransport(app=app)
+        async with httpx2.AsyncClient(transport=transport, base_url="http://127.0.0.1") as c:
+            yield app, c
+
+
+async def _until(client, job_id: str, statuses: tuple[str, ...], timeout: float = 60) -> dict:  # noqa: ANN001
+    end = time.monotonic() + timeout
+    while True:
+        doc = (await client.get(f"/v1/jobs/{job_id}")).json()
+        if doc["status"] in statuses:
+            return doc
+        assert time.monotonic() < end, doc
+        await asyncio.sleep(0.05)
+
+
+async def test_a_job_past_its_time_limit_is_stopped(runner_app) -> None:  # noqa: ANN001
+    """A job that never reports progress is still stopped: its process is killed."""
+    app, c = runner_app
+    store: Store = app.state.snapwarn.store
+    job = store.create_job(
+        "diagnostic-sleep", {"seconds": 60, "steps": 1}, time_limit_s=1.5, owner="local"
+    )
+    app.state.snapwarn.runner.wake()
+    t0 = time.monotonic()
+    doc = await _until(c, job.id, ("failed", "succeeded"), timeout=60)
+    assert doc["status"] == "failed" and doc["error"]["reason"] == "time-limit", doc
+    assert "1.5 s" in doc["error"]["detail"]
+    assert time.monotonic() - t0 < 30
+    await asyncio.sleep(1.0)  # nothing runs it again
+    assert store.get_job(job.id).status == "failed"
+    assert not app.state.snapwarn.runner._running
+
+
+async def test_cancel_stops_a_running_job(runner_app) -> None:  # noqa: ANN001
+    app, c = runner_app
+    store: Store = app.state.snapwarn.store
+    job = store.create_job("diagnostic-sleep", {"seconds": 60, "steps": 1}, time_limit_s=120)
+    app.state.snapwarn.runner.wake()
+    await _until(c, job.id, ("running",))
+    r = await c.post(f"/v1/jobs/{job.id}/cancel")
+    assert r.status_code == 200 and r.json()["status"] == "cancelled"
+    end = time.monotonic() + 20
+    while job.id in app.state.snapwarn.runner._running:  # its process is stopped
+        assert time.monotonic() < end
+        await asyncio.sleep(0.05)
+    assert (await c.post(f"/v1/jobs/{job.id}/cancel")).json()["status"] == "cancelled"
+    done = store.create_job("diagnostic-sleep", {"seconds": 0})
+    app.state.snapwarn.runner.wake()
+    await _until(c, done.id, ("succeeded",))
+    r = await c.post(f"/v1/jobs/{done.id}/cancel")
+    assert r.status_code == 409 and r.json()["errors"][0]["field"] == "status"
+
+
+async def test_progress_moves_with_the_work(runner_app) -> None:  # noqa: ANN001
+    app, c = runner_app
+    store: Store = app.state.snapwarn.store
+    job = store.create_job("diagnostic-sleep", {"seconds": 3, "steps": 6}, time_limit_s=60)
+    app.state.snapwarn.runner.wake()
+    seen = set()
+    end = time.monotonic() + 60
+    while (doc := (await c.get(f"/v1/jobs/{job.id}")).json())["status"] != "succeeded":
+        seen.add(round(doc["progress"]["fraction"], 3))
+        assert time.monotonic() < end
+        await asyncio.sleep(0.05)
+    assert len({f for f in seen if 0 < f < 1}) >= 3, seen
+
+
+async def test_queue_bound_per_owner(runner_app) -> None:  # noqa: ANN001
+    app, c = runner_app
+    store: Store = app.state.snapwarn.store
+    mine = [store.create_job("diagnostic-sleep", {"seconds": 30, "steps": 30}, owner="q")
+            for _ in range(3)]  # fmt: skip
+    from service.api import limits
+    from service.api.problems import ApiProblem
+
+    with pytest.raises(ApiProblem) as err:
+        limits.check_queue(store, "q", app.state.snapwarn.settings)
+    assert err.value.status == 429 and err.value.headers["Retry-After"]
+    limits.check_queue(store, "someone-else", app.state.snapwarn.settings)
+    for j in mine:
+        store.cancel_job(j.id, "test over")
+    limits.check_queue(store, "q", app.state.snapwarn.settings)
+
+
+async def test_budgets_are_checked_at_the_door(runner_app) -> None:  # noqa: ANN001
+    _, c = runner_app
+    cases = [
+        ({"model": "cosserat", "duration": 1e5}, "duration"),
+        ({"model": "cosserat", "duration": 400, "elements": 200}, "duration"),
+        ({"elements": 10_000_000}, "elements"),
+        ({"elements": 1000}, "elements"),
+        ({"model": "normal-form", "duration": 10, "dt": 1e-9}, "dt"),
+    ]
+    for doc, field in cases:
+        t0 = time.perf_counter()
+        r = await c.post("/v1/simulations", json=doc)
+        assert r.status_code == 422, (doc, r.text)
+        assert r.json()["errors"][0]["field"] == field, (doc, r.json())
+        assert time.perf_counter() - t0 < 2.0
+
+
+def test_restarts_do_not_rerun_limited_or_cancelled_jobs(tmp_path) -> None:  # noqa: ANN001
+    store = Store(f"sqlite:///{tmp_path / 'r.db'}")
+    store.migrate()
+    over = store.create_job("diagnostic-sleep", {}, time_limit_s=5)
+    fine = store.create_job("diagnostic-sleep", {}, time_limit_s=500)
+    gone = store.create_job("diagnostic-sleep", {})
+    for _ in range(3):
+        store.claim_job("nohost:1:dead")  # runners on another host, then silent
+    store.cancel_job(gone.id, "by the test")
+    with store.session() as s:
+        from service.api.storage import JobRow
+
+        for jid in (over.id, fine.id):
+            row = s.get(JobRow, jid)
+            row.attempt_started_at = utcnow() - timedelta(seconds=20)  # ran 11 s
+            row.heartbeat_at = utcnow() - timedelta(seconds=9)
+    done = dict(store.recover_jobs(lease_s=3, max_attempts=5))
+    assert done == {over.id: "failed", fine.id: "queued"}, done
+    assert store.get_job(over.id).error["reason"] == "time-limit"
+    assert store.get_job(gone.id).status == "cancelled"
+    assert store.get_job(fine.id).run_s == pytest.approx(11, abs=0.5)  # counted for next time
+    assert store.recover_jobs(lease_s=3, max_attempts=5) == []
+    store.dispose()
