@@ -23,7 +23,9 @@ async def runner_app(tmp_path_factory) -> AsyncIterator[tuple[object, httpx2.Asy
     """An app whose job runner runs each job in its own process (two at a time)."""
     db = tmp_path_factory.mktemp("limits") / "l.db"
     app = create_app(
-        test_settings(f"sqlite:///{db}", job_workers=2, warm_pool=False, max_active_jobs_per_owner=3)
+        test_settings(
+            f"sqlite:///{db}", job_workers=2, warm_pool=False, max_active_jobs_per_owner=3
+        )
     )
     async with app.router.lifespan_context(app):
         transport = httpx2.ASGITransport(app=app)
