@@ -86,6 +86,7 @@ def test_sweep_page_shows_the_apis_warning(browser: Browser, site: Site, shots) 
     assert one["alarm_level"]["value"] == alarm["level"] == one["alarm_level"]["text"]
     assert one["t_ratio"]["value"] == alarm["t_ratio"]
     assert one["baseline_mu_star"]["value"] == p["baseline"]["mu_star"]
+    assert one["next_safe_mu"]["value"] == p["next_safe_mu"]
     probs = {d["name"]: d["value"] for d in v["probability"]}
     assert probs == p["probabilities"]
     # the sweep found the synthetic strip's transition
