@@ -60,13 +60,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         emit_error(str(exc), json_mode=json_mode, field=exc.field, value=exc.value,
                    status=exc.status)  # fmt: skip
         return 2
-    except ValueError as exc:  # the numerics' and the reader's errors name their field
-        err = error_from(exc)
-        if err is None:
-            raise
-        emit_error(str(err), json_mode=json_mode, field=err.field, value=err.value,
-                   status=err.status)  # fmt: skip
-        return 2
+    except Exception as exc:
+        err = error_from(exc)  # the numerics' and the reader's errors name their field
+        if err is not None:
+            emit_error(str(err), json_mode=json_mode, field=err.field, value=err.value,
+                       status=err.status)  # fmt: skip
+            return 2
+        if not json_mode:
+            raise  # people get the traceback
+        emit_error(f"{type(exc).__name__}: {exc}", json_mode=True, status=500)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -87,12 +87,14 @@ _TITLES = {
     413: "Payload too large",
     415: "Unsupported media type",
     422: "Invalid input",
+    500: "Internal error",
 }
 _SLUGS = {
     400: "bad-request",
     413: "payload-too-large",
     415: "unsupported-media-type",
     422: "invalid-input",
+    500: "internal-error",
 }
 
 

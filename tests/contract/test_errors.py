@@ -115,3 +115,22 @@ def test_cli_json_errors_are_problem_documents(tmp_path) -> None:  # noqa: ANN00
     sweep.write_text("mu,sigma2\n0,-1\n0.1,-0.9\n")
     rc, doc, _ = run_cli("predict", str(sweep), "--json")
     assert rc == 2 and doc["status"] == 422 and doc["field"] in ("mu", "SWEEP"), doc
+
+
+def test_cli_json_internal_errors_are_one_document_too(monkeypatch) -> None:  # noqa: ANN001
+    import service.analysis.detect as detect_module
+
+    def broken(*a, **k):  # noqa: ANN002,ANN003,ANN202
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(detect_module, "detect", broken)
+    t = 0.01 * np.arange(100)
+    import tempfile
+
+    with tempfile.NamedTemporaryFile("w", suffix=".csv", delete=False) as fh:
+        fh.write("t,w\n" + "".join(f"{a!r},{math.cos(a)!r}\n" for a in t.tolist()))
+    rc, doc, err = run_cli("detect", fh.name, "--json")
+    assert rc == 1 and doc["status"] == 500 and doc["title"] == "Internal error"
+    assert "RuntimeError: boom" in doc["detail"] and err.count("\n") == 1
+    with pytest.raises(RuntimeError):  # without --json people get the traceback
+        run_cli("detect", fh.name)
