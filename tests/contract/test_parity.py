@@ -123,3 +123,12 @@ def test_one_uniform_sampling_tolerance_for_cli_and_api(monkeypatch) -> None:  #
     assert recordings.uniform_rtol_from_env() == recordings.DEFAULT_UNIFORM_RTOL
     monkeypatch.setenv(recordings.UNIFORM_RTOL_ENV, "2.5e-7")
     assert Settings().uniform_rtol == recordings.uniform_rtol_from_env() == 2.5e-7
+
+
+def test_the_fundamental_is_a_mode_and_its_index() -> None:
+    """On the wire the fundamental repeats its mode's fields (``det.fundamental.sigma2``)."""
+    from service.analysis.detect import Fundamental, Mode
+
+    assert {f.name for f in fields(Fundamental)} == {"mode", "index"}
+    assert set(wire.Fundamental.model_fields) == set(wire.Mode.model_fields) | {"index"}
+    assert set(wire.Mode.model_fields) == {f.name for f in fields(Mode)}
