@@ -237,3 +237,41 @@ def test_api_chart_routes_carry_the_users_units(site: Site) -> None:
     for label in ("theta [deg]", "period T = 2 pi / omega [ms]", "95 % interval of theta*"):
         assert label in svg.text, label
     assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots) -> None:
+    """An open live sweep: the page shows the latest update's warning (the API's numbers) and
+    reloads by itself when the next record arrives."""
+    from _pages_site import lab_records
+
+    recs = lab_records()
+    with site.client(site.key_a) as c:
+        r = c.post("/v1/sweeps", json={"name": "live theta", "mode": "live",
+                                       "control": {"name": "theta", "unit": "deg"}})  # fmt: skip
+        assert r.status_code == 201, r.text
+        sid = r.json()["id"]
+        for theta, dt, w in recs[:6]:
+            r = c.post(f"/v1/sweeps/{sid}/records",
+                       json={"w": w.tolist(), "dt": dt, "control": theta})  # fmt: skip
+            assert r.status_code == 201, r.text
+        last = c.get(f"/v1/sweeps/{sid}/records").json()["items"][-1]
+        tab = _open(browser, site, f"/sweeps/{sid}", site.key_a)
+        _assert_clean(tab)
+        one = {k: xs[0] for k, xs in _values(tab).items()}
+        assert one["mu_star"]["value"] == last["prediction"]["mu_star"]
+        assert one["mu_star_lo"]["value"] == last["prediction"]["mu_star_interval"][0]
+        assert one["transition"]["value"] == last["prediction"]["transition"]
+        assert one["alarm_level"]["value"] == last["alarm"]["level"]
+        assert one["next_safe_mu"]["value"] == last["next_control"]
+        assert len(_values(tab)["control"]) == 6
+        theta, dt, w = recs[6]
+        r = c.post(f"/v1/sweeps/{sid}/records", json={"w": w.tolist(), "dt": dt, "control": theta})
+        assert r.status_code == 201, r.text
+        tab.wait_for("document.querySelectorAll('tr.record').length === 7", timeout=60)
+        browser.pump(0.5)
+        last = c.get(f"/v1/sweeps/{sid}/records").json()["items"][-1]
+    one = {k: xs[0] for k, xs in _values(tab).items()}
+    assert one["mu_star"]["value"] == last["prediction"]["mu_star"]
+    _assert_clean(tab)
+    tab.screenshot(shots / "live.png")
+    tab.close()

@@ -289,6 +289,10 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
     ``sweep``, read with ``scope``); the simulator's non-dimensional scales for a simulated
     sweep. ``mixed`` names what the records disagree on (then a neutral name is used)."""
     req = sweep.request or {}
+    if req.get("mode") == "live":
+        control = req.get("control") or {}
+        return {"control_name": control.get("name") or "mu", "control_unit": control.get("unit"),
+                "time_unit": None, "value_unit": None, "mixed": []}  # fmt: skip
     if req.get("simulate") is not None or not req.get("measurements"):
         return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
                 "value_unit": NONDIM, "mixed": []}  # fmt: skip
@@ -357,6 +361,42 @@ def _records(result: SweepResult | None) -> list[dict[str, Any]]:
     return rows
 
 
+def _live_updates(store: Any, sweep_id: str) -> list[Any]:
+    """The updates of a live sweep (typed), in arrival order; [] for other sweeps."""
+    try:
+        from service.api.storage import live as store_live
+        from service.schemas.live import LiveUpdate
+    except ImportError:
+        return []
+    row, recs = store_live.records_after(store, sweep_id, 0, 1000)
+    if row is None:
+        return []
+    return [LiveUpdate.model_validate(r.doc) for r in recs]
+
+
+def _live_result(updates: list[Any]) -> SweepResult | None:
+    """An open live sweep seen as a sweep result: the measurements the fit used, the latest
+    prediction and alarm, and each record's detection (stored records carry their id)."""
+    if not updates:
+        return None
+    last = updates[-1]
+    dets = []
+    for u in updates:
+        d = u.detection.model_dump()
+        d.update(control=u.control, name=u.signal_id,
+                 flags=[f.model_dump() for f in (*u.record_flags, *u.detection.flags)])
+        dets.append(d)
+    return SweepResult.model_validate({
+        "measurements": [u.measurement.model_dump() for u in updates
+                         if u.used_in_fit and u.measurement is not None],
+        "prediction": last.prediction.model_dump() if last.prediction is not None else None,
+        "alarm": [last.alarm.model_dump()],
+        "stopped": "open",
+        "flags": [f.model_dump() for f in last.flags],
+        "detections": dets,
+    })  # fmt: skip
+
+
 async def _get_sweep(state: AppState, caller: Caller, sweep_id: str) -> tuple[Any, Any]:
     found = await to_thread.run_sync(lambda: state.store.get_sweep(sweep_id, scope=caller.scope))
     if found is None:
@@ -370,20 +410,29 @@ async def sweep_page(request: Request, sweep_id: str) -> Response:
         sweep, job = await _get_sweep(state, caller, sweep_id)
         doc = Sweep.model_validate(sweep_doc(sweep, job))
         units = await sweep_units(state, caller.scope, sweep)
+        result, updates = doc.result, []
+        if result is None and job.status == "open":  # a live sweep: its latest update
+            updates = await to_thread.run_sync(lambda: _live_updates(state.store, sweep.id))
+            result = _live_result(updates)
+        p = result.prediction if result is not None else None
         chart = None
-        if doc.result is not None and doc.result.measurements:
+        if result is not None and result.measurements and p is not None:
             chart = await state.run(
-                _work.sweep_svg, doc.result.model_dump(mode="json"), units["control_name"],
+                _work.sweep_svg, result.model_dump(mode="json"), units["control_name"],
                 units["control_unit"], units["time_unit"], sweep.name or sweep.id,
             )  # fmt: skip
+        next_value = updates[-1].next_control if updates else (p.next_safe_mu if p else None)
         ctx = {
             "caller": caller,
             "sweep": doc,
-            "p": doc.prediction,
-            "alarm": doc.alarm,
+            "result": result,
+            "p": p,
+            "alarm": result.alarm[-1] if result is not None and result.alarm else doc.alarm,
+            "next_value": next_value,
+            "live_open": job.status == "open",
             "job": _job_view(job),
             "units": units,
-            "records": _records(doc.result),
+            "records": _records(result),
             "chart": chart,
         }
         return _page(request, "sweep.html", ctx)
@@ -400,6 +449,10 @@ async def sweep_record_thumbnail(request: Request, sweep_id: str, k: int) -> Res
         dets = []
         if job.status == "succeeded" and job.result:
             dets = sweep_document(job.result).detections
+        elif job.status == "open":
+            live = _live_result(await to_thread.run_sync(
+                lambda: _live_updates(state.store, sweep.id)))  # fmt: skip
+            dets = live.detections if live is not None else []
         if not 0 <= k < len(dets) or not dets[k].name:
             raise ApiProblem(404, f"sweep {sweep_id!r} has no stored record {k}")
         sig = await _load_signal(state, caller, dets[k].name)
