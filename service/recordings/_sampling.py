@@ -103,7 +103,17 @@ def _uniform_grid(
             f"least-squares line through the {n} timestamps",
         )
         return w, t, dt, t0, (flag,)
-    j = int(bad[int(np.argmax(excess))])
+    worst = int(np.argmax(excess))
+    j = int(bad[worst])
+    if rounding[worst] >= 0.5 * dt and not resample:
+        raise RecordingError(
+            f"{t_name}[{j + 1}]",
+            float(t[j + 1]),
+            f"is written too coarsely to tell the sampling: its rounding ({written}, "
+            f"+-{float(rounding[worst]):.2g} over a step) is as large as half the step "
+            f"{dt:.6g}, so a lost or doubled sample cannot be told from rounding; write the "
+            "times with more digits, or drop the time column and give dt",
+        )
     if resample:
         step = float(np.median(d))
         m = int(math.floor((float(t[-1]) - float(t[0])) / step * (1 + 1e-12))) + 1
@@ -122,7 +132,7 @@ def _uniform_grid(
         f"is not uniformly sampled: the step {t_name}[{j + 1}] - {t_name}[{j}] = "
         f"{float(d[j])!r} differs from the least-squares step {dt!r} by "
         f"{float(dev[j]) / dt:.3g} of a step, more than the rounding of the written "
-        f"timestamps ({written}, +-{float(rounding[int(np.argmax(excess))]):.2g}) and the "
+        f"timestamps ({written}, +-{float(rounding[worst]):.2g}) and the "
         f"tolerance {rtol:g} explain (setting {UNIFORM_RTOL_ENV}); resample it onto a uniform "
         "grid with resample=true (CLI: --resample)",
     )

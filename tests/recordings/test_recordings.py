@@ -122,8 +122,9 @@ def test_rounding_as_coarse_as_the_step_excuses_nothing() -> None:
     """Integer-millisecond timestamps of a 1.5 ms step: the rounding could hide a lost
     sample, so the steps 1 ms and 2 ms are refused, not averaged."""
     t = 1.5 * np.arange(200)
-    with pytest.raises(RecordingError):
+    with pytest.raises(RecordingError) as e:
         R.read_bytes(_csv("t [ms],w", np.round(t), np.cos(t), "%.0f"), "csv")
+    assert "too coarsely" in str(e.value) and e.value.field.startswith("t[")
 
 
 def test_time_must_increase() -> None:
