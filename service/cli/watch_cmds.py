@@ -132,9 +132,9 @@ def line(u: Any, name: str) -> str:
     parts.append(f"sigma2={f.sigma2:.6g}" if f is not None and f.sigma2 is not None else "no mode")
     if u.mu_star is not None:
         lo, hi = u.mu_star_interval or (None, None)
-        p = max(u.probabilities.values(), default=None) if u.probabilities else None
+        p = u.probabilities.get(u.transition)
         pt = f" p={p:.2f}" if p is not None else ""
-        parts.append(f"{u.transition}{pt} mu*={u.mu_star:.8g} [{lo:.8g}, {hi:.8g}]")
+        parts.append(f"{u.transition}{pt} mu*={u.mu_star:.8g} [{_g(lo)}, {_g(hi)}]")
     parts.append(f"alarm={u.alarm.level}")
     if u.next_control is not None:
         parts.append(f"next<={u.next_control:.8g} ({u.next_bound_source})")
@@ -146,6 +146,10 @@ def line(u: Any, name: str) -> str:
     if codes:
         parts.append("flags=" + ",".join(codes))
     return " | ".join(parts)
+
+
+def _g(v: float | None) -> str:
+    return "?" if v is None else f"{v:.8g}"
 
 
 # ------------------------------------------------------------------------------- the loop
