@@ -83,7 +83,7 @@ async def create_atlas(req: AtlasRequest, state: StateDep, caller: CallerDep) ->
         raise too_large("spec", len(spec.cells), f"{len(spec.cells)} cells exceed the limit of "
                         f"{max_cells()} (setting SNAPWARN_MAX_ATLAS_CELLS)")  # fmt: skip
     for c in spec.cells:  # the same per-scene bound as a simulation
-        if c.inputs.get("elements", 0) > state.settings.max_elements:
+        if (c.inputs.get("elements") or 0) > state.settings.max_elements:
             raise invalid("spec.elements", c.inputs["elements"], f"exceeds the limit of "
                           f"{state.settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)")
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
