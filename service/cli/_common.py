@@ -12,8 +12,6 @@ import math
 import sys
 from typing import Any
 
-import numpy as np
-
 
 class CliError(Exception):
     """A bad argument or input; the message names the option and the value.
@@ -53,21 +51,10 @@ def error_from(exc: BaseException, context: str | None = None) -> CliError | Non
     return None
 
 
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [_jsonable(v) for v in obj.tolist()]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
+def _plain(doc: Any) -> Any:
+    from service.convert import plain  # the one strict-JSON cleaner of results
+
+    return plain(doc)
 
 
 def emit(doc: Any, *, json_mode: bool, text: str | None = None) -> None:
@@ -75,10 +62,10 @@ def emit(doc: Any, *, json_mode: bool, text: str | None = None) -> None:
     if hasattr(doc, "model_dump"):
         doc = doc.model_dump(mode="json")
     if json_mode:
-        sys.stdout.write(json.dumps(_jsonable(doc), allow_nan=False) + "\n")
+        sys.stdout.write(json.dumps(_plain(doc), allow_nan=False) + "\n")
     else:
         sys.stdout.write(
-            (text if text is not None else json.dumps(_jsonable(doc), indent=2)) + "\n"
+            (text if text is not None else json.dumps(_plain(doc), indent=2)) + "\n"
         )
 
 

@@ -107,5 +107,5 @@ def test_warn_on_the_cosserat_rod(capsys) -> None:
                    "--max-measurements", "24", "--seed", "1", "--no-progress")  # fmt: skip
     t = doc["truth"]  # the rod's own mu* (static Hessian), not the beam's
     assert t["max_mu_measured"] < t["mu_star"]
-    assert doc["transition"] == "saddle-node"
+    assert doc["prediction"]["transition"] == "saddle-node"  # the one sweep document
     assert abs(t["error"]) < 1e-5  # measured -9.8e-7 (the paper's rule: -1.3e-5)
