@@ -277,7 +277,11 @@ def _fit_candidate(
     if sw.w is not None and b is not None:
         kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
     for K in range(_KMAX + 1):
-        for cf in _variants(2 * a, h, K):
+        # a secondary fold beyond mu* belongs to a branch that continues past mu*: the trivial
+        # branch of a subcritical pitchfork, never the side branch of a supercritical one
+        # (it ends at mu*)
+        cfs = (False,) if name == "supercritical-pitchfork" else _variants(2 * a, h, K)
+        for cf in cfs:
             if n - K - 2 - int(cf) < 1:
                 break
             for Kw in kw_range:

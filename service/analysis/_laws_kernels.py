@@ -178,7 +178,7 @@ def _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b):
 
 
 @njit(cache=True)
-def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b):
+def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, refine):
     """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
     x_last = ms - mu_last
     if x_last < 1e-300:
@@ -196,6 +196,10 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b):
             fb = f[g]
             jb = g
     if jb < 0:
+        return best, best_u
+    if not refine:
+        if fb < best:
+            return fb, math.exp(logu[jb])
         return best, best_u
     # golden section with parabolic steps on [logu[jb-1], logu[jb+1]]
     a = logu[jb - 1] if jb > 0 else logu[0]
@@ -260,9 +264,10 @@ def _work(mu, nexp):
 
 
 @njit(cache=True)
-def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu):
+def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu, refine=True):
     """-2 log L at each ``mu_star`` (shape (G,)) and the fold parameter ``u`` profiled there
-    (0 without conformal components or when the plain law is best)."""
+    (0 without conformal components or when the plain law is best); ``refine=False``: the
+    minimum over the ``logu`` grid only (an upper bound, for a coarse scan)."""
     G = mu_star.size
     out = np.empty(G)
     ubest = np.zeros(G)
@@ -275,7 +280,7 @@ def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu):
         ms = mu_star[g]
         if conformal:
             out[g], ubest[g] = _profile_u(
-                ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b
+                ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, refine
             )
         else:
             x_last = max(ms - mu_last, 1e-300)

@@ -113,19 +113,40 @@ def _profile(
         ]
         t = np.unique(np.concatenate([t, *extra]))
         t = t[(t >= math.log(scale * 1e-12)) & (t <= math.log(scale * 30.0))]
-    f = _nll(mu_w, comps, last + np.exp(t))
+    packed = _pack(mu_w, comps)
+
+    def ev(tt: np.ndarray, refine: bool = True) -> np.ndarray:
+        ms = np.ascontiguousarray(last + np.exp(tt))
+        return nll_rows(ms, *packed, last, _LOGU, refine)[0]
+
+    def g(tt: float) -> float:
+        v = float(ev(np.array([tt]))[0])
+        return v if math.isfinite(v) else 1e300
+
+    # a conformal law's coarse scan takes the fold parameter on its grid only (an upper bound);
+    # the lowest points, the minimisation and the interval ends use the refined profile
+    f = ev(t, refine=not cf)
     f = np.where(np.isfinite(f), f, np.inf)
+    if cf:
+        low = np.argsort(f)[:5]
+        f[low] = ev(t[low])
+        f = np.where(np.isfinite(f), f, np.inf)
+        exact = np.zeros(t.size, dtype=bool)
+        exact[low] = True
     i = int(np.argmin(f))
     G = t.size
     flags: list[Flag] = []
 
-    def g(tt: float) -> float:
-        v = float(_nll(mu_w, comps, np.array([last + math.exp(tt)]))[0])
-        return v if math.isfinite(v) else 1e300
+    def fval(j: int) -> float:
+        """Refined value at grid point j (the scan's upper bound replaced on first use)."""
+        if cf and not exact[j]:
+            f[j] = g(float(t[j]))
+            exact[j] = True
+        return float(f[j])
 
     a_, b_ = t[max(i - 1, 0)], t[min(i + 1, G - 1)]
     # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-6 for model selection
-    tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-6)
+    tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
     res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": tol})
     th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
     if i == 0:
@@ -141,7 +162,7 @@ def _profile(
     def bounds(delta: float) -> tuple[float, float, bool, bool]:
         # lower side
         j = int(np.searchsorted(t, th)) - 1
-        while j >= 0 and f[j] - fh < delta:
+        while j >= 0 and fval(j) - fh < delta:
             j -= 1
         if j < 0:
             lo, lo_open = last, True
@@ -149,7 +170,7 @@ def _profile(
             tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-9)
             lo, lo_open = last + math.exp(tl), False
         j = int(np.searchsorted(t, th))
-        while j < G and f[j] - fh < delta:
+        while j < G and fval(j) - fh < delta:
             j += 1
         if j >= G:
             hi, hi_open = last + math.exp(t[-1]), True

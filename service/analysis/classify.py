@@ -71,6 +71,7 @@ TRANSITIONS = (
     "undetermined",
 )
 REGIMES = ("underdamped", "overdamped")
+MIN_T_RATIO = 2.0  # T/T0 below which the type is never named
 
 
 # --------------------------------------------------------------------------------------------
@@ -290,6 +291,19 @@ def classify_sweep(
             Flag(
                 "ambiguous",
                 f"the best candidate {top.name} has probability {p_top:.2f} < {min_probability}",
+            )
+        )
+    t_ratio = math.sqrt(float(sw0.y[0] / sw0.y[-1]))
+    if t_ratio < MIN_T_RATIO and transition != "undetermined":
+        # the asymptotic laws are not reached yet: far from mu* a fold and a pitchfork with a
+        # nearby secondary fold look alike, and a wrong confident type is the worst answer
+        # (measured on the beam: stops with T/T0 < 2 named the symmetric case a saddle-node)
+        transition = "undetermined"
+        flags.append(
+            Flag(
+                "slowdown_not_reached",
+                f"T/T0 = {t_ratio:.3g} < {MIN_T_RATIO:g}: the critical slowing down has barely "
+                "begun, the type is not named",
             )
         )
     if math.isfinite(a_se) and a_se > 0:
