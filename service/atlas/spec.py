@@ -241,47 +241,10 @@ def parse_spec(doc: Any, *, base_dir: Path | None = None) -> AtlasSpec:
     if (grid is None) == (cells_raw is None):
         raise SpecError("grid", grid, "grid: give exactly one of 'grid' (axes) or 'cells' (a "
                         "list)")
-    axes: list[tuple[str, tuple[Any, ...]]] = []
-    rows: list[tuple[dict[str, Any], str]] = []
     if grid is not None:
-        if not isinstance(grid, Mapping) or not grid:
-            raise SpecError("grid", grid, f"grid: must be a non-empty mapping of axes, got "
-                            f"{grid!r}")
-        _check_names(kind, grid, "grid")
-        total = 1
-        for pname, raw in grid.items():
-            if pname in fixed:
-                raise SpecError(f"grid.{pname}", raw, f"grid.{pname}: also given in 'fixed'")
-            vals = _axis_values(pname, raw, f"grid.{pname}")
-            vals = [_check_value(params[pname], v, f"grid.{pname}[{i}]")
-                    for i, v in enumerate(vals)]  # fmt: skip
-            seen: dict[str, int] = {}
-            for i, v in enumerate(vals):
-                j = seen.setdefault(json.dumps(v, sort_keys=True), i)
-                if j != i:
-                    raise SpecError(f"grid.{pname}[{i}]", v, f"grid.{pname}[{i}]: duplicates "
-                                    f"grid.{pname}[{j}] ({v!r})")
-            axes.append((str(pname), tuple(vals)))
-            total *= len(vals)
-            if total > MAX_CELLS:
-                raise SpecError("grid", total, f"grid: {total} cells or more exceed the limit "
-                                f"of {MAX_CELLS}")
-        names = [a for a, _ in axes]
-        for combo in itertools.product(*(v for _, v in axes)):
-            rows.append((dict(zip(names, combo)), "grid"))
+        axes, rows = _expand_grid(kind, grid, fixed)
     else:
-        if isinstance(cells_raw, (str, bytes, Mapping)) or not isinstance(cells_raw, Sequence):
-            raise SpecError("cells", cells_raw, f"cells: must be a list of mappings, got "
-                            f"{cells_raw!r}")
-        if not 1 <= len(cells_raw) <= MAX_CELLS:
-            raise SpecError("cells", len(cells_raw), f"cells: needs 1 to {MAX_CELLS} cells, "
-                            f"got {len(cells_raw)}")
-        for i, c in enumerate(cells_raw):
-            if not isinstance(c, Mapping):
-                raise SpecError(f"cells[{i}]", c, f"cells[{i}]: must be a mapping, got {c!r}")
-            _check_names(kind, c, f"cells[{i}]")
-            rows.append(({k: _check_value(params[k], v, f"cells[{i}].{k}")
-                          for k, v in c.items()}, f"cells[{i}]"))  # fmt: skip
+        axes, rows = [], _list_cells(kind, cells_raw)
     cells: list[Cell] = []
     seen_keys: dict[str, str] = {}
     for index, (vary, where) in enumerate(rows):
@@ -306,6 +269,54 @@ def parse_spec(doc: Any, *, base_dir: Path | None = None) -> AtlasSpec:
     return AtlasSpec(kind=kind, name=name, fixed=fixed, axes=tuple(axes), cells=tuple(cells),
                      chart=chart, retries=retries, timeout_s=float(timeout),
                      source=dict(doc))  # fmt: skip
+
+
+def _expand_grid(kind: str, grid: Any, fixed: dict[str, Any]
+                 ) -> tuple[list[tuple[str, tuple[Any, ...]]], list[tuple[dict, str]]]:  # fmt: skip
+    """The grid's validated axes and its cells (row-major product) with their origin."""
+    params = KINDS[kind].params
+    if not isinstance(grid, Mapping) or not grid:
+        raise SpecError("grid", grid, f"grid: must be a non-empty mapping of axes, got {grid!r}")
+    _check_names(kind, grid, "grid")
+    axes: list[tuple[str, tuple[Any, ...]]] = []
+    total = 1
+    for pname, raw in grid.items():
+        if pname in fixed:
+            raise SpecError(f"grid.{pname}", raw, f"grid.{pname}: also given in 'fixed'")
+        vals = _axis_values(pname, raw, f"grid.{pname}")
+        vals = [_check_value(params[pname], v, f"grid.{pname}[{i}]") for i, v in enumerate(vals)]
+        seen: dict[str, int] = {}
+        for i, v in enumerate(vals):
+            j = seen.setdefault(json.dumps(v, sort_keys=True), i)
+            if j != i:
+                raise SpecError(f"grid.{pname}[{i}]", v, f"grid.{pname}[{i}]: duplicates "
+                                f"grid.{pname}[{j}] ({v!r})")
+        axes.append((str(pname), tuple(vals)))
+        total *= len(vals)
+        if total > MAX_CELLS:
+            raise SpecError("grid", total, f"grid: {total} cells or more exceed the limit of "
+                            f"{MAX_CELLS}")
+    names = [a for a, _ in axes]
+    rows = [(dict(zip(names, combo)), "grid") for combo in itertools.product(*(v for _, v in axes))]
+    return axes, rows
+
+
+def _list_cells(kind: str, cells_raw: Any) -> list[tuple[dict, str]]:
+    """The explicit list's cells, validated, with their origin ``cells[i]``."""
+    params = KINDS[kind].params
+    if isinstance(cells_raw, (str, bytes, Mapping)) or not isinstance(cells_raw, Sequence):
+        raise SpecError("cells", cells_raw, f"cells: must be a list of mappings, got {cells_raw!r}")
+    if not 1 <= len(cells_raw) <= MAX_CELLS:
+        raise SpecError("cells", len(cells_raw), f"cells: needs 1 to {MAX_CELLS} cells, got "
+                        f"{len(cells_raw)}")
+    rows = []
+    for i, c in enumerate(cells_raw):
+        if not isinstance(c, Mapping):
+            raise SpecError(f"cells[{i}]", c, f"cells[{i}]: must be a mapping, got {c!r}")
+        _check_names(kind, c, f"cells[{i}]")
+        rows.append(({k: _check_value(params[k], v, f"cells[{i}].{k}") for k, v in c.items()},
+                     f"cells[{i}]"))  # fmt: skip
+    return rows
 
 
 def _complete(kind: str, given: dict[str, Any], where: str, base_dir: Path | None) -> dict:
