@@ -132,6 +132,7 @@ def test_cli_detect_plot_carries_the_files_units(tmp_path: Path) -> None:
     assert bad.returncode == 2 and "--plot" in bad.stderr and "fit.pdf" in bad.stderr
 
 
+@pytest.mark.slow
 def test_cli_predict_plot(tmp_path: Path) -> None:
     mu = np.array([0.0, 0.8, 1.4, 1.7, 1.85, 1.93])
     table = tmp_path / "sweep.csv"

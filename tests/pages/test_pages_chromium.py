@@ -239,6 +239,7 @@ def test_api_chart_routes_carry_the_users_units(site: Site) -> None:
     assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots) -> None:
     """An open live sweep: the page shows the latest update's warning (the API's numbers) and
     reloads by itself when the next record arrives."""
