@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
+import json
 import typing
 
 import pytest
@@ -57,6 +56,7 @@ def test_every_command_of_a_scene_uses_one_resolution() -> None:
     assert 0 < sig.info["sigma2_error"] < 1e-2 and sig.info["error"]["total"] > 0
 
 
+@pytest.mark.slow
 def test_richardson_estimate_is_the_actual_error() -> None:
     """The estimated mu* error at n = 50 against the n = 50 -> n = 100 -> extrapolated change."""
     b50 = BACKENDS["cosserat"].bifurcation(ROD)
@@ -70,9 +70,14 @@ def test_richardson_estimate_is_the_actual_error() -> None:
     [
         (ROD.with_(mu=1.7344), "simulate"),  # past the n = 50 fold at 1.7307 (not another state)
         (ROD.with_(mu=1.7344), "spectrum"),
-        (Scene(actuation="asymmetric", mu=1.78, elements=50), "simulate"),
-        (Scene(actuation="symmetric", mu=2.005, elements=24), "simulate"),  # unstable U_A
-        (Scene(actuation="antisymmetric", mu=2.1, elements=24), "simulate"),  # merged into S_B
+        pytest.param(Scene(actuation="asymmetric", mu=1.78, elements=50), "simulate",
+                     marks=pytest.mark.slow),
+        pytest.param(Scene(actuation="symmetric", mu=2.005, elements=24), "simulate",
+                     marks=pytest.mark.slow),  # past the secondary fold
+        pytest.param(Scene(actuation="symmetric", mu=1.97, elements=24), "simulate",
+                     marks=pytest.mark.slow),  # U_A unstable past the pitchfork (1.9663)
+        pytest.param(Scene(actuation="antisymmetric", mu=2.1, elements=24), "simulate",
+                     marks=pytest.mark.slow),  # merged into S_B
     ],
 )
 def test_rod_past_its_transition_is_one_clean_error(scene: Scene, command: str) -> None:
@@ -94,14 +99,16 @@ def test_beam_and_normal_form_past_the_transition(model: str, actuation: str, mu
     assert e.value.parameter == "mu" and "mu*" in str(e.value)
 
 
-def test_cli_past_the_fold_exits_2_with_one_line(tmp_path) -> None:
-    argv = ["simulate", "--model", "cosserat", "--actuation", "asymmetric", "--mu", "1.7344",
-            "--slenderness", "0.01", "--elements", "50", "--out", str(tmp_path / "x.csv")]
-    proc = subprocess.run([sys.executable, "-c", "import sys; from service.cli import main; "
-                           "sys.exit(main(sys.argv[1:]))", *argv],
-                          capture_output=True, text=True)  # fmt: skip
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
-    assert "mu=1.7344" in proc.stderr and "mu*" in proc.stderr and "Traceback" not in proc.stderr
+def test_cli_past_the_fold_exits_2_with_one_line(tmp_path, capsys) -> None:
+    from service.cli import main
+
+    argv = ["spectrum", "--model", "cosserat", "--actuation", "asymmetric", "--mu", "1.7344",
+            "--slenderness", "0.01", "--elements", "50", "--json"]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "mu=1.7344" in err and "mu*" in err
+    problem = json.loads(out)
+    assert problem["status"] == 422 and problem["field"] == "mu" and problem["value"] == 1.7344
 
 
 AUTO_TABLE = [
