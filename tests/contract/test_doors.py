@@ -189,3 +189,12 @@ async def test_one_simulated_sweep_through_cli_api_and_sdk(api) -> None:  # noqa
     assert truth is not None and truth.mu_star is not None
     lo, hi = done.result.prediction.mu_star_interval
     assert lo is not None and hi is not None
+
+
+async def test_resampling_is_asked_for_and_said_the_same_way(api, lab) -> None:  # noqa: ANN001
+    rc, cli_doc, err = run_cli("detect", str(lab["dropped"]), "--resample", "--json")
+    assert rc == 0, err
+    status, api_doc = await _api_detect(api, lab["dropped"], resample="true")
+    assert status == 200 and api_doc == cli_doc
+    assert cli_doc["flags"][0]["code"] == "resampled"
+    assert cli_doc["fundamental"]["omega"] == pytest.approx(40.0 * np.sqrt(1.5), rel=1e-4)
