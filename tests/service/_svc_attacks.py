@@ -131,6 +131,8 @@ CASES: list[tuple[str, str, str, dict, tuple[int, ...], str | None]] = [
     ("invalid UTF-8 body", "POST", "/v1/simulations",
      {"content": b"\xff\xfe{", "headers": {"content-type": "application/json"}}, (400, 422),
      None),
+    ("snap of a subnormal duration (fuzz)", "POST", "/v1/snaps",
+     {"json": {"dmu": 0.5, "duration": 5e-324, "model": "euler-beam"}}, (422,), None),
     ("idempotency key too long", "POST", "/v1/signals",
      {"json": {"dt": 0.1, "w": W}, "headers": {"idempotency-key": "k" * 300}}, (422,),
      "idempotency-key"),

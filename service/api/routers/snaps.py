@@ -1,40 +1,76 @@
-"""``POST /v1/snaps``: a snap-through past the transition (``sim.snap``), answered at once.
+"""``POST /v1/snaps``: a snap-through past the transition (``sim.snap``).
 
-Bounded: the record holds at most 4001 samples and lasts at most 500 time units; the
-nonlinear backends (euler-beam, cosserat) refuse dmu < 1e-4, whose slow passage would need
-a long integration (use the CLI for those).
+The normal form answers at once (200, the ``snap``); the nonlinear backends (euler-beam,
+cosserat) become a job (202, ``job``; ``GET /v1/jobs/{id}`` holds the snap document as its
+result). Bounded: at most 4001 samples over at most 500 time units, and dmu >= 1e-4 for the
+nonlinear backends, whose slow passage would need a long integration (the CLI has no bound).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from anyio import to_thread
 from fastapi import APIRouter
+from fastapi.responses import JSONResponse
 
+from service.api import limits
 from service.api.auth import CallerDep
+from service.api.jobs import JobContext, job_handler
+from service.api.problems import as_problems
 from service.api.routers._common import problems
-from service.schemas.snaps import SnapRequest, SnapResult
+from service.api.state import StateDep, job_doc
+from service.schemas import Job
+from service.schemas.snaps import SnapAnswer, SnapRequest, SnapResult
 
 router = APIRouter(prefix="/v1/snaps", tags=["snaps"])
 
 MIN_DMU_NONLINEAR = 1e-4
 
 
-def _run(req: SnapRequest) -> dict:
+def run_snap(params: dict[str, Any]) -> dict[str, Any]:
+    """Run ``sim.snap.snap`` for a validated request's fields (the snap document)."""
     from sim.errors import ParameterError
     from sim.scene import Scene
     from sim.snap import snap
 
-    if req.model != "normal-form" and req.dmu < MIN_DMU_NONLINEAR:
-        raise ParameterError("dmu", req.dmu, f"dmu must be >= {MIN_DMU_NONLINEAR:g} for "
-                             f"model={req.model!r} over the API, got {req.dmu!r}")
-    fields = req.model_dump(exclude={"model", "dmu", "duration"}, exclude_none=True)
-    r = snap(Scene(**fields), req.model, req.dmu, duration=req.duration)
-    return r.to_dict()
+    model, dmu = params["model"], params["dmu"]
+    with as_problems("snap"):
+        if model != "normal-form" and dmu < MIN_DMU_NONLINEAR:
+            raise ParameterError("dmu", dmu, f"dmu must be >= {MIN_DMU_NONLINEAR:g} for "
+                                 f"model={model!r} over the API, got {dmu!r}")
+        scene = {k: v for k, v in params.items()
+                 if k not in ("model", "dmu", "duration") and v is not None}  # fmt: skip
+        return snap(Scene(**scene), model, dmu, duration=params.get("duration")).to_dict()
 
 
-@router.post("", response_model=SnapResult, summary="Snap-through past the transition",
-             responses=problems(401, 422))  # fmt: skip
-async def create_snap(req: SnapRequest, caller: CallerDep) -> SnapResult:
-    """The strip released past mu* (or left of it, antisymmetric): snap time and record."""
-    doc = await to_thread.run_sync(_run, req)
-    return SnapResult.model_validate(doc)
+@router.post("", response_model=SnapAnswer, summary="Snap-through past the transition",
+             responses={202: {"description": "Became a job (see /v1/jobs/{id}); its result "
+                              "is the snap document.", "model": SnapAnswer},
+                        **problems(401, 422)})  # fmt: skip
+async def create_snap(req: SnapRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
+    """200 with the snap (normal form), or 202 with the job that computes it."""
+    params = req.model_dump()
+    if req.model == "normal-form":
+        doc = await to_thread.run_sync(run_snap, params)
+        answer = SnapAnswer(snap=SnapResult.model_validate(doc))
+        return JSONResponse(answer.model_dump(mode="json"), status_code=200)
+    if req.dmu < MIN_DMU_NONLINEAR:  # refused at the door, not in the job
+        await to_thread.run_sync(run_snap, params)
+    await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
+    row = await to_thread.run_sync(
+        lambda: state.store.create_job("snap", params, owner=caller.owner,
+                                       time_limit_s=state.settings.job_time_limit_s)
+    )  # fmt: skip
+    if state.runner is not None:
+        state.runner.wake()
+    job = Job.model_validate(job_doc(row))
+    return JSONResponse(SnapAnswer(job=job).model_dump(mode="json"), status_code=202,
+                        headers={"Location": f"/v1/jobs/{row.id}"})  # fmt: skip
+
+
+@job_handler("snap")
+def run_snap_job(ctx: JobContext) -> dict[str, Any]:
+    """The snap behind a 202: its document is the job's result."""
+    ctx.progress(0.0, f"snap-through ({ctx.params['model']}, dmu={ctx.params['dmu']:g})")
+    return run_snap(ctx.params)
