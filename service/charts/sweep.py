@@ -159,6 +159,15 @@ class SweepSeries:
         return all(math.isfinite(v) for v in self.interval)
 
 
+def _plain_log(axis: Any) -> None:
+    """Log-scale ticks at 1, 2, 5 x 10^k written as plain numbers (no crowded minor labels)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def _xlabel(s: SweepSeries) -> str:
     return label(s.control_name, s.control_unit)
 
@@ -195,6 +204,7 @@ def draw_period(ax: Any, s: SweepSeries) -> None:
     _band(ax, s)
     if T.size and np.all(T > 0):
         ax.set_yscale("log")
+        _plain_log(ax.yaxis)
     ax.set_xlabel(_xlabel(s))
     ax.set_ylabel(label("period T = 2 pi / omega", s.time_unit))
     ax.grid(alpha=0.3, which="both")
@@ -238,7 +248,7 @@ def _collapse_inset(ax: Any, s: SweepSeries, mu_last: float, z_last: float) -> N
     xs = np.array([-half, half])
     slope = z_last / (c - mu_last)
     top = max(slope * half, 1e-300)
-    ins = ax.inset_axes((0.5, 0.5, 0.47, 0.38))
+    ins = ax.inset_axes((0.1, 0.1, 0.45, 0.36))  # below the data: it falls to the right
     ins.axvspan(lo - c, hi - c, facecolor="tab:red", alpha=0.25, hatch="///", edgecolor="tab:red",
                 lw=0)  # fmt: skip
     for end, style in ((c, "-"), (lo, ":"), (hi, ":")):
@@ -282,6 +292,8 @@ def draw_zoom(ax: Any, s: SweepSeries) -> None:
                 label=f"slope -a = -{fmt_num(s.a, 3)}")  # fmt: skip
     ax.set_xscale("log")
     ax.set_yscale("log")
+    _plain_log(ax.xaxis)
+    _plain_log(ax.yaxis)
     ax.set_xlabel(label(f"distance {s.control_name}* - {s.control_name}", s.control_unit))
     ax.set_ylabel(label("period T", s.time_unit))
     ax.grid(alpha=0.3, which="both")
@@ -297,7 +309,7 @@ def sweep_figure(s: SweepSeries, *, title: str | None = None) -> Any:
     ax.set_title(title or "critical slowing down")
     bx.set_title(f"extrapolation ({s.transition})")
     cx.set_title(f"near {s.control_name}* (log of the distance)")
-    for a_, where in ((ax, "upper left"), (bx, "lower left"), (cx, "upper right")):
+    for a_, where in ((ax, "upper left"), (bx, "upper right"), (cx, "upper right")):
         if a_.get_legend_handles_labels()[0]:
             a_.legend(fontsize=7, loc=where)
     if s.time_unit == NONDIM:
