@@ -80,12 +80,15 @@ class Tab:
         """Poll ``expression`` until it is truthy; its value."""
         end = time.monotonic() + timeout
         while True:
-            v = self.evaluate(expression)
+            try:
+                v = self.evaluate(expression)
+            except (AssertionError, RuntimeError):  # the page is reloading: ask again
+                v = None
             if v:
                 return v
             if time.monotonic() > end:
                 raise AssertionError(f"timed out waiting for {expression!r}")
-            time.sleep(0.2)
+            self.browser.pump(0.2)
 
     def screenshot(self, path: Path, width: int = 1400) -> Path:
         """A full-page PNG of the tab at ``width`` CSS pixels."""
