@@ -198,3 +198,14 @@ async def test_resampling_is_asked_for_and_said_the_same_way(api, lab) -> None: 
     assert status == 200 and api_doc == cli_doc
     assert cli_doc["flags"][0]["code"] == "resampled"
     assert cli_doc["fundamental"]["omega"] == pytest.approx(40.0 * np.sqrt(1.5), rel=1e-4)
+
+
+async def test_rounded_times_sent_inline_read_as_from_the_file(api, lab) -> None:  # noqa: ANN001
+    """The times of the %.6g file sent as JSON numbers: the same step, the same note."""
+    rc, cli_doc, err = run_cli("detect", str(lab["s_6g"]), "--json")
+    assert rc == 0, err
+    rows = [line.split(",") for line in lab["s_6g"].read_text().splitlines()[1:]]
+    t, w = [float(a) for a, _ in rows], [float(b) for _, b in rows]
+    r = await api.post("/v1/detections", json={"t": t, "w": w})
+    assert r.status_code == 200, r.text
+    assert r.json() == cli_doc
