@@ -140,6 +140,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
             comps.setdefault(name, sub)
         comps.setdefault(model.__name__, schema)
     _document_common_problems(doc)
+    _add_links(doc)
     app.openapi_schema = doc
     return doc
 
@@ -157,6 +158,35 @@ _WITH_BODY = {
     "415": "Unsupported media type (send JSON or multipart).",
 }
 _CREATES_JOBS = ("/v1/simulations", "/v1/sweeps", "/v1/atlases")
+
+
+def _add_links(doc: dict[str, Any]) -> None:
+    """OpenAPI links from each creating POST to the operations on what it created (the id in
+    its answer), for clients and for stateful testing: ``POST /v1/x`` -> ``/v1/x/{x_id}...``."""
+    paths = doc.get("paths", {})
+    for base, ops in paths.items():
+        post = ops.get("post")
+        if not isinstance(post, dict) or "{" in base:
+            continue
+        for path, sub in paths.items():
+            if not path.startswith(base + "/{"):
+                continue
+            param = path[len(base) + 2 :].split("}", 1)[0]
+            if "{" in path[len(base) + 2 + len(param) + 1 :]:
+                continue  # a second parameter: not known from the answer alone
+            pointer = path.replace("~", "~0").replace("/", "~1")
+            for method in sub:
+                if method not in ("get", "post", "delete"):
+                    continue
+                tail = path[len(base) + len(param) + 3 :].strip("/")
+                name = method + ("_" + tail if tail else "_created")
+                name = "".join(ch if ch.isalnum() else "_" for ch in name)
+                for code in ("201", "202"):
+                    if code in post.get("responses", {}):
+                        post["responses"][code].setdefault("links", {})[name] = {
+                            "operationRef": f"#/paths/{pointer}/{method}",
+                            "parameters": {param: "$response.body#/id"},
+                        }
 
 
 def _document_common_problems(doc: dict[str, Any]) -> None:
