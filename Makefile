@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-slow lint bench serve openapi clean
+.PHONY: setup demo test test-slow lint bench serve openapi fuzz clean
 
 # Create the virtual environment with the project (editable) and its dev tools, only when
 # missing or when pyproject.toml changed since the last install.
@@ -41,6 +41,11 @@ bench: setup
 	$(BIN)/python bench/cosserat.py $(BENCH_ARGS)
 	$(BIN)/python bench/warn.py $(BENCH_ARGS)
 	$(BIN)/python bench/service.py
+
+## Schemathesis against a real server on loopback (SQLite; FUZZ_DB=<postgresql URL> for another).
+FUZZ_DB ?= sqlite
+fuzz: setup
+	$(BIN)/python tests/service/_svc_fuzz.py --db "$(FUZZ_DB)"
 
 ## Export the OpenAPI spec of the real app to openapi/openapi.json.
 openapi: setup
