@@ -185,7 +185,8 @@ class Client(AtlasMethods):
         return self._run(core.simulate(**scene))
 
     def snap(self, **request: Any) -> Any:
-        """``POST /v1/snaps``: a snap-through (``service.schemas.snaps.SnapResult``)."""
+        """``POST /v1/snaps``: ``.snap`` at once (normal form), or ``.job`` to :meth:`wait` for
+        (its result is the snap document)."""
         return self._run(core.snap(**request))
 
     def detect(

@@ -238,11 +238,11 @@ def simulate(**scene: Any) -> Call:
 
 
 def snap(**request: Any) -> Call:
-    from service.schemas.snaps import SnapResult
+    from service.schemas.snaps import SnapAnswer
 
     doc = {k: v for k, v in request.items() if v is not None}
     return Call("POST", "/v1/snaps", content=dumps(doc), headers=dict(JSON_HEADERS),
-                parse=_model(SnapResult))  # fmt: skip
+                parse=_model(SnapAnswer))  # fmt: skip
 
 
 def detect(

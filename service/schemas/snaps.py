@@ -6,6 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.schemas.jobs import Job
 from service.schemas.simulations import Actuation
 
 SnapModel = Literal["normal-form", "euler-beam", "cosserat"]
@@ -50,3 +51,10 @@ class SnapResult(BaseModel):
     amplitude: list[float | None] = Field(description="W(probe, t) - W*(probe), units of "
                                           "sqrt(L dL).")
     resolution: dict | None = None
+
+
+class SnapAnswer(BaseModel):
+    """Either the snap (the normal form, 200) or the job computing it (202)."""
+
+    snap: SnapResult | None = None
+    job: Job | None = None
