@@ -72,7 +72,9 @@ async def _data_error_handler(request: Request, exc: Exception) -> JSONResponse:
 
 async def _http_handler(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     if isinstance(exc, BodyTooLarge):
-        return problem_response(exc.problem, request.url.path)
+        resp = problem_response(exc.problem, request.url.path)
+        resp.headers["connection"] = "close"  # the rest of the body is left unread
+        return resp
     detail = exc.detail if isinstance(exc.detail, str) else str(exc.detail)
     if exc.status_code == 404 and detail == "Not Found":
         detail = f"no resource at {request.url.path}"
@@ -141,6 +143,7 @@ class BodyLimitMiddleware:
                     size = -1
                 if size > self.max_bytes:
                     resp = problem_response(self._problem(size), scope.get("path"))
+                    resp.headers["connection"] = "close"  # the body is left unread
                     await _drain_and_send(resp, scope, receive, send)
                     return
         seen = 0

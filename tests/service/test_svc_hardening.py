@@ -155,3 +155,21 @@ def test_a_40_mb_json_upload_costs_bounded_memory(tmp_path) -> None:  # noqa: AN
     finally:
         server.stop()
     assert grew < 7 * len(body), f"peak RSS grew {grew / 1e6:.0f} MB for {len(body) / 1e6:.0f} MB"
+
+
+async def test_oversized_body_is_413_and_closes_the_connection(tmp_path) -> None:  # noqa: ANN001
+    import httpx2
+
+    from service.api import create_app
+    from service.api.settings import Settings
+
+    app = create_app(
+        Settings(db_url=f"sqlite:///{tmp_path / 'b.db'}", warm_pool=False, run_jobs=False,
+                 executor="thread", max_body_bytes=4096)  # fmt: skip
+    )
+    async with app.router.lifespan_context(app):
+        transport = httpx2.ASGITransport(app=app)
+        async with httpx2.AsyncClient(transport=transport, base_url="http://127.0.0.1") as c:
+            r = await c.post("/v1/signals", json={"dt": 0.1, "w": [0.5] * 5000})
+    assert r.status_code == 413 and r.headers["connection"] == "close"
+    assert r.json()["errors"][0]["field"] == "body"
