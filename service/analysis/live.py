@@ -82,8 +82,8 @@ class LivePlan:
     ----------
     step : float or None
         Largest step of the control (the first steps, before any bound on mu* exists). Without
-        it the step never exceeds ``max_step_growth`` times the last one, and after the first
-        record no advice can be given.
+        it the step never exceeds ``max_step_growth`` times the last one (the lab's own
+        spacing), and after the first record no advice can be given.
     margin : float
         Distance kept below the safe bound on mu* (>= 0).
     target_width : float or None
@@ -91,8 +91,9 @@ class LivePlan:
         ``1e-6 * max(|mu*|, span of the controls)``.
     step_fraction : float
         Fraction of the room to the bound that a step takes, in (0, 1).
-    max_step_growth : float
-        A step is at most this multiple of the previous one (trust region; ``inf``: none).
+    max_step_growth : float or None
+        A step is at most this multiple of the previous one (trust region). Default: none when
+        ``step`` caps the steps (as ``warn``), 2 without ``step``.
     method : str
         Detector method.
     level : float
@@ -103,7 +104,7 @@ class LivePlan:
     margin: float = 0.0
     target_width: float | None = None
     step_fraction: float = 0.5
-    max_step_growth: float = 2.0
+    max_step_growth: float | None = None
     method: str = "auto"
     level: float = 0.95
 
@@ -125,7 +126,7 @@ class LivePlan:
                 self.step_fraction,
                 f"step_fraction must be in (0, 1), got step_fraction={self.step_fraction!r}",
             )
-        if not self.max_step_growth > 0:
+        if self.max_step_growth is not None and not self.max_step_growth > 0:
             raise ParameterError(
                 "max_step_growth",
                 self.max_step_growth,
@@ -424,8 +425,14 @@ def assess(
 def _advise(
     ms: Sequence[Measurement], trusted: Prediction | None, plan: LivePlan
 ) -> NextMeasurement | None:
-    """The next control value by :func:`service.analysis.alarm.next_measurement`."""
+    """The next control value by :func:`service.analysis.alarm.next_measurement`, with the
+    parameters of ``warn``: a sequential sweep, whose trusted interval alone bounds the step
+    (near a pitchfork the sigma^4 bound lands about halfway to mu* and would halve every
+    step)."""
     max_step = plan.step if plan.step is not None else math.inf
+    growth = plan.max_step_growth
+    if growth is None:
+        growth = math.inf if plan.step is not None else 2.0
     if not ms:
         return None
     if len(ms) == 1:
@@ -438,9 +445,10 @@ def _advise(
         trusted_bound=trusted.mu_star_interval[0] if trusted is not None else None,
         margin=plan.margin,
         step_fraction=plan.step_fraction,
-        max_step_growth=plan.max_step_growth,
+        max_step_growth=growth,
         max_step=max_step,
         min_t_ratio=SIGMA4_MIN_T_RATIO if len(ms) >= MIN_PREDICT else math.inf,
+        sigma4_when_trusted=False,
     )
 
 

@@ -1,31 +1,36 @@
 """A lab loop through the SDK against a real uvicorn: the "strip" is the Euler-beam simulator.
 
 Start at mu = 0, always measure at the next safe control value the service returns, with the
-record length and step it suggests, and stop when it says the trusted interval is narrow enough.
-The answer must reach the accuracy of ``snapwarn warn`` (|mu* error| <= 1e-5, here measured
-1e-7 .. 2e-7) against the beam's own bifurcation (an independent computation: the equilibrium
-branches of the statics, not the dynamics), and no measurement may reach mu*.
+record length and step it suggests, and stop when it says the trusted interval is narrow enough
+(2e-6, ``snapwarn warn``'s width). Checked against two independent references:
+
+- the beam's own bifurcation (the equilibrium branches of the statics, not the dynamics):
+  |mu* error| <= 1e-5, the interval covers it, the type is right, no measurement at or past mu*;
+- ``snapwarn warn`` (``pipeline.warn``) on the same strip with the same seeds: the same
+  measurements at the same controls and the same mu* (one policy, one scene, every door).
 """
 
 from __future__ import annotations
 
-import math
-
 import pytest
 from _lab import Lab
 
+from service.analysis.pipeline import warn
 from service.client import Client
 from sim.euler_beam import bifurcation
 
 pytestmark = pytest.mark.slow
 
+BUDGET = 40
+SEED = 1
 
-def run_lab(client: Client, actuation: str, budget: int = 30) -> tuple[list, list]:
-    lab = Lab(actuation)
-    live = client.live_sweep(f"lab {actuation}", control="mu", step=0.2)
+
+def run_lab(client: Client, actuation: str) -> tuple[list, object]:
+    lab = Lab(actuation, seed=SEED)
+    live = client.live_sweep(f"lab {actuation}", control="mu", step=0.2, target_width=2e-6)
     mu, duration, dt = 0.0, None, None
     updates = []
-    for _ in range(budget):
+    for _ in range(BUDGET):
         w, step = lab.record(mu, duration, dt)
         u = live.add(w=w, dt=step, control=mu)
         updates.append(u)
@@ -34,18 +39,18 @@ def run_lab(client: Client, actuation: str, budget: int = 30) -> tuple[list, lis
         if u.converged or u.next_control is None:
             break
         mu, duration, dt = u.next_control, u.record_duration, u.record_dt
-    closed = live.close()
-    return updates, [closed]
+    return updates, live.close()
 
 
 @pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
 def test_lab_loop_reaches_warn_accuracy(server, actuation: str) -> None:  # noqa: ANN001
     truth = bifurcation(actuation)
     with Client(server.url, timeout=300.0) as c:
-        updates, (closed,) = run_lab(c, actuation)
+        updates, closed = run_lab(c, actuation)
     last = updates[-1]
     assert last.converged, f"stopped after {len(updates)} records without converging"
-    assert abs(last.mu_star - truth.mu_star) <= 1e-5
+    err = last.mu_star - truth.mu_star
+    assert abs(err) <= 1e-5
     lo, hi = last.mu_star_interval
     assert lo <= truth.mu_star <= hi
     assert last.transition == truth.transition
@@ -57,6 +62,11 @@ def test_lab_loop_reaches_warn_accuracy(server, actuation: str) -> None:  # noqa
             assert u.next_control < u.next_bound
     assert closed.status == "succeeded"
     assert closed.result.prediction.mu_star == pytest.approx(last.mu_star, abs=1e-12)
-    print(f"{actuation}: {len(updates)} records, mu* error {last.mu_star - truth.mu_star:.2e}, "
-          f"max control {max(controls):.8f} < mu* {truth.mu_star:.8f}")
-    assert math.isfinite(last.mu_star)
+    # snapwarn warn on the same strip: the same sweep
+    ref = warn(actuation, seed=SEED, max_measurements=BUDGET)
+    assert ref.stopped == "converged"
+    assert [m.mu for m in ref.measurements] == pytest.approx(controls, rel=0, abs=1e-12)
+    assert last.mu_star == pytest.approx(ref.prediction.mu_star, rel=0, abs=1e-12)
+    print(f"{actuation}: {len(updates)} records, mu* error {err:.2e} (warn {ref.truth['error']:.2e}"
+          f", {len(ref.measurements)} measurements), max control {max(controls):.8f} < mu* "
+          f"{truth.mu_star:.8f}")

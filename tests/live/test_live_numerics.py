@@ -58,7 +58,7 @@ def test_update_matches_closed_form_and_the_policy() -> None:
     ref = next_measurement(
         [m.mu for m in ms], [abs(m.sigma2) for m in ms],
         trusted_bound=lo if last.trusted else None, margin=0.01, max_step=0.3,
-        min_t_ratio=live.SIGMA4_MIN_T_RATIO,
+        max_step_growth=math.inf, min_t_ratio=live.SIGMA4_MIN_T_RATIO, sigma4_when_trusted=False,
     )  # fmt: skip
     assert last.next_control == pytest.approx(ref.mu, rel=0, abs=1e-15)
     # below the safe bound minus the margin, hence below mu* minus the margin
