@@ -276,3 +276,23 @@ def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots
     _assert_clean(tab)
     tab.screenshot(shots / "live.png")
     tab.close()
+
+
+def test_user_text_is_escaped_in_pages_and_charts(browser: Browser, site: Site) -> None:
+    """A record's name and units are the user's text: shown, never run (page and inline SVG)."""
+    import numpy as np
+
+    evil = '<img src=x onerror="window.__xss=1">'
+    t = np.arange(800) * 0.01
+    with site.client(site.key_a) as c:
+        w = (np.cos(5 * t) * np.exp(-0.1 * t)).tolist()
+        r = c.post("/v1/signals", json={"dt": 0.01, "w": w, "name": evil, "unit": evil,
+                                        "value_unit": "mm"})  # fmt: skip
+        assert r.status_code == 201, r.text
+        sid = r.json()["id"]
+    tab = _open(browser, site, f"/signals/{sid}", site.key_a)
+    _assert_clean(tab)
+    assert tab.evaluate("window.__xss === undefined")
+    assert evil in tab.evaluate("document.querySelector('[data-key=name]').textContent")
+    assert evil in tab.evaluate("document.querySelector('#fit-chart svg').textContent")
+    tab.close()
