@@ -155,11 +155,13 @@ def snap(scene: Scene, model: str, dmu: float, *, duration: float | None = None,
     side, frm, to, probe = _protocol(act)
     if duration is None:
         duration = min(MAX_DURATION, 4.0 * normal_form_time(act, dmu) + 2.0)
-    if not (math.isfinite(duration) and 0.0 < duration <= MAX_DURATION):
+    if not (math.isfinite(duration) and 1e-3 <= duration <= MAX_DURATION):
         raise ParameterError("duration", duration,
-                             f"duration must lie in (0, {MAX_DURATION}], got {duration!r}")
+                             f"duration must lie in [0.001, {MAX_DURATION}], got {duration!r}")
     if dt is None:
         dt = duration / 4000.0
+    if not (math.isfinite(dt) and 0.0 < dt <= duration / 8):
+        raise ParameterError("dt", dt, f"dt must lie in (0, duration / 8], got {dt!r}")
     if model == "cosserat":
         return _rod_snap(scene, dmu, duration, dt)
     from sim.euler_beam import bifurcation, equilibrium

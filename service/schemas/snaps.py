@@ -21,7 +21,7 @@ class SnapRequest(BaseModel):
     actuation: Actuation = "asymmetric"
     dmu: float = Field(gt=0.0, lt=0.5, description="Distance from mu*: to the right "
                        "(asymmetric, symmetric, from U_A), to the left (antisymmetric, from S_B).")
-    duration: float | None = Field(default=None, gt=0.0, le=500.0)
+    duration: float | None = Field(default=None, ge=1e-3, le=500.0)
     damping: float = Field(default=2e-4, ge=0.0)
     end_shortening: float = 1e-2
     slenderness: float = 1e-3

@@ -26,6 +26,7 @@ def client(tmp_path):
         yield tc
 
 
+@pytest.mark.slow  # starts the app with its process pools
 def test_snap_is_the_same_through_every_door(client, capsys) -> None:
     ref = snap(Scene(actuation="antisymmetric"), "normal-form", 1e-3)
     assert main(["snap", "--model", "normal-form", "--actuation", "antisymmetric",

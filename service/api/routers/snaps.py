@@ -51,12 +51,12 @@ def run_snap(params: dict[str, Any]) -> dict[str, Any]:
 async def create_snap(req: SnapRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
     """200 with the snap (normal form), or 202 with the job that computes it."""
     params = req.model_dump()
-    if req.model == "normal-form":
-        doc = await to_thread.run_sync(run_snap, params)
+    if req.model == "normal-form":  # in the analysis pool, within the request time limit
+        doc = await state.run(run_snap, params)
         answer = SnapAnswer(snap=SnapResult.model_validate(doc))
         return JSONResponse(answer.model_dump(mode="json"), status_code=200)
-    if req.dmu < MIN_DMU_NONLINEAR:  # refused at the door, not in the job
-        await to_thread.run_sync(run_snap, params)
+    if req.dmu < MIN_DMU_NONLINEAR:  # refused at the door (422), not in the job
+        await state.run(run_snap, params)
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
     row = await to_thread.run_sync(
         lambda: state.store.create_job("snap", params, owner=caller.owner,
