@@ -297,10 +297,12 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
         return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
                 "value_unit": NONDIM, "mixed": []}  # fmt: skip
     names, cunits, tunits, vunits = set(), set(), set(), set()
-    for m in req["measurements"]:
-        row = await to_thread.run_sync(
-            lambda sid=m["signal_id"]: state.store.get_signal_meta(sid, scope=scope)
-        )
+
+    def rows() -> list[Any]:  # one thread for all the reads
+        return [state.store.get_signal_meta(m["signal_id"], scope=scope)
+                for m in req["measurements"]]  # fmt: skip
+
+    for row in await to_thread.run_sync(rows):
         if row is None:
             continue
         names.add(row.control_name)
