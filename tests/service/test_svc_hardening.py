@@ -173,3 +173,24 @@ async def test_oversized_body_is_413_and_closes_the_connection(tmp_path) -> None
             r = await c.post("/v1/signals", json={"dt": 0.1, "w": [0.5] * 5000})
     assert r.status_code == 413 and r.headers["connection"] == "close"
     assert r.json()["errors"][0]["field"] == "body"
+
+
+async def test_too_many_samples_are_refused_before_parsing(tmp_path) -> None:  # noqa: ANN001
+    import httpx2
+
+    from service.api import create_app
+    from service.api.settings import Settings
+
+    app = create_app(
+        Settings(db_url=f"sqlite:///{tmp_path / 's.db'}", warm_pool=False, run_jobs=False,
+                 executor="thread", max_samples=1000)  # fmt: skip
+    )
+    async with app.router.lifespan_context(app):
+        transport = httpx2.ASGITransport(app=app)
+        async with httpx2.AsyncClient(transport=transport, base_url="http://127.0.0.1") as c:
+            big = await c.post("/v1/signals", json={"dt": 0.1, "w": [0.5] * 200_000})
+            ok = await c.post("/v1/signals", json={"dt": 0.1, "w": [0.5] * 1000})
+            over = await c.post("/v1/signals", json={"dt": 0.1, "w": [0.5] * 1001})
+    assert big.status_code == 413 and big.json()["errors"][0]["field"] == "w"
+    assert ok.status_code == 201, ok.text
+    assert over.status_code == 413, over.text  # the exact count, after parsing

@@ -122,6 +122,7 @@ class CleanSignal:
 
 async def _from_json(request: Request, state: AppState) -> CleanSignal:
     body = await request.body()
+    limits.check_json_samples(body, state.settings.max_samples)
     try:
         doc = SignalIn.model_validate_json(body)
     except ValidationError as exc:
