@@ -95,6 +95,10 @@ def plot_prediction_table(
     mu: Sequence[float],
     columns: Mapping[str, Any],
     prediction: Prediction,
+    *,
+    control_name: str = "mu",
+    control_unit: str | None = None,
+    time_unit: str | None = None,
 ) -> Path:
     """``snapwarn predict --plot``: ``columns`` holds the table's ``sigma2`` (and
     ``sigma2_std``) or ``omega`` (``sigma^2 = -omega^2``; ``omega_std`` propagates as
@@ -108,7 +112,8 @@ def plot_prediction_table(
         std = None
         if columns.get("omega_std") is not None:
             std = 2.0 * om * np.asarray(columns["omega_std"], dtype=float)
-    return plot_prediction(path, mu, s2, std, prediction)
+    return plot_prediction(path, mu, s2, std, prediction, control_name=control_name,
+                           control_unit=control_unit, time_unit=time_unit)
 
 
 def plot_spectrum(path: str, doc: Mapping[str, Any], *, actuation: str, mu: float,

@@ -116,7 +116,8 @@ def _predict(args: argparse.Namespace) -> int:
                                                                    field="SWEEP") from None
     doc = convert.prediction(pred)
     if args.plot:
-        plot_prediction_table(args.plot, mu, kw, doc)
+        plot_prediction_table(args.plot, mu, kw, doc, control_name=args.control_name,
+                              control_unit=args.control_unit, time_unit=args.time_unit)
     lo, hi = doc.mu_star_interval
     emit(doc, json_mode=args.json,
          text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
@@ -331,6 +332,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                             "pitchfork"))  # fmt: skip
     add_json_flag(p)
     add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
+    p.add_argument("--control-name", default="mu", help="the control's name on the chart")
+    p.add_argument("--control-unit", default=None, help="the control's unit on the chart")
+    p.add_argument("--time-unit", default=None, help="the time unit of sigma2 (chart)")
     p.set_defaults(func=_predict)
 
     p = sub.add_parser("warn", help="simulated early-warning sweep")

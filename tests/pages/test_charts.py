@@ -142,3 +142,9 @@ def test_cli_predict_plot(tmp_path: Path) -> None:
                        capture_output=True, text=True, timeout=300)  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    svg = tmp_path / "pred.svg"
+    r = subprocess.run([*SNAPWARN, "predict", str(table), "--plot", str(svg), "--control-name",
+                        "V", "--control-unit", "kV", "--time-unit", "s"],
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "V [kV]" in svg.read_text() and "period T = 2 pi / omega [s]" in svg.read_text()
