@@ -267,7 +267,9 @@ def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:
         if len(infos) > 256:
             raise RecordingTooLarge("file", len(infos), "holds more than 256 arrays")
         total = sum(i.file_size for i in infos)
-    else:
+    elif (fast := _mat5_unpacked_size(data)) is not None:
+        total = fast
+    else:  # not plain MAT v5 (v4, odd headers): scipy reads the variables' headers
         from scipy.io import whosmat
 
         try:
@@ -285,6 +287,48 @@ def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:
             f"unpacks to {total} bytes, over the limit of {limit} "
             "(setting SNAPWARN_MAX_DECOMPRESSED_BYTES)",
         )
+
+
+_MAT_NUMERIC = frozenset({4, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15})  # char, double... uint64
+
+
+def _mat5_unpacked_size(data: bytes) -> int | None:
+    """Bytes the variables of a MAT v5 file hold once unpacked and read as float64, from the
+    element tags and the first 64 inflated bytes of each compressed element (the rest is never
+    inflated); None when the file is not plain MAT v5 (the caller asks scipy then)."""
+    import struct
+    import zlib
+
+    if len(data) < 136 or data[126:128] not in (b"IM", b"MI"):
+        return None
+    end = "<" if data[126:128] == b"IM" else ">"
+    total, pos = 0, 128
+    while pos + 8 <= len(data):
+        dtype, nbytes = struct.unpack(end + "II", data[pos : pos + 8])
+        start = pos
+        pos += 8 + nbytes + (-nbytes % 8 if dtype != 15 else 0)
+        if dtype == 15:  # miCOMPRESSED: a miMATRIX element, deflated
+            try:
+                head = zlib.decompressobj().decompress(data[start + 8 : pos], 64)
+            except zlib.error:
+                return None
+        elif dtype == 14:  # miMATRIX, with its tag
+            head = data[start : start + 64]
+        else:
+            continue
+        if len(head) < 40 or struct.unpack(end + "I", head[:4])[0] != 14:
+            return None
+        inner_bytes = struct.unpack(end + "I", head[4:8])[0]
+        cls = struct.unpack(end + "I", head[16:20])[0] & 0xFF
+        dims_type, dims_bytes = struct.unpack(end + "II", head[24:32])
+        if cls not in _MAT_NUMERIC or dims_type != 5 or dims_bytes % 4 or 32 + dims_bytes > 64:
+            total += 8 * inner_bytes  # cells, structs, sparse: their bytes, counted as doubles
+            continue
+        count = 1
+        for d in struct.unpack(end + f"{dims_bytes // 4}i", head[32 : 32 + dims_bytes]):
+            count *= max(0, d)
+        total += 8 * count
+    return total
 
 
 def _load_failed(fmt: str, data: bytes, exc: Exception) -> RecordingError:

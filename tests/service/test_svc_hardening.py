@@ -11,7 +11,7 @@ import asyncio
 import time
 
 import pytest
-from _svc_attacks import CASES, W, npz_bomb
+from _svc_attacks import CASES, W, mat_bomb, npz_bomb
 
 pytestmark = pytest.mark.anyio
 
@@ -54,6 +54,22 @@ async def test_npz_zip_bomb_is_refused_cheaply(asgi) -> None:  # noqa: ANN001
     assert r.status_code == 413, r.text
     assert _field_named(r.json(), "file"), r.json()
     assert took < 5.0, f"the bomb cost {took:.1f} s"
+
+
+async def test_mat_zip_bomb_is_refused_cheaply(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    bomb = mat_bomb(1 << 30)
+    assert len(bomb) < 2_000_000
+    import io
+
+    from scipy.io import whosmat  # a real MAT file: scipy sees the 2^27 doubles
+
+    assert whosmat(io.BytesIO(bomb)) == [("w", (1 << 27, 1), "double")]
+    t0 = time.perf_counter()
+    r = await client.post("/v1/signals", files={"file": ("bomb.mat", bomb, "application/x-matlab")})
+    took = time.perf_counter() - t0
+    assert r.status_code == 413, r.text
+    assert took < 2.0, f"the bomb cost {took:.1f} s"
 
 
 async def test_concurrent_deletes_answer_204_once(asgi) -> None:  # noqa: ANN001
