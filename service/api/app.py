@@ -206,7 +206,7 @@ def _document_common_problems(doc: dict[str, Any]) -> None:
             extra = dict(_COMMON)
             if method in ("post", "put", "patch"):
                 extra.update(_WITH_BODY)
-                if path in _CREATES_JOBS:
+                if path in _CREATES_JOBS or "202" in responses:  # may queue a job
                     extra["429"] = "Too many queued or running jobs of this owner; retry later."
             for code, text in extra.items():
                 responses.setdefault(code, {"description": text, "content": problem})
