@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import multiprocessing
 import os
 import time
 import warnings
@@ -165,11 +166,22 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         raise EngineError("workers", n, f"workers must be an integer in [1, 512], got {n!r}")
     with warnings.catch_warnings():  # "Port 8787 is already in use": another cluster's
         warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-        cluster = distributed.LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=None, silence_logs=logging.ERROR, env=dict(ONE_THREAD_ENV),
-        )  # fmt: skip
+        if multiprocessing.current_process().daemon:
+            # a daemonic process (a job of the service's process pool) may not fork
+            # multiprocessing children: scheduler and workers in their own subprocesses
+            from distributed.deploy.subprocess import SubprocessCluster
+
+            cluster = SubprocessCluster(
+                n_workers=n, threads_per_worker=1, host="127.0.0.1", dashboard_address=None,
+                silence_logs=logging.ERROR, worker_kwargs={"env": dict(ONE_THREAD_ENV)},
+            )  # fmt: skip
+        else:
+            cluster = distributed.LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                dashboard_address=None, silence_logs=logging.ERROR, env=dict(ONE_THREAD_ENV),
+            )  # fmt: skip
     client = distributed.Client(cluster)
+    client.wait_for_workers(n, timeout=300)
     try:
         yield client
     finally:

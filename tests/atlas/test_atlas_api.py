@@ -100,3 +100,46 @@ def test_db_sink_keeps_each_cell_once_and_resumes(tmp_path) -> None:  # noqa: AN
     again = run_atlas(spec, serial=True, sink=sink)
     assert again.summary.resumed == 3 and again.summary.engine.startswith("none")
     assert [r.to_dict() for r in again.rows] == [r.to_dict() for r in first.rows]
+
+
+@pytest.mark.slow  # ~60 s on a loaded machine: a real server, its process pool, a cluster
+def test_a_real_server_runs_an_atlas_job_in_its_process_pool(tmp_path) -> None:  # noqa: ANN001
+    """Jobs run in daemonic pool processes, which may not fork multiprocessing children: the
+    engine then starts the scheduler and workers as subprocesses."""
+    import os
+    import signal
+    import time
+
+    from _atlas_helpers import free_port
+
+    from service.client import Client
+
+    port = free_port()
+    env = env_one_thread()
+    env.update({"SNAPWARN_ATLAS_WORKERS": "2", "SNAPWARN_WARM_POOL": "false"})
+    log = open(tmp_path / "serve.log", "wb")  # noqa: SIM115
+    server = subprocess.Popen([*SNAPWARN, "serve", "--port", str(port), "--db",
+                               f"sqlite:///{tmp_path / 'db.sqlite'}"], env=env, cwd=tmp_path,
+                              stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
+    try:
+        url = f"http://127.0.0.1:{port}"
+        end = time.monotonic() + 120
+        while True:
+            try:
+                if httpx2.get(url + "/healthz", timeout=2).status_code == 200:
+                    break
+            except httpx2.HTTPError:
+                pass
+            assert server.poll() is None and time.monotonic() < end, (tmp_path / "serve.log"
+                                                                      ).read_text()
+            time.sleep(0.3)
+        with Client(url, timeout=60) as c:
+            atlas = c.create_atlas(BEAM)
+            done = c.wait_atlas(atlas, progress=False, timeout=400, poll=0.5)
+            assert done.status == "succeeded", done.job.error
+            assert done.summary.ok == 3 and len(done.summary.workers) >= 1
+            assert all(w.startswith("tcp://127.0.0.1:") for w in done.summary.workers)
+    finally:
+        os.kill(server.pid, signal.SIGTERM)
+        server.wait(30)
+        log.close()
