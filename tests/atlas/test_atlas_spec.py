@@ -98,3 +98,13 @@ def test_load_spec_reads_yaml_and_json_and_resolves_manifests(tmp_path) -> None:
     with pytest.raises(SpecError, match="not valid JSON") as info:
         load_spec(tmp_path / "c.json")
     assert info.value.parameter == "SPEC"
+
+
+def test_the_example_specs_are_valid() -> None:
+    from pathlib import Path
+
+    examples = sorted((Path(__file__).resolve().parents[2] / "examples").glob("atlas-*.yaml"))
+    assert len(examples) >= 3
+    for path in examples:
+        spec = load_spec(path)
+        assert spec.cells and spec.chart is not None, path
