@@ -15,8 +15,8 @@ class DetectionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     signal_id: str | None = None
-    w: list[StrictFloat] | None = None
-    t: list[StrictFloat] | None = None
+    w: list[StrictFloat] | None = Field(default=None, min_length=2)
+    t: list[StrictFloat] | None = Field(default=None, min_length=2)
     dt: StrictFloat | None = Field(default=None, ge=1e-100, le=1e100)
     method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = Field(
         default="auto", description="Detector method ('auto' resolves to 'varpro')."

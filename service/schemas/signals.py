@@ -21,14 +21,20 @@ class SignalIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    w: list[StrictFloat] = Field(description="Samples (absolute position at the probe).")
+    w: list[StrictFloat] = Field(
+        min_length=2, description="Samples (absolute position at the probe); at least 2."
+    )
     t: list[StrictFloat] | None = Field(
-        default=None, description="Sample times (same length as w)."
+        default=None,
+        min_length=2,
+        description="Sample times (same length as w), within +-1e100.",
     )
     dt: StrictFloat | None = Field(
         default=None, ge=1e-100, le=1e100, description="Sampling step, when t is not given."
     )
-    t0: float | None = Field(default=None, description="Time of the first sample (with dt).")
+    t0: float | None = Field(
+        default=None, ge=-1e100, le=1e100, description="Time of the first sample (with dt)."
+    )
     unit: str | None = Field(default=None, max_length=100, description="Time unit, e.g. 's'.")
     value_unit: str | None = Field(default=None, max_length=100, description="Unit of w.")
     control: Control | None = None
