@@ -78,7 +78,7 @@ class Settings(BaseSettings):
         default=500.0, gt=0, description="Longest simulated duration (time units)."
     )
     max_sim_work: float = Field(
-        default=40_000.0,
+        default=10_000.0,
         gt=0,
         description="Largest duration x elements of a discretised simulation (its cost: time "
         "steps per unit time x elements).",
