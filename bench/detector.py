@@ -10,8 +10,10 @@ record lengths (3 to 1000 fundamental cycles: dt = cycles * 2 pi / (40 N); each 
 fundamental by a random fraction of an FFT bin, so that it does not sit on the FFT grid) and
 per-sample SNR
 of the fundamental, ``a1^2 / (2 noise^2)``, from 0 to 40 dB. Harmonics above 0.8 x Nyquist are
-left out of the signal. Plus an overdamped case: a kicked overdamped fundamental
-(sigma^2 = -0.5, xi = 2, two real poles) under two underdamped modes, where the FFT has no peak.
+left out of the signal (the 5x mode sits at twice the 2.5x one, so the detector marks it as a
+possible combination tone; the fundamental is unaffected). Plus an overdamped case: a kicked
+overdamped fundamental (sigma^2 = -0.5, xi = 2, two real poles) under two underdamped modes,
+where the FFT has no peak.
 
 For each method and grid point: RMSE of the fundamental's omega, damping and sigma^2 over the
 trials, divided by the Cramer-Rao bound of the same record (``service.analysis.crb``; the

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from service.analysis.detect._kernels import model_gram
+from service.analysis.detect._kernels import model_gram, model_values
 from service.analysis.detect._linalg import _pinv_psd, _solve_gram
 from service.analysis.detect._results import RSS_TOL, S2_FLOOR
 
@@ -308,17 +308,32 @@ def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
                     suspects.add(i if e[i] < e[j] else j)
         if not suspects:
             return fit
-        best = None
+        base, s2 = _explicit_rss(y, fit)
+        best, best_rss = None, math.inf
         for k in sorted(suspects, key=lambda k: e[k]):
             keep = [i for i in range(K) if i != k]
             f = _levenberg_marquardt(y, p[keep], q[keep], common=fit.common, max_iter=max_iter)
-            if f is not None and (f.ev.rss - fit.ev.rss) < thr * fit.s2 + _rss_tol(fit.ev):
-                if best is None or f.ev.rss < best.ev.rss:
-                    best = f
+            if f is None:
+                continue
+            rss = _explicit_rss(y, f)[0]
+            if rss - base < thr * s2 + _rss_tol(fit.ev) and rss < best_rss:
+                best, best_rss = f, rss
         if best is None:
             return fit
         fit = best
     return fit
+
+
+def _explicit_rss(y: np.ndarray, fit: _Fit) -> tuple[float, float]:
+    """RSS of a fit from its residual (one pass) and the noise variance it implies. The Gram
+    RSS loses the digits of a model whose columns cancel (a growing pole against a fast one):
+    order decisions between fits compare these."""
+    mv = np.empty(y.shape[0])
+    model_values(fit.ev.p, fit.ev.q, fit.ev.c, mv)
+    r = y - mv
+    rss = float(r @ r)
+    npar = fit.ntheta + fit.ev.c.size
+    return rss, max(rss / max(y.shape[0] - npar, 1), S2_FLOOR)
 
 
 def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
@@ -339,7 +354,8 @@ def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
                 pool.append((k, (-0.5 * p[k] - lam, -0.5 * p[k] + lam)))
         if len(pool) < 2:
             return fit
-        best = None
+        base, s2 = _explicit_rss(y, fit)
+        best, best_rss = None, math.inf
         for i in range(len(pool)):
             for j in range(i + 1, len(pool)):
                 ki, si = pool[i]
@@ -350,11 +366,11 @@ def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
                         pn = np.append(p[keep], -(a + b))
                         qn = np.append(q[keep], a * b)
                         f = _levenberg_marquardt(y, pn, qn, common=fit.common, max_iter=max_iter)
-                        cost = f.ev.rss - fit.ev.rss if f is not None else math.inf
-                        if cost >= thr * fit.s2 + _rss_tol(fit.ev):
+                        if f is None:
                             continue
-                        if best is None or f.ev.rss < best.ev.rss:
-                            best = f
+                        rss = _explicit_rss(y, f)[0]
+                        if rss - base < thr * s2 + _rss_tol(fit.ev) and rss < best_rss:
+                            best, best_rss = f, rss
         if best is None:
             return fit
         fit = best
