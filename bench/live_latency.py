@@ -177,9 +177,12 @@ def trial(client: httpx2.Client, records: list, pid: int) -> tuple[float, float,
     wall = time.perf_counter() - t0
     cpu = _tree_cpu(pid) - cpu0
     r.raise_for_status()
-    server = float(r.headers["server-timing"].split("dur=")[1])
+    timing = {k.strip(): float(v) for k, v in
+              (part.split(";dur=") for part in r.headers["server-timing"].split(","))}  # fmt: skip
+    server = timing.pop("app")
     doc = r.json()
     client.post(f"/v1/sweeps/{sid}/close").raise_for_status()
+    doc["_timing"] = timing
     return server, 1e3 * wall, doc, 1e3 * cpu
 
 
@@ -205,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     server = np.array([r[0] for r in res])
     wall = np.array([r[1] for r in res])
     cpu = np.array([r[3] for r in res])
+    split = {k: float(np.median([r[2]["_timing"][k] for r in res])) for k in res[0][2]["_timing"]}
     last = res[-1][2]
     load = os.getloadavg()
     doc = {
@@ -215,6 +219,7 @@ def main(argv: list[str] | None = None) -> int:
         "server_ms_max": float(server.max()),
         "round_trip_ms_median": float(np.median(wall)),
         "server_cpu_ms_median": float(np.median(cpu)),
+        "server_split_ms_median": split,
         "in_process_detect_cpu_ms": local["detect_cpu_ms"],
         "in_process_assess_cpu_ms": local["assess_cpu_ms"],
         "in_process_detect_ms": local["detect_ms"],
@@ -234,6 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  server time (upload -> answer)  median {doc['server_ms_median']:8.1f} ms   "
           f"max {doc['server_ms_max']:8.1f} ms   target < 50 ms")
     print(f"  client round trip               median {doc['round_trip_ms_median']:8.1f} ms")
+    shown = ", ".join(f"{k} {v:.1f} ms" for k, v in split.items())
+    print(f"  server split (Server-Timing)    {shown}")
     print(f"  server CPU (process tree)       median {doc['server_cpu_ms_median']:8.1f} ms "
           "(1/100 s ticks)")
     print(f"  in process: detection {local['detect_ms']:.1f} ms (CPU {local['detect_cpu_ms']:.1f}),"

@@ -280,6 +280,8 @@ async def add_record(
         item["signal_id"] = await _store_recording(state, item, live_row, caller)
         item["w"], item["dt"] = item["recording"].w, item["recording"].dt
     plan = _plan(live_row.options)
+    timing = {"read": time.perf_counter() - t_start}
+    t0 = time.perf_counter()
     try:
         det, meas, dflags = await state.run(
             partial(numerics.measure, item["w"], dt=item["dt"], control=item["control"],
@@ -288,25 +290,29 @@ async def add_record(
     except ValueError as exc:
         raise invalid(getattr(exc, "parameter", "w"), getattr(exc, "value", None),
                       str(exc)) from None  # fmt: skip
-    doc = await _append(state, sweep_id, item, det, meas, dflags, plan)
+    timing["detect"] = time.perf_counter() - t0
+    doc = await _append(state, sweep_id, item, det, meas, dflags, plan, timing)
     ms = 1e3 * (time.perf_counter() - t_start)
+    parts = ", ".join(f"{k};dur={1e3 * v:.2f}" for k, v in timing.items())
     return JSONResponse(
         {**doc, "server_ms": ms},
         status_code=201,
         headers={
             "Location": f"/v1/sweeps/{sweep_id}/records/{doc['seq']}",
-            "Server-Timing": f"app;dur={ms:.2f}",
+            "Server-Timing": f"{parts}, app;dur={ms:.2f}",
         },
     )
 
 
 async def _append(
     state: AppState, sweep_id: str, item: dict[str, Any], det: Any, meas: Any, dflags: Any,
-    plan: numerics.LivePlan,
+    plan: numerics.LivePlan, timing: dict[str, float],
 ) -> dict[str, Any]:  # fmt: skip
     """Assess on the latest stored state and append; recompute and retry when another record
-    (or a close) came first."""
+    (or a close) came first. ``timing`` gets the seconds spent assessing and storing."""
+    timing["assess"] = timing["store"] = 0.0
     for _ in range(MAX_ATTEMPTS):
+        t0 = time.perf_counter()
         st = await to_thread.run_sync(store_live.live_state, state.store, sweep_id)
         if st is None:
             raise not_found("live sweep", sweep_id)
@@ -315,16 +321,20 @@ async def _append(
         previous = [numerics.record_from_dict(d) for d in st.records]
         budget = st.sweep.options.get("budget")
         finishing = budget is not None and len(previous) + 1 >= int(budget)
+        t1 = time.perf_counter()
         doc, record, final = await state.run(
             partial(_assess, previous, det, meas, item["control"], plan, dflags, finishing,
                     sweep_id, item["signal_id"])  # fmt: skip
         )
+        t2 = time.perf_counter()
         append = partial(
             store_live.append_record, state.store, sweep_id, st.sweep.version,
             signal_id=item["signal_id"], control=item["control"], record=record, doc=doc,
             finish_result=final,
         )  # fmt: skip
         row = await to_thread.run_sync(append)
+        timing["assess"] += t2 - t1
+        timing["store"] += (t1 - t0) + (time.perf_counter() - t2)
         if row is not None:
             return row.doc
     raise ApiProblem(503, f"live sweep {sweep_id!r} is too busy: retry the record",
