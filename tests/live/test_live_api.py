@@ -225,3 +225,26 @@ def test_events_in_order_across_processes_and_resume(server, server_factory, liv
 
     evs = anyio.run(follow_async)
     assert [e.id for e in evs] == [1, 2, 3, 4]
+
+
+def test_owners_stay_apart(server, live_db) -> None:  # noqa: ANN001
+    """A live sweep of one key's owner is 404 for another owner, on every live route."""
+    from service.api.storage import Store
+
+    store = Store(live_db)
+    alice, _ = store.create_key("alice")
+    bob, _ = store.create_key("bob")
+    store.dispose()
+    with Client(server.url, api_key=alice, timeout=120.0) as a, \
+            Client(server.url, api_key=bob, timeout=120.0) as b:  # fmt: skip
+        live = a.live_sweep("alice's", step=0.1)
+        t, w = record(0.0, n=2000)
+        live.add(t=t, w=w, control=0.0)
+        for method, path in (("GET", "records"), ("POST", "close"), ("GET", "events"),
+                             ("GET", "records/1")):  # fmt: skip
+            r = b._http.request(method, f"/v1/sweeps/{live.id}/{path}")
+            assert r.status_code == 404, (method, path, r.status_code)
+        r = b._http.post(f"/v1/sweeps/{live.id}/records", json={"control": 0.1, "w": [1.0]})
+        assert r.status_code == 404
+        assert live.records().total == 1  # alice still sees hers
+        live.close()

@@ -126,3 +126,25 @@ def test_watch_refuses_a_regex_without_group(tmp_path: Path) -> None:
     assert r.returncode == 2
     doc = json.loads(r.stdout)
     assert doc["field"] == "--control"
+
+
+def test_text_line_of_each_stage() -> None:
+    """The human line: no prediction yet, then mu* with its interval, the alarm, the advice."""
+    import re
+
+    from service import convert
+    from service.analysis import live
+    from service.cli.watch_cmds import control_of, line
+
+    assert control_of("mu_0.300.csv", re.compile(r"mu_([-+0-9.]+)\.csv")) == 0.3
+    assert control_of("run-7_load=1.5N.csv", re.compile(r"load=(?P<control>[0-9.]+)N")) == 1.5
+    assert control_of("notes.txt", re.compile(r"mu_([-+0-9.]+)\.csv")) is None
+    recs, lines = [], []
+    for mu in CONTROLS:
+        _, w = record(mu, n=2000)
+        u = live.update(recs, w, dt=2e-3, control=mu, plan=live.LivePlan(step=0.3))
+        recs.append(u.record)
+        lines.append(line(convert.live_update(u), f"mu_{mu}.csv"))
+    assert lines[0].startswith("#1 mu_0.0.csv control=0 | sigma2=")
+    assert "mu*" not in lines[2] and "next<=0.9" in lines[2]
+    assert "mu*=1.8" in lines[4] and "next<=1.5 (sigma4)" in lines[4]
