@@ -113,3 +113,12 @@ def test_cli_atlas_json_and_errors(tmp_path: Path) -> None:
                        text=True, cwd=REPO, env=env_one_thread(), timeout=120)
     assert r.returncode == 2
     assert "grid.actuation[1]" in r.stderr and "'sideways'" in r.stderr
+
+
+def test_time_bound_leaves_cells_missing_and_a_rerun_completes(tmp_path: Path) -> None:
+    bounded = parse_spec({**BEAM, "timeout_s": 1e-9})
+    sink = JsonlSink(tmp_path / "cells.jsonl")
+    res = run_atlas(bounded, serial=True, sink=sink)
+    assert res.summary.missing == 3 and len(res.missing) == 3 and res.rows == ()
+    again = run_atlas(parse_spec(BEAM), serial=True, sink=JsonlSink(tmp_path / "cells.jsonl"))
+    assert again.summary.missing == 0 and again.summary.ok == 3
