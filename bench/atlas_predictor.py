@@ -30,9 +30,10 @@ sys.path.insert(0, str(HERE.parent))
 import calibration as cal  # noqa: E402
 
 OUT = HERE / "results"
-STOPS = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)
+STOPS = (1e-1, 1e-2, 1e-3)
 STEPS = (0.02, 0.05, 0.1)
-NOISES = (1e-5, 1e-4, 1e-3)
+NOISES = (1e-5, 1e-3)
+SEEDS = 1
 QUICK = {"stops": (3e-2, 3e-3), "steps": (0.05, 0.1), "noises": (1e-4,), "seeds": 1}
 
 
@@ -40,7 +41,7 @@ def _cells(quick: bool) -> tuple[list[cal.Plan], int]:
     stops, steps, noises, seeds = (
         (QUICK["stops"], QUICK["steps"], QUICK["noises"], QUICK["seeds"])
         if quick
-        else (STOPS, STEPS, NOISES, 3)
+        else (STOPS, STEPS, NOISES, SEEDS)
     )
     plans = []
     for act in cal.ACTS:
