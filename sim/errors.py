@@ -30,6 +30,10 @@ class ParameterError(ValueError):
         self.parameter = parameter
         self.value = value
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # raised in worker processes (job and analysis pools): keep the three arguments
+        return (type(self), (self.parameter, self.value, str(self)))
+
 
 class SimulationError(ParameterError):
     """Valid inputs without an answer: past a fold, no stable equilibrium, no convergence."""

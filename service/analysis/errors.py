@@ -28,3 +28,7 @@ class ParameterError(ValueError):
         super().__init__(message)
         self.parameter = parameter
         self.value = value
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # raised in worker processes (job and analysis pools): keep the three arguments
+        return (type(self), (self.parameter, self.value, str(self)))

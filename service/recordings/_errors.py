@@ -40,6 +40,10 @@ class RecordingError(ValueError):
         self.value = value
         self.why = why
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # raised in worker processes: keep the three arguments across pickling
+        return (type(self), (self.field, self.value, self.why))
+
 
 class UnsupportedFormat(RecordingError):
     """A file format this reader does not know (HTTP 415)."""

@@ -40,6 +40,9 @@ class ConvergenceError(SimulationError):
     def __init__(self, message: str, mu: float | None = None) -> None:
         super().__init__("mu", mu, message)
 
+    def __reduce__(self) -> tuple:
+        return (type(self), (str(self), self.value))
+
 
 def _dirichlet_band(rod: Rod, ab: np.ndarray, fixed: np.ndarray, diag: float = 1.0) -> np.ndarray:
     """Band matrix with the rows and columns of fixed dofs replaced by ``diag`` on the diagonal."""

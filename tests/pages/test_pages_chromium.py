@@ -144,9 +144,12 @@ def test_job_page_refreshes_while_the_job_runs(browser: Browser, site: Site, sho
             ids.append(r.json()["id"])
         job_id = ids[-1]
         tab = _open(browser, site, f"/jobs/{job_id}", site.key_a)
-        first = tab.evaluate("document.querySelector('[data-key=status]').textContent.trim()")
+        # the page may be reloading itself when we first look: wait for its status element
+        first = tab.wait_for(
+            "(document.querySelector('[data-key=status]') || {textContent: ''}).textContent.trim()"
+        )
         assert first in ("queued", "running"), first
-        assert tab.evaluate("!!document.getElementById('job-script')")
+        assert tab.wait_for("!!document.getElementById('job-script')")
         # the page's script polls and reloads the finished page by itself
         tab.wait_for(
             "document.querySelector('[data-key=status]').textContent.trim() === 'succeeded'",
