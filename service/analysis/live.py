@@ -386,23 +386,10 @@ def assess(
                 f"{nxt.bound!r} minus the margin {plan.margin!r}",
             )
         )
-    converged = False
-    if trusted:
-        lo, hi = interval
-        width = plan.target_width
-        if width is None:
-            span = ms[-1].mu - ms[0].mu
-            width = 1e-6 * max(abs(pred.mu_star), span)
-        converged = bool(hi - lo < width)
+    converged = trusted and _narrow(interval, pred.mu_star, ms, plan)
     if pred is not None:
         uflags.extend(pred.flags)
-    duration = dt = math.nan
-    if last is not None and last.omega > 0 and math.isfinite(last.omega):
-        target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
-        try:
-            duration, dt = _sampling(last, target, pred)
-        except (ArithmeticError, ValueError):  # a degenerate record: no advice on sampling
-            duration = dt = math.nan
+    duration, dt = _record_advice(last, nxt, pred)
     record = LiveRecord(
         seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan
     )
@@ -416,10 +403,36 @@ def assess(
         next=nxt,
         trusted=trusted,
         converged=converged,
-        record_duration=float(duration),
-        record_dt=float(dt),
+        record_duration=duration,
+        record_dt=dt,
         flags=tuple(_dedupe(uflags)),
     )
+
+
+def _narrow(
+    interval: tuple[float, float], mu_star: float, ms: Sequence[Measurement], plan: LivePlan
+) -> bool:
+    """The interval is narrower than the plan's target width (default ``1e-6 * max(|mu*|,
+    span of the controls)``)."""
+    width = plan.target_width
+    if width is None:
+        width = 1e-6 * max(abs(mu_star), ms[-1].mu - ms[0].mu)
+    return bool(interval[1] - interval[0] < width)
+
+
+def _record_advice(
+    last: Measurement | None, nxt: NextMeasurement | None, pred: Prediction | None
+) -> tuple[float, float]:
+    """Length and step of the next record (``warn``'s sampling rule); NaN when the last record
+    gives no time scale."""
+    if last is None or not (last.omega > 0 and math.isfinite(last.omega)):
+        return math.nan, math.nan
+    target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
+    try:
+        duration, dt = _sampling(last, target, pred)
+    except (ArithmeticError, ValueError):  # a degenerate record: no advice on sampling
+        return math.nan, math.nan
+    return float(duration), float(dt)
 
 
 def _advise(
