@@ -227,6 +227,12 @@ class ModelFit:
         Bayesian information criterion.
     profile : _Profile
         mu* and its profile-likelihood intervals.
+    n_w : int
+        Window of the static law.
+    conformal : bool
+        Whether the law knows a secondary fold beyond mu* (series in the conformal variable).
+    weight : float
+        Model probability from the comparison (NaN: from the BIC alone).
     """
 
     name: str

@@ -93,6 +93,7 @@ def test_symmetric_early_stop_is_never_called_supercritical(stop: float) -> None
         assert "slowdown_not_reached" in {f.code for f in c.flags}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("act", ["asymmetric", "antisymmetric"])
 def test_other_actuations_on_fixed_grids_beat_the_rule(act: str) -> None:
     for stop in (0.05, 0.01):
