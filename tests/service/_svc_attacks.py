@@ -7,6 +7,7 @@ be one of the statuses (never 5xx) and, where ``field`` is given, name that fiel
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import zipfile
@@ -30,6 +31,7 @@ def _mat_struct() -> bytes:
     return out.getvalue()
 
 
+@functools.lru_cache(maxsize=4)
 def npz_bomb(uncompressed: int = 1 << 30) -> bytes:
     """An NPZ whose one array inflates to ``uncompressed`` bytes (zeros compress ~1000x)."""
     n = uncompressed // 8
@@ -49,6 +51,7 @@ def npz_bomb(uncompressed: int = 1 << 30) -> bytes:
     return out.getvalue()
 
 
+@functools.lru_cache(maxsize=4)
 def mat_bomb(uncompressed: int = 1 << 30) -> bytes:
     """A MAT v5 file whose one compressed double vector ``w`` inflates to ``uncompressed``
     bytes; written by streaming the deflate, never holding the zeros."""
