@@ -109,6 +109,11 @@ def _heavy_pass(
     return B
 
 
+def _step_small(dth: np.ndarray, var: np.ndarray) -> bool:
+    """Every component of the step below 2 % of its standard error."""
+    return bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(var, 1e-300))))
+
+
 def _normal_equations(
     B: np.ndarray, c: np.ndarray, nth: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -205,9 +210,11 @@ def _levenberg_marquardt(
         s2 = max(rss / max(N - nth - 1 - 2 * K, 1), S2_FLOOR)
         if lam_used <= 1e-2:
             # the step's (lightly damped) inverse bounds the covariance from below: a step
-            # small against it is small against the Gauss-Newton covariance
-            cov_th = np.diag(Ainv)[:nth] * s2
-            small = bool(np.all(np.abs(dth) <= 2e-2 * np.sqrt(np.maximum(cov_th, 1e-300))))
+            # small against it is small against the Gauss-Newton covariance; otherwise ask
+            # the exact one (ill-conditioned directions are damped far below their variance)
+            small = _step_small(dth, np.diag(Ainv)[:nth] * s2)
+            if not small:
+                small = _step_small(dth, np.diag(_pinv_psd(A))[:nth] * s2)
             if small or gain <= 1e-12 * rss:
                 break
         else:
