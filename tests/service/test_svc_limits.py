@@ -152,3 +152,21 @@ def test_restarts_do_not_rerun_limited_or_cancelled_jobs(tmp_path) -> None:  # n
     assert store.get_job(fine.id).run_s == pytest.approx(11, abs=0.5)  # counted for next time
     assert store.recover_jobs(lease_s=3, max_attempts=5) == []
     store.dispose()
+
+
+def test_job_errors_show_a_reason_never_a_traceback(caplog) -> None:  # noqa: ANN001
+    from service.analysis.errors import ParameterError
+    from service.api.jobs import _problem_dict
+
+    try:
+        raise RuntimeError("disk /srv/secret/path.py broke")
+    except RuntimeError as exc:
+        with caplog.at_level("ERROR", logger="snapwarn.jobs"):
+            doc = _problem_dict(exc, "job1")
+    assert doc["reason"] == "internal-error" and len(doc["correlation_id"]) == 12
+    text = str(doc)
+    assert "/srv/" not in text and "Traceback" not in text and "secret" not in text
+    assert doc["correlation_id"] in caplog.text and "/srv/secret" in caplog.text  # the log has it
+    bad = _problem_dict(ParameterError("damping", -1.0, "damping must be >= 0"), "job2")
+    assert bad["status"] == 422 and bad["reason"] == "invalid-input"
+    assert bad["errors"][0]["field"] == "damping" and bad["errors"][0]["value"] == -1.0
