@@ -41,7 +41,9 @@ class SweepRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    measurements: list[SweepMeasurement] | None = Field(default=None, min_length=1)
+    measurements: list[SweepMeasurement] | None = Field(
+        default=None, min_length=3, description="At least 3 recorded signals (the pipeline's)."
+    )
     simulate: SimulatedSweep | None = None
     name: str | None = Field(default=None, max_length=500)
     mode: Literal["batch", "live"] = Field(
