@@ -46,7 +46,6 @@ if str(ROOT) not in sys.path:
 
 import httpx2  # noqa: E402
 
-PERIODS = 40  # as service.analysis.pipeline.warn
 CLK = os.sysconf("SC_CLK_TCK")
 
 
@@ -86,6 +85,7 @@ Record = tuple[np.ndarray, float, float]  # (w, dt, control)
 def lab_records(n_prior: int, n_samples: int, actuation: str) -> list[Record]:
     """``n_prior`` records at the advised controls, then one of ``n_samples`` samples."""
     from service.analysis import live
+    from service.analysis.pipeline import KICK_POWER, PERIODS
     from sim import simulate
     from sim.scene import Scene
 
@@ -96,8 +96,9 @@ def lab_records(n_prior: int, n_samples: int, actuation: str) -> list[Record]:
     for k in range(n_prior + 1):
         if k == n_prior:  # the timed record: same length, n_samples samples
             dt = duration / (n_samples - 1)
-        kick = 1e-2 if omega0 is None else 1e-2 * min(1.0, (2 * math.pi / duration * PERIODS)
-                                                       / omega0)  # fmt: skip
+        kick = 1e-2  # as warn's experimenter: scaled with the expected rate ** KICK_POWER
+        if omega0 is not None:
+            kick *= min(1.0, (2 * math.pi / duration * PERIODS) / omega0) ** KICK_POWER
         sig = simulate(Scene(actuation=actuation, mu=mu, damping=2e-4, kick=kick, snr_db=40.0,
                              duration=duration, dt=dt, seed=1 + k), "euler-beam")  # fmt: skip
         w = np.asarray(sig.w)[:n_samples] if k == n_prior else np.asarray(sig.w)

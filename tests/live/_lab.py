@@ -1,8 +1,9 @@
 """A simulated lab for the live-sweep tests: the "strip" is the Euler-beam simulator.
 
 The lab measures an impulse response where it is told to, with the record length and sample
-step the update suggests, and keeps its sensor in range the way ``warn`` does (the kick scales
-with the expected frequency). It knows nothing of the prediction.
+step the update suggests, and kicks the strip the way ``warn``'s simulated experimenter does
+(the kick scales with a power of the expected frequency, ``pipeline.KICK_POWER``, so that the
+response stays a fixed fraction of the shrinking well). It knows nothing of the prediction.
 """
 
 from __future__ import annotations
@@ -12,10 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from service.analysis.pipeline import KICK_POWER, PERIODS
 from sim import simulate
 from sim.scene import Scene
-
-PERIODS = 40  # as service.analysis.pipeline.warn
 
 
 @dataclass
@@ -40,7 +40,8 @@ class Lab:
             dt = self.first_dt
         kick = self.kick
         if self.omega0 is not None:
-            kick = self.kick * min(1.0, (2 * math.pi / duration * PERIODS) / self.omega0)
+            ratio = min(1.0, (2 * math.pi / duration * PERIODS) / self.omega0)
+            kick = self.kick * ratio**KICK_POWER
         scene = Scene(actuation=self.actuation, mu=float(mu), damping=self.damping, kick=kick,
                       snr_db=self.snr_db, duration=duration, dt=dt, seed=self.seed + self.k)
         self.k += 1
