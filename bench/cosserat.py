@@ -276,12 +276,25 @@ def _settle(n: int, mu: float, h: float, d: float, xi: float, T: float, dt: floa
     from sim.cosserat import statics as S
     from sim.cosserat.rod import Rod, shear_ratio
 
-    x, y, th, _, _, _, length = _centre_layout(n, h, d, 0.0, mu)
+    # the U_A shape of a coarse centre-clamp rod (its fold, 1.7404, lies above PyElastica's),
+    # sampled at PyElastica's nodes; the end elements rigid along the clamp angles
+    fine = Rod(elements=24, slenderness=h, end_shortening=d, clamp="centre")
+    zf = S.branch_state(fine, mu)
     ds = 1.0 / (n - 1)
+    sn = (np.arange(n + 1) - 0.5) * ds
+    x = np.interp(sn, fine.s_nodes, zf[0::3])
+    y = np.interp(sn, fine.s_nodes, zf[1::3])
+    aL, aR = fine.end_angles(mu)
+    x[0], y[0], x[1], y[1] = (-0.5 * ds * math.cos(aL), -0.5 * ds * math.sin(aL),
+                              0.5 * ds * math.cos(aL), 0.5 * ds * math.sin(aL))
+    xr = 1.0 - d
+    x[-2], y[-2], x[-1], y[-1] = (xr - 0.5 * ds * math.cos(aR), -0.5 * ds * math.sin(aR),
+                                  xr + 0.5 * ds * math.cos(aR), 0.5 * ds * math.sin(aR))
+    th = np.arctan2(np.diff(y), np.diff(x))
+    length = 1.0 + ds
     u = (0.5 + 0.5 * ds) / ds  # node i at s = (i - 1/2) ds
     ip = int(math.floor(u))
-    rod = Rod(elements=n - 1, slenderness=h, end_shortening=d)
-    w_b = rod.w_at(S.branch_state(rod, mu, "U_B"), 0.5)
+    w_b = fine.w_at(S.branch_state(fine, mu, "U_B"), 0.5)
     with tempfile.TemporaryDirectory() as tmp:
         fin, fout = Path(tmp) / "in.json", Path(tmp) / "out.json"
         fin.write_text(json.dumps({"n": n, "h": h, "xi": xi, "dt": dt, "duration": T,
@@ -299,11 +312,13 @@ def _settle(n: int, mu: float, h: float, d: float, xi: float, T: float, dt: floa
             "w_start": float(w[0]), "w_end": float(w[-1]), "w_ub": w_b, "cpu_s": out["cpu_s"]}
 
 
-def mustar_pyelastica(n: int = 49, h: float = 1e-2, d: float = 1e-2, lo: float = 1.7355,
-                      hi: float = 1.7375, width: float = 1e-5) -> None:
-    """mu* of PyElastica's rectangular strip (asymmetric, element-centre clamp) by bisection on
-    settle runs (xi = 5, 40 time units each), against the project's rod (node clamp,
-    Richardson from n = 100, 200, 400)."""
+def mustar_pyelastica(n: int = 49, h: float = 1e-2, d: float = 1e-2, lo: float = 1.7370,
+                      hi: float = 1.7390, width: float = 1e-5) -> None:
+    """mu* of PyElastica's rectangular strip (asymmetric, element-centre clamp, n elements) by
+    bisection on settle runs (xi = 5, 40 time units each), against the project's rod with the
+    same clamp and element length (interpolated between n - 1 and n + 1 elements, whose ds
+    bracket PyElastica's 1 / (n - 1)) and its converged value (node clamp, Richardson from
+    n = 100, 200, 400)."""
     from sim.cosserat import bifurcation
 
     xi, T, dt = 5.0, 40.0, 2e-5
@@ -320,16 +335,23 @@ def mustar_pyelastica(n: int = 49, h: float = 1e-2, d: float = 1e-2, lo: float =
         print(r, file=sys.stderr, flush=True)
         lo, hi = (lo, mid) if r["snapped"] else (mid, hi)
     ours = [bifurcation("asymmetric", end_shortening=d, slenderness=h, elements=k).mu_star
-            for k in (100, 200, 400)]
+            for k in (100, 200, 400)]  # node clamp, the project's default
     extrap = ours[2] + (ours[2] - ours[1]) / 3.0
+    same = [bifurcation("asymmetric", end_shortening=d, slenderness=h, elements=k,
+                        clamp="centre").mu_star for k in (n - 1, n + 1)]
+    # mu*(ds) between ds = 1/(n-2) and 1/n, linear in ds^2 to ds = 1/(n-1)
+    x0, x1, x = (1 / (n - 2)) ** 2, (1 / n) ** 2, (1 / (n - 1)) ** 2
+    same_n = same[0] + (same[1] - same[0]) * (x - x0) / (x1 - x0)
     print(f"PyElastica (rectangular strip, element-centre clamp, n={n}): mu* in "
           f"[{lo:.6f}, {hi:.6f}]")
+    print(f"snapwarn rod, element-centre clamp, same element length: {same_n:.6f} "
+          f"(n={n - 1}: {same[0]:.6f}, n={n + 1}: {same[1]:.6f})")
     print(f"snapwarn rod (node clamp): n=100 {ours[0]:.6f}, n=200 {ours[1]:.6f}, n=400 "
           f"{ours[2]:.6f}, Richardson {extrap:.6f}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "cosserat_mustar_pyelastica.json").write_text(json.dumps(
         {"n": n, "h": h, "d": d, "bracket": [lo, hi], "runs": runs, "snapwarn": ours,
-         "snapwarn_richardson": extrap}, indent=1))
+         "snapwarn_richardson": extrap, "snapwarn_centre_same_ds": same_n}, indent=1))
 
 
 def mustar_study() -> None:
