@@ -77,7 +77,7 @@ def _critical_mode_is_symmetric(rod: Rod, z: np.ndarray) -> bool:
     """Whether the Hessian's eigenvector nearest zero is invariant under the actuation's
     symmetry (a fold of the symmetric branch) or reversed by it (symmetry breaking)."""
     H, fidx = S._free_sparse(rod, z)
-    _, V = spla.eigsh(H, k=1, sigma=-1e-9, which="LM", tol=1e-12)
+    _, V = spla.eigsh(H, k=1, sigma=-1e-9, which="LM", tol=1e-12, v0=S._start_vector(H.shape[0]))
     phi = np.zeros(rod.N)
     phi[fidx] = V[:, 0]
     img = rod.mirror(phi) - rod.mirror(np.zeros(rod.N))
