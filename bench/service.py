@@ -257,6 +257,13 @@ def main(argv: list[str] | None = None) -> int:
                     else None
                 )
                 res["loadavg_1min_before"] = load0
+                res["loadavg_1min_after"] = os.getloadavg()[0]
+                # the share of the cores the server (and the client) got: on a shared machine
+                # a throughput below capacity with a share below 1 is other processes' doing
+                res["server_cpu_share"] = cpu / (res["wall_s"] * cores)
+                res["server_and_client_cpu_share"] = (
+                    cpu + (time.process_time() - me0)
+                ) / (res["wall_s"] * cores)
                 rows.append(res)
                 if not res["requests"]:
                     print(f"{c:3d} clients: no answer; errors: {res['error_samples']}")
@@ -270,7 +277,9 @@ def main(argv: list[str] | None = None) -> int:
                     f"{res['client_cpu_ms_per_request']:.2f})  capacity "
                     f"{cap or float('nan'):.1f} req/s ({frac:.0f}%, {frac2:.0f}"
                     f"% counting the client)  errors {res['errors']}  per-client "
-                    f"{res['min_requests_per_client']}..{res['max_requests_per_client']}",
+                    f"{res['min_requests_per_client']}..{res['max_requests_per_client']}  "
+                    f"cores used {100 * res['server_and_client_cpu_share']:.0f}% "
+                    f"(load {load0:.1f})",
                     flush=True,
                 )
         finally:
