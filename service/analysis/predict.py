@@ -38,6 +38,7 @@ from service.analysis.errors import ParameterError
 __all__ = ["PaperRule", "Prediction", "paper_rule", "predict"]
 
 _PAPER_FACTOR = 10.0
+_FLOOR = 0.05  # least weight of a candidate while the type is not named for lack of slowdown
 
 
 # --------------------------------------------------------------------------------------------
@@ -477,9 +478,12 @@ def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _
         # mu* comes from the eigenvalue law alone: the static law, fitted over its wider window,
         # tells b but biases mu* (measured on the beam: rmse 5.4e-8 with it, 2.3e-8 without,
         # and 90 % instead of 95 % coverage)
+        # before the slowdown has shown (no type named), every candidate keeps at least
+        # _FLOOR of the weight: the interval then covers each type's mu*
+        slow = any(f.code == "slowdown_not_reached" for f in cls.flags)
         fits, probs, sweeps = [], [], []
         for f in cls.fits:
-            pr = cls.probabilities[f.name]
+            pr = max(cls.probabilities[f.name], _FLOOR if slow else 0.0)
             if pr <= 1e-3:
                 continue
             sw_fit, own, _, _ = analyse(sw0, (f.name, f.a, None, f.h), level)

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis.classify import classify
+from service.analysis.classify import MIN_T_RATIO, classify
 from service.analysis.errors import ParameterError
 from service.analysis.predict import paper_rule, predict
 
@@ -82,13 +82,13 @@ def test_symmetric_fixed_grid_with_static_data_is_subcritical(stop: float) -> No
 def test_symmetric_early_stop_is_never_called_supercritical(stop: float) -> None:
     """A snapping strip called supercritical is the worst answer: an early stop (T/T0 from 1.7
     to 3.6) with static data is never named supercritical, nor given it with probability
-    >= 0.9; below T/T0 = 2 no type is named."""
+    >= 0.9; below T/T0 = MIN_T_RATIO (2.75) no type is named."""
     d = lab_sweep("symmetric", 0.05, stop)
     c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w"],
                  w_static_std=1e-6)  # fmt: skip
     assert c.transition in ("subcritical-pitchfork", "pitchfork", "undetermined")
     assert c.probabilities["supercritical-pitchfork"] < 0.9
-    if math.sqrt(d["sigma2"][0] / d["sigma2"][-1]) < 2:
+    if math.sqrt(d["sigma2"][0] / d["sigma2"][-1]) < MIN_T_RATIO:
         assert c.transition == "undetermined"
         assert "slowdown_not_reached" in {f.code for f in c.flags}
 
