@@ -467,6 +467,7 @@ class _Fit:
     method: str
     flags: tuple[Flag, ...]
     classification: Classification | None
+    point_probs: tuple[float, ...] = ()  # weights of the point estimate (no floor)
 
 
 def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _Fit:
@@ -481,11 +482,12 @@ def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _
         # before the slowdown has shown (no type named), every candidate keeps at least
         # _FLOOR of the weight: the interval then covers each type's mu*
         slow = any(f.code == "slowdown_not_reached" for f in cls.flags)
-        fits, probs, sweeps = [], [], []
+        fits, probs, sweeps, point = [], [], [], []
         for f in cls.fits:
             pr = max(cls.probabilities[f.name], _FLOOR if slow else 0.0)
             if pr <= 1e-3:
                 continue
+            point.append(cls.probabilities[f.name])
             sw_fit, own, _, _ = analyse(sw0, (f.name, f.a, None, f.h), level)
             fits.append(own[0])
             sweeps.append(sw_fit)
@@ -493,7 +495,7 @@ def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _
         flags = [f for f in cls.flags if f.code != "no_static_data"]
         method = "model-average" if len(fits) > 1 else "profile-likelihood"
         return _Fit(tuple(fits), tuple(probs), tuple(sweeps), cls.transition, cls.window,
-                    method, tuple(flags), cls)  # fmt: skip
+                    method, tuple(flags), cls, tuple(point))  # fmt: skip
     name, aa, _, hh = _law_for(transition, a)
     sw_fit, fits, window, fl = analyse(sw0, (name, aa, None, hh), level)
     flags = [*fl, *fits[0].profile.flags]
@@ -515,6 +517,16 @@ def _interval(
         std = 0.5 * (f0.hi68 - f0.lo68)
     else:
         m, std, lo, hi = _mixture(fit.fits, fit.probs, level)
+        pp = np.asarray(fit.point_probs, dtype=float)
+        if pp.size == len(fit.fits) and np.any(pp != np.asarray(fit.probs)):
+            # the floor widens the interval only; mu* and its std keep the model probabilities
+            top = int(np.argmax(pp))
+            if pp[top] >= 0.999 * pp.sum():
+                f0 = fit.fits[top].profile
+                m, std = f0.mu_star, 0.5 * (f0.hi68 - f0.lo68)
+            else:
+                m, std, _, _ = _mixture(fit.fits, tuple(pp), level)
+            lo, hi = min(lo, m), max(hi, m)
     # truncation uncertainty: the statistical interval assumes the law with K corrections is
     # exact over its window; the spread of mu* when the window loses its farthest points or the
     # series gains a term measures what the truncation does to mu*. It widens the interval on
