@@ -104,6 +104,12 @@ class Settings(BaseSettings):
     )
     analysis_workers: int = Field(default_factory=_default_workers, ge=1)
     warm_pool: bool = Field(default=True, description="Start and warm the pool at startup.")
+    gil_switch_interval_s: float = Field(
+        default=0.0005,
+        gt=0,
+        description="sys.setswitchinterval of the server process (hand-offs to the pool's "
+        "threads wait up to this long).",
+    )
 
     # Jobs.
     run_jobs: bool = Field(
