@@ -28,6 +28,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_mu_star
+from service.analysis._likelihood import profile_memo
 from service.analysis._sweep import Sweep, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
@@ -247,8 +248,11 @@ def _mixture(
     candidate: centre mu*, left/right widths from its profile interval)."""
     z = float(stats.norm.ppf(0.5 + level / 2))
     cs = np.array([f.profile.mu_star for f in fits])
-    sl = np.array([max(f.profile.mu_star - f.profile.lo, 1e-300) / z for f in fits])
-    sr = np.array([max(f.profile.hi - f.profile.mu_star, 1e-300) / z for f in fits])
+    # widths floored at a few ulps of mu* (noise-free data give zero widths, and a mixture of
+    # zero-width pieces has no bracket for the quantiles)
+    floor = 8 * np.finfo(float).eps * np.maximum(np.abs(cs), 1.0)
+    sl = np.maximum([(f.profile.mu_star - f.profile.lo) / z for f in fits], floor)
+    sr = np.maximum([(f.profile.hi - f.profile.mu_star) / z for f in fits], floor)
     p = np.asarray(probs, dtype=float)
     p = p / p.sum()
 
@@ -312,6 +316,7 @@ def _law_for(transition: str | None, a: float | None) -> tuple[str, float, float
     return name, a, None, h
 
 
+@profile_memo()
 def predict(
     mu: Sequence[float] | np.ndarray | Sweep,
     sigma2: Sequence[float] | np.ndarray | None = None,

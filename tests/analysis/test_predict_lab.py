@@ -128,3 +128,12 @@ def test_parameter_errors_carry_the_field() -> None:
     with pytest.raises(ParameterError) as e:
         predict(d["mu"], d["sigma2"], level=1.5)
     assert e.value.parameter == "level" and e.value.value == 1.5
+
+
+def test_noise_free_fold_gives_an_interval_not_an_error() -> None:
+    """Exact sigma^2 of a fold (zero profile widths): the mixture's quantiles still exist."""
+    mu = np.linspace(0.0, 1.6, 6)
+    p = predict(mu, -np.sqrt(2.0 - mu))
+    lo, hi = p.mu_star_interval
+    assert lo <= 2.0 <= hi
+    assert abs(p.mu_star - 2.0) < 1e-6

@@ -47,7 +47,7 @@ def lab_records(n: int = 8, seed: int = 3) -> list[tuple[float, float, np.ndarra
     Gaussian noise."""
     rng = np.random.default_rng(seed)
     out = []
-    for theta in THETA_STAR * (1 - np.geomspace(1, 0.02, n)):
+    for theta in THETA_STAR * (1 - np.geomspace(1, 0.01, n)):
         d = (THETA_STAR - theta) / THETA_STAR
         omega = 2 * math.pi * 0.05 * d**0.25  # rad/ms
         dt = (2 * math.pi / omega) / 50
