@@ -21,6 +21,8 @@ from _pages_site import Site, free_port, lab_records, wait_health, wait_job
 @pytest.fixture(scope="session")
 def chromium() -> str:
     exe = find_chromium()
+    if exe is None and os.environ.get("CI"):
+        pytest.fail("Chromium is missing in CI: .ci/run must install it (apt-get install chromium)")
     if exe is None:
         pytest.skip(
             "Chromium is not installed (Debian: apt-get install -y chromium; .ci/run installs "
