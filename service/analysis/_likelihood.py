@@ -10,8 +10,11 @@ variable, see the kernels) profiles the fold distance as well, inside the kernel
 
 from __future__ import annotations
 
+import contextvars
+import hashlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,7 +101,68 @@ def _profile(
     with_interval: bool = True,
     xatol: float | None = None,
 ) -> _Profile:
-    """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals."""
+    """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals.
+
+    Deterministic in its inputs: a result is memoised on the packed data and the options (model
+    selection, the exponent profiles and the final fits revisit the same windows and laws).
+    """
+    packed = _pack(mu_w, comps)
+    memo = _MEMO.get()
+    if memo is None:
+        return _profile_uncached(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+    key = _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+    hit = memo.get(key)
+    if hit is None:
+        hit = memo[key] = _profile_uncached(
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol
+        )
+    return hit
+
+
+_MEMO: contextvars.ContextVar[dict[bytes, _Profile] | None] = contextvars.ContextVar(
+    "profile_memo", default=None
+)
+
+
+@contextmanager
+def profile_memo() -> Iterator[None]:
+    """Scope (one ``predict`` or ``classify_sweep`` call) inside which equal profiles are computed
+    once; nested scopes share the outer one, and nothing outlives the outermost."""
+    if _MEMO.get() is not None:
+        yield
+        return
+    token = _MEMO.set({})
+    try:
+        yield
+    finally:
+        _MEMO.reset(token)
+
+
+def _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol) -> bytes:
+    h = hashlib.blake2b(digest_size=20)
+    for a in (np.asarray(mu_w, dtype=float), *packed):
+        h.update(np.ascontiguousarray(a).tobytes())
+        h.update(repr(a.shape).encode())
+    lead = comps[0].lead
+    h.update(
+        repr((scale, level, inflate, with_interval, xatol, lead, [c.exps.size for c in comps]))
+        .encode()
+    )
+    if lead:  # the seeds read comps[0].y and its exponents
+        h.update(np.ascontiguousarray(comps[0].y, dtype=float).tobytes())
+    return h.digest()
+
+
+def _profile_uncached(
+    mu_w: np.ndarray,
+    comps: list[_Comp],
+    packed: tuple,
+    scale: float,
+    level: float,
+    inflate: float,
+    with_interval: bool,
+    xatol: float | None,
+) -> _Profile:
     last = float(mu_w[-1])
     # a conformal law profiles the secondary fold at every mu* (some 25 fits each): a coarser
     # grid around the same seeds keeps its cost near the plain laws'
@@ -113,7 +177,6 @@ def _profile(
         ]
         t = np.unique(np.concatenate([t, *extra]))
         t = t[(t >= math.log(scale * 1e-12)) & (t <= math.log(scale * 30.0))]
-    packed = _pack(mu_w, comps)
 
     def ev(tt: np.ndarray, refine: bool = True) -> np.ndarray:
         ms = np.ascontiguousarray(last + np.exp(tt))

@@ -47,6 +47,7 @@ from service.analysis._laws import (
     free_exponent_b,
     probabilities,
 )
+from service.analysis._likelihood import profile_memo
 from service.analysis._sweep import Sweep, prepare_sweep
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
@@ -239,6 +240,7 @@ def _check_probability(min_probability: float) -> None:
         )  # fmt: skip
 
 
+@profile_memo()
 def classify_sweep(
     sw0: Sweep, *, min_probability: float = 0.9, level: float = 0.95
 ) -> Classification:
