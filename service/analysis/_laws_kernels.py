@@ -30,7 +30,7 @@ REL_FLOOR = 1e-12  # relative noise floor (exact data)
 _GOLD = 0.3819660112501051
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _pow(x, e):
     if e == 0.0:
         return 1.0
@@ -43,12 +43,13 @@ def _pow(x, e):
     return x**e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _comp_nll(
-    ms, u, mu, y, wt, exps, k, known, lead, lead_col, signed, conformal, x_last, A, A0, b
+    ms, u, mu, y, wt, exps, k, known, lead, lead_col, signed, conformal, x_last, A, A0, b, R, coef
 ):
     """-2 log L of one component at transition point ``ms`` and fold parameter ``u``
-    (``A``, ``A0``, ``b``: work arrays of at least (n, k), (n, k), (n,))."""
+    (``A``, ``A0``, ``b``, ``R``, ``coef``: work arrays of at least (n, k), (n, k), (n,), (k, k),
+    (k,))."""
     n = mu.size
     delta = x_last / u if (conformal and u > 0.0) else 0.0
     arith = k >= 2
@@ -86,7 +87,6 @@ def _comp_nll(
             A[i, j] /= s
             A0[i, j] = A[i, j]
     # Householder QR, applied to b as we go
-    R = np.zeros((k, k))
     for j in range(k):
         for jj in range(k):
             R[j, jj] = 0.0
@@ -134,7 +134,8 @@ def _comp_nll(
         dof = n - k if n - k > 1 else 1
         out = dof * math.log(max(rss, floor) / n)
     if lead and k > lead_col + 1:
-        coef = np.zeros(k)
+        for j in range(k):
+            coef[j] = 0.0
         ok = True
         for j in range(k - 1, -1, -1):
             s = b[j]
@@ -165,32 +166,34 @@ def _comp_nll(
     return out
 
 
-@njit(cache=True)
-def _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b):
+@njit(cache=True, error_model="numpy")
+def _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, W):
+    A, A0, b, R, coef = W
     out = 0.0
     for c in range(start.size - 1):
         a, e = start[c], start[c + 1]
         out += _comp_nll(
             ms, u, mu[a:e], y[a:e], wt[a:e], exps[c], nexp[c], opts[c, 0] == 1,
-            opts[c, 1] == 1, opts[c, 2], opts[c, 3] == 1, opts[c, 4] == 1, x_last, A, A0, b,
+            opts[c, 1] == 1, opts[c, 2], opts[c, 3] == 1, opts[c, 4] == 1, x_last, A, A0, b, R,
+            coef,
         )  # fmt: skip
     return out
 
 
-@njit(cache=True)
-def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, refine):
+@njit(cache=True, error_model="numpy")
+def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine):
     """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
     x_last = ms - mu_last
     if x_last < 1e-300:
         x_last = 1e-300
-    best = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b)
+    best = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
     best_u = 0.0
     G = logu.size
     f = np.empty(G)
     jb = -1
     fb = math.inf
     for g in range(G):
-        v = _total(ms, math.exp(logu[g]), mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b)
+        v = _total(ms, math.exp(logu[g]), mu, y, wt, start, exps, nexp, opts, x_last, W)
         f[g] = v if math.isfinite(v) else 1e300
         if f[g] < fb:
             fb = f[g]
@@ -230,7 +233,7 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, 
             e = (c - xb) if xb < m else (a - xb)
             d = _GOLD * e
         ut = xb + (d if abs(d) >= tol else (tol if d > 0 else -tol))
-        fu = _total(ms, math.exp(ut), mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b)
+        fu = _total(ms, math.exp(ut), mu, y, wt, start, exps, nexp, opts, x_last, W)
         if not math.isfinite(fu):
             fu = 1e300
         if fu <= fxb:
@@ -254,16 +257,16 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, 
     return best, best_u
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _work(mu, nexp):
     k = 1
     for c in range(nexp.size):
         k = max(k, nexp[c])
     n = mu.size
-    return np.empty((n, k)), np.empty((n, k)), np.empty(n)
+    return np.empty((n, k)), np.empty((n, k)), np.empty(n), np.empty((k, k)), np.empty(k)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu, refine=True):
     """-2 log L at each ``mu_star`` (shape (G,)) and the fold parameter ``u`` profiled there
     (0 without conformal components or when the plain law is best); ``refine=False``: the
@@ -271,7 +274,7 @@ def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu, refine=
     G = mu_star.size
     out = np.empty(G)
     ubest = np.zeros(G)
-    A, A0, b = _work(mu, nexp)
+    W = _work(mu, nexp)
     conformal = False
     for c in range(opts.shape[0]):
         if opts[c, 4] == 1:
@@ -280,22 +283,22 @@ def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu, refine=
         ms = mu_star[g]
         if conformal:
             out[g], ubest[g] = _profile_u(
-                ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, A, A0, b, refine
+                ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine
             )
         else:
             x_last = max(ms - mu_last, 1e-300)
-            out[g] = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b)
+            out[g] = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
     return out, ubest
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def nll_fixed_u(mu_star, u, mu, y, wt, start, exps, nexp, opts, mu_last):
     """-2 log L at each ``mu_star`` with the fold parameter fixed at ``u`` (0: plain laws)."""
     G = mu_star.size
     out = np.empty(G)
-    A, A0, b = _work(mu, nexp)
+    W = _work(mu, nexp)
     for g in range(G):
         ms = mu_star[g]
         x_last = max(ms - mu_last, 1e-300)
-        out[g] = _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, A, A0, b)
+        out[g] = _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, W)
     return out
