@@ -419,6 +419,18 @@ def predict(
     if not math.isfinite(m):
         flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
     cls = fit.classification
+    transition = fit.name
+    if transition != "undetermined" and any(f.code == "interval_huge" for f in flags):
+        # mu* not pinned down within half the remaining distance: neither is the exponent that
+        # names the type (measured: a noisy coarse asymmetric plan called a pitchfork at 0.93)
+        flags.append(
+            Flag(
+                "type_withheld",
+                f"the data favour {transition}, but the interval is wider than the distance to "
+                "mu*: the type is not named until more measurements narrow it",
+            )
+        )
+        transition = "undetermined"
     return Prediction(
         mu_star=float(m),
         mu_star_interval=(float(lo), float(hi)),
@@ -428,7 +440,7 @@ def predict(
         alarm=alarm,
         next_safe_mu=float(nxt.mu),
         flags=tuple(_dedupe(flags)),
-        transition=fit.name,
+        transition=transition,
         probabilities=(
             dict(cls.probabilities)
             if cls is not None

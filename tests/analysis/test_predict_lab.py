@@ -137,3 +137,26 @@ def test_noise_free_fold_gives_an_interval_not_an_error() -> None:
     lo, hi = p.mu_star_interval
     assert lo <= 2.0 <= hi
     assert abs(p.mu_star - 2.0) < 1e-6
+
+
+def test_no_type_named_while_the_interval_is_wider_than_the_distance() -> None:
+    """A coarse, noisy asymmetric plan (step 0.085, stop 0.0057 before the fold, noise 9e-4,
+    no static data) was called a pitchfork at probability 0.93: while mu* is not pinned down
+    within the remaining distance the type is withheld (flag), never named wrong."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "bench" / "calibration.py"
+    spec = importlib.util.spec_from_file_location("calibration", path)
+    assert spec is not None and spec.loader is not None
+    cal = importlib.util.module_from_spec(spec)
+    sys.modules["calibration"] = cal
+    spec.loader.exec_module(cal)
+    plan = cal.Plan(index=14, source="euler-beam", actuation="asymmetric",
+                    step=0.08530704830552606, stop=0.005739741625910706,
+                    rel=0.000906767130229382, with_w=False, seed=1266997513)  # fmt: skip
+    row = cal.run_plan(plan)
+    assert row["covered"]
+    assert row["transition"] == "undetermined"
+    assert "type_withheld" in row["flags"] and "interval_huge" in row["flags"]
