@@ -122,6 +122,9 @@ def test_normal_form_warn_intervals_cover_its_mu_star(actuation: str) -> None:
     records' frequency shift biased mu* by -2e-6 (7-11 standard errors, 3 seeds of 3 missed);
     kicks scaled with the expected rate cubed keep the response a fixed fraction of the well."""
     for seed in (1, 2, 3):
-        t = warn(actuation, model="normal-form", seed=seed, max_measurements=30).to_dict()["truth"]
+        doc = warn(actuation, model="normal-form", seed=seed, max_measurements=30).to_dict()
+        t = doc["truth"]
         assert t["covered"], (seed, t)
-        assert abs(t["error"]) < 5e-7, (seed, t)
+        # the old bias sat 7-11 standard errors off; an unbiased estimate stays within 3
+        assert abs(t["error"]) < 3 * doc["mu_star_std"], (seed, t, doc["mu_star_std"])
+        assert abs(t["error"]) < 1e-5, (seed, t)  # the warn accuracy target
