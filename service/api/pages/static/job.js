@@ -5,7 +5,8 @@
   var script = document.getElementById("job-script");
   var url = script.getAttribute("data-status-url");
   var reloadOnChange = script.getAttribute("data-reload-on-change") === "1";
-  var seen = null;
+  // what the page was rendered with: an update that lands before the first poll still reloads
+  var seen = script.hasAttribute("data-seen") ? script.getAttribute("data-seen") : null;
   var bar = document.getElementById("job-progress");
   var frac = document.getElementById("job-fraction");
   var msg = document.getElementById("job-message");
