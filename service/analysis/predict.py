@@ -420,14 +420,24 @@ def predict(
         flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
     cls = fit.classification
     transition = fit.name
-    if transition != "undetermined" and any(f.code == "interval_huge" for f in flags):
-        # mu* not pinned down within half the remaining distance: neither is the exponent that
-        # names the type (measured: a noisy coarse asymmetric plan called a pitchfork at 0.93)
+    probs = dict(cls.probabilities) if cls is not None else {}
+    p_fold = float(probs.get("saddle-node", 0.0))
+    rival = p_fold if "pitchfork" in transition else 1.0 - p_fold  # the other exponent a
+    if (
+        cls is not None  # a transition the caller gave is never withheld
+        and transition != "undetermined"
+        and rival >= 0.05
+        and any(f.code == "interval_huge" for f in flags)
+    ):
+        # mu* not pinned down within the remaining distance and the other exponent still holds
+        # >= 5 %: the type is not decided (measured: a noisy coarse asymmetric plan was called a
+        # pitchfork at 0.93, the saddle-node keeping 0.07)
         flags.append(
             Flag(
                 "type_withheld",
-                f"the data favour {transition}, but the interval is wider than the distance to "
-                "mu*: the type is not named until more measurements narrow it",
+                f"the data favour {transition}, but the other exponent keeps {rival:.2f} and the "
+                "interval is wider than the distance to mu*: the type is not named until more "
+                "measurements narrow it",
             )
         )
         transition = "undetermined"
