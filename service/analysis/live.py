@@ -44,13 +44,9 @@ from service.analysis.alarm import (
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
-from service.analysis.pipeline import (
-    Measurement,
-    WarnResult,
-    _sampling,
-    measurement_from_detection,
-)
+from service.analysis.pipeline import Measurement, WarnResult, measurement_from_detection
 from service.analysis.predict import Prediction, predict
+from service.analysis.sampling import next_record_sampling
 
 __all__ = [
     "LivePlan",
@@ -423,13 +419,14 @@ def _narrow(
 def _record_advice(
     last: Measurement | None, nxt: NextMeasurement | None, pred: Prediction | None
 ) -> tuple[float, float]:
-    """Length and step of the next record (``warn``'s sampling rule); NaN when the last record
-    gives no time scale."""
+    """Length and step of the next record
+    (:func:`service.analysis.sampling.next_record_sampling`, as ``warn`` samples); NaN when the
+    last record gives no time scale."""
     if last is None or not (last.omega > 0 and math.isfinite(last.omega)):
         return math.nan, math.nan
     target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
     try:
-        duration, dt = _sampling(last, target, pred)
+        duration, dt = next_record_sampling(last, target, pred)
     except (ArithmeticError, ValueError):  # a degenerate record: no advice on sampling
         return math.nan, math.nan
     return float(duration), float(dt)

@@ -10,9 +10,10 @@ measurements is spent, or no safe step is left. The paper's rule is evaluated on
 measurements for comparison.
 
 The pipeline only sees what a sensor records: the record length and sampling of each
-measurement are chosen from the previous detection (40 periods, 50 samples per period of the
-expected fundamental), never from the simulator's knowledge. ``sweep_from_signals`` is the same
-analysis for records a lab uploads (any time unit, any control unit).
+measurement are chosen from the previous detection
+(:func:`service.analysis.sampling.next_record_sampling`: 40 periods, 50 samples per period of
+the expected fundamental), never from the simulator's knowledge. ``sweep_from_signals`` is the
+same analysis for records a lab uploads (any time unit, any control unit).
 """
 
 from __future__ import annotations
@@ -29,12 +30,15 @@ from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.predict import Prediction, paper_rule, predict
+from service.analysis.sampling import (  # noqa: F401 - PERIODS etc. stay importable from here
+    MAX_SAMPLES,
+    PERIODS,
+    SAMPLES_PER_PERIOD,
+    next_record_sampling,
+)
 
 Progress = Callable[[float, str], None]
 
-PERIODS = 40
-SAMPLES_PER_PERIOD = 50
-MAX_SAMPLES = 20_000
 # the kick scales with the expected rate cubed: the response amplitude (~ kick / omega) then
 # stays a fixed fraction of the well's width (~ (mu* - mu)^(1/2) ~ omega^2 near a fold, wider
 # near a pitchfork), so the nonlinear frequency shift of a kicked record does not grow as mu*
@@ -226,29 +230,6 @@ def _next_mu(
     return nxt.mu, trusted
 
 
-def _sampling(prev: Measurement, mu_next: float, pred: Prediction | None) -> tuple[float, float]:
-    """Record length and step for the next measurement, from the previous detection."""
-    ratio = 1.0  # expected (mu* - mu_next) / (mu* - mu_prev): unknown without a prediction
-    a = 0.5
-    if pred is not None and math.isfinite(pred.mu_star) and pred.mu_star > mu_next:
-        ratio = min((pred.mu_star - mu_next) / max(pred.mu_star - prev.mu, 1e-300), 1.0)
-        a = pred.a
-    if prev.regime == "overdamped":
-        # the slow pole sets the time scale: its rate ~ |sigma^2| / xi ~ (mu* - mu)^(2a), so the
-        # record grows by ratio^(-2a) (at most 4x a step); the step stays (the fast pole needs it)
-        growth = ratio ** (-2.0 * a) if ratio < 1.0 else 2.0
-        duration = prev.duration * min(growth, 4.0)
-        return duration, max(prev.dt, duration / MAX_SAMPLES)
-    omega_next = prev.omega * ratio**a
-    t_prev = 2 * math.pi / prev.omega
-    t_next = 2 * math.pi / max(omega_next, 1e-12)
-    duration = PERIODS * t_next
-    dt = t_prev / SAMPLES_PER_PERIOD
-    if duration / dt > MAX_SAMPLES:
-        dt = duration / MAX_SAMPLES
-    return duration, dt
-
-
 def warn(
     actuation: str,
     *,
@@ -353,7 +334,7 @@ def warn(
         if not cand > m.mu or cand - m.mu < 1e-12 * max(1.0, abs(m.mu)):
             stopped = "no-safe-step"
             break
-        duration, dt = _sampling(m, cand, pred)
+        duration, dt = next_record_sampling(m, cand, pred)
         kick_k = kick * min(1.0, (2 * math.pi / duration * PERIODS) / ms[0].omega) ** KICK_POWER
         mu_next = cand
     truth = None
