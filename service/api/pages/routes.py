@@ -285,9 +285,10 @@ async def signal_page(request: Request, signal_id: str) -> Response:
 
 # ------------------------------------------------------------------------------ sweeps
 async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[str, Any]:
-    """The user's control name and unit and the records' time unit (from the stored signals of
-    ``sweep``, read with ``scope``); the simulator's non-dimensional scales for a simulated
-    sweep. ``mixed`` names what the records disagree on (then a neutral name is used)."""
+    """The user's control name and unit and the records' time unit (from the sweep request's
+    ``control`` where given, else from the stored signals of ``sweep``, read with ``scope``);
+    the simulator's non-dimensional scales for a simulated sweep. ``mixed`` names what the
+    records disagree on (then a neutral name is used)."""
     req = sweep.request or {}
     if req.get("mode") == "live":
         control = req.get("control") or {}
@@ -309,6 +310,11 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
         cunits.add(row.control_unit)
         tunits.add(row.unit)
         vunits.add(row.value_unit)
+    given = req.get("control") or {}  # the sweep's own control name and unit come first
+    if given.get("name"):
+        names = {given["name"]}
+    if given.get("unit"):
+        cunits = {given["unit"]}
     mixed = [what for what, s in (("control name", names), ("control unit", cunits),
                                   ("time unit", tunits), ("value unit", vunits))
              if len(s) > 1]  # fmt: skip

@@ -52,6 +52,34 @@ def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
     return doc.model_dump(mode="json")
 
 
+def _check_batch_fields(req: SweepRequest) -> None:
+    """A batch sweep takes ``control`` (the name and unit of its recorded control values, shown
+    on its page and charts) but no live options; a simulated one steps the simulator's own
+    non-dimensional mu, so it takes neither. Refused with a 422 naming the field, never
+    ignored."""
+    if req.live is not None:
+        raise invalid("live", req.live.model_dump(mode="json", exclude_unset=True),
+                      "are the options of a live sweep: send \"mode\": \"live\" for an open "
+                      "sweep fed record by record, or leave 'live' out")  # fmt: skip
+    if req.control is not None and req.simulate is not None:
+        raise invalid("control", req.control.model_dump(mode="json", exclude_unset=True),
+                      "names a recorded control: a simulated sweep steps the simulator's "
+                      "non-dimensional mu, leave 'control' out")  # fmt: skip
+
+
+def _unit_conflict(req: SweepRequest, k: int, given: Any, row: Any) -> None:
+    """422 when ``control.unit`` contradicts the unit a signal's own control value was stored
+    with (a value given in the request is taken in ``control.unit``)."""
+    unit = req.control.unit if req.control is not None else None
+    if unit is None or given is not None or row.control_unit in (None, unit):
+        return
+    raise invalid(
+        "control.unit", unit,
+        f"contradicts measurements[{k}] (signal {row.id!r}), whose control value was stored in "
+        f"{row.control_unit!r}: give its control_value in {unit!r}, or leave control.unit out",
+    )  # fmt: skip
+
+
 async def _resolve_measurements(
     req: SweepRequest, state: AppState, scope: str | None
 ) -> list[dict[str, Any]]:
@@ -72,6 +100,7 @@ async def _resolve_measurements(
         row = await to_thread.run_sync(state.store.get_signal_meta, m.signal_id, scope)
         if row is None:
             raise invalid(f"measurements[{k}].signal_id", m.signal_id, "is not a stored signal")
+        _unit_conflict(req, k, m.control_value, row)
         value = m.control_value if m.control_value is not None else row.control_value
         if value is None:
             raise invalid(
@@ -114,6 +143,7 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
         return await create_live(req, state, caller)
     if (req.measurements is None) == (req.simulate is None):
         raise invalid("measurements", None, "give exactly one of 'measurements' or 'simulate'")
+    _check_batch_fields(req)
     if req.measurements is not None:
         kind = "sweep-signals"
         resolved = await _resolve_measurements(req, state, caller.scope)
@@ -122,10 +152,14 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
         kind = "sweep-simulated"
         params = req.simulate.model_dump(exclude_none=True)
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
+    request = req.model_dump(mode="json", exclude_none=True)
+    if req.control is not None:  # what the user named, not the defaults of a live sweep
+        request["control"] = req.control.model_dump(mode="json", exclude_unset=True,
+                                                    exclude_none=True)  # fmt: skip
     sweep, job = await to_thread.run_sync(
         lambda: state.store.create_sweep(
             kind,
-            req.model_dump(mode="json", exclude_none=True),
+            request,
             params,
             req.name,
             owner=caller.owner,
