@@ -28,6 +28,7 @@ updates and the HTTP door live in ``service.api``.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -330,6 +331,7 @@ def assess(
     *,
     plan: LivePlan | None = None,
     detection_flags: tuple[Flag, ...] = (),
+    timings: dict[str, tuple[float, float]] | None = None,
 ) -> LiveUpdate:
     """The warning after adding one measured record to ``previous`` (in arrival order).
 
@@ -345,6 +347,9 @@ def assess(
         The sweep's options.
     detection_flags : tuple of Flag
         Flags :func:`measure` returned (``no_mode``).
+    timings : dict, optional
+        Gets ``"predict"``: the (wall, CPU) seconds of the classification and prediction (the
+        rest is the alarm, the advice and the sampling policy).
 
     Returns
     -------
@@ -356,7 +361,10 @@ def assess(
     seq = len(previous) + 1
     provisional = LiveRecord(seq, control, measurement, rflags)
     ms = _fit_set([*previous, provisional])
+    t0, c0 = time.perf_counter(), time.process_time()
     pred, uflags = _predict(ms, plan.level)
+    if timings is not None:
+        timings["predict"] = (time.perf_counter() - t0, time.process_time() - c0)
     last = ms[-1] if ms else None
     t_ratio = ms[0].omega / last.omega if last is not None and last.omega > 0 else math.nan
     has_pred = pred is not None and math.isfinite(pred.mu_star)
@@ -477,7 +485,8 @@ def update(
 
 
 def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
-           alarms: Sequence[dict] = (), stopped: str = "closed") -> WarnResult:  # fmt: skip
+           alarms: Sequence[dict] = (), stopped: str = "closed",
+           prediction: Prediction | None = None) -> WarnResult:  # fmt: skip
     """The sweep's final result, in the shape of :func:`~service.analysis.pipeline.warn`'s.
 
     Parameters
@@ -489,10 +498,16 @@ def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
         The alarm after each record (as stored with each update).
     stopped : str
         Why the sweep ended: ``"closed"`` (by the lab) or ``"budget"``.
+    prediction : Prediction, optional
+        The prediction over these same records (the last update's), kept instead of fitting
+        again; without it the records are fitted here.
     """
     plan = plan or LivePlan()
     ms = _fit_set(records)
-    pred, flags = _predict(ms, plan.level)
+    if prediction is not None:
+        pred, flags = prediction, []
+    else:
+        pred, flags = _predict(ms, plan.level)
     for r in records:
         flags.extend(f for f in r.flags if f.code != "no_mode")
     return WarnResult(None, None, tuple(ms), pred, tuple(alarms), stopped, None,

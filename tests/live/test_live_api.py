@@ -249,3 +249,66 @@ def test_owners_stay_apart(server, live_db) -> None:  # noqa: ANN001
         assert r.status_code == 404
         assert live.records().total == 1  # alice still sees hers
         live.close()
+
+
+def test_writers_in_two_processes_see_each_others_records(  # noqa: ANN201
+    server, server_factory, live_db  # noqa: ANN001
+):
+    """Each process keeps the records it has seen; one written by the other process in
+    between is read before the next update (every answer computed on all records before)."""
+    other = server_factory(live_db, workers=1)
+    with Client(server.url, timeout=120.0) as a, Client(other.url, timeout=120.0) as b:
+        live_a = a.live_sweep("two processes", step=0.3)
+        live_b = b.live_sweep(sweep_id=live_a.id)
+        ups = []
+        for k, mu in enumerate([0.0, 0.3, 0.6, 0.9, 1.2]):
+            t, w = record(mu, n=2000)
+            ups.append((live_a if k % 2 == 0 else live_b).add(t=t, w=w, control=mu))
+        assert [u.seq for u in ups] == [1, 2, 3, 4, 5]
+        assert [u.n_used for u in ups] == [1, 2, 3, 4, 5]
+        # the same answer as one process computing the whole sweep from the stored records
+        from service.analysis import live as numerics
+
+        recs, ref = [], None
+        for mu in [0.0, 0.3, 0.6, 0.9, 1.2]:
+            _, w = record(mu, n=2000)
+            ref = numerics.update(recs, w, dt=DT, control=mu, plan=numerics.LivePlan(step=0.3))
+            recs.append(ref.record)
+        assert ups[-1].mu_star == ref.prediction.mu_star
+        assert ups[-1].next_control == ref.next_control
+        live_a.close()
+
+
+def test_server_timing_splits_the_update(server) -> None:  # noqa: ANN001
+    with Client(server.url, timeout=120.0) as c:
+        live = c.live_sweep("timing", step=0.3)
+        t, w = record(0.0, n=2000)
+        r = c._http.post(f"/v1/sweeps/{live.id}/records",
+                         json={"t": t.tolist(), "w": w.tolist(), "control": 0.0})  # fmt: skip
+        assert r.status_code == 201, r.text
+        parts = {p.split(";")[0].strip(): p for p in r.headers["server-timing"].split(",")}
+        for name in ("state", "read", "detect", "classify_predict", "policy", "serialise",
+                     "pool", "store", "app"):  # fmt: skip
+            assert name in parts, (name, r.headers["server-timing"])
+        assert 'desc="cpu ' in parts["detect"]
+        app = float(parts["app"].split("dur=")[1])
+        assert 0 < r.json()["server_ms"] <= app
+        live.close()
+
+
+def test_budget_spent_finishes_with_the_last_updates_prediction(client: Client) -> None:
+    live = client.live_sweep("budget", step=0.3, budget=5)
+    ups = []
+    for mu in [0.0, 0.3, 0.6, 0.9, 1.2]:
+        t, w = record(mu, n=2000)
+        ups.append(live.add(t=t, w=w, control=mu))
+    assert [u.finished for u in ups] == [False] * 4 + [True]
+    done = live.get()
+    assert done.status == "succeeded" and done.result.stopped == "budget"
+    assert done.result.prediction.mu_star == ups[-1].mu_star
+    assert done.result.prediction.mu_star_interval == ups[-1].mu_star_interval
+    assert len(done.result.measurements) == 5
+    t, w = record(1.3, n=2000)
+    with pytest.raises(ApiError) as err:
+        live.add(t=t, w=w, control=1.3)
+    assert err.value.status == 409

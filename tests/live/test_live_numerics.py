@@ -91,6 +91,13 @@ def test_record_roundtrip_and_finish() -> None:
     res = live.finish(back, stopped="closed")
     assert res.stopped == "closed" and len(res.measurements) == 5
     assert res.prediction.mu_star == pytest.approx(ups[-1].prediction.mu_star, abs=1e-14)
+    # the last update's prediction, kept (a budget-spending record): the same final document
+    kept = live.finish(back, stopped="budget", prediction=ups[-1].prediction)
+    fitted = live.finish(back, stopped="budget")
+    assert kept.prediction.mu_star == fitted.prediction.mu_star
+    assert kept.prediction.mu_star_interval == fitted.prediction.mu_star_interval
+    assert kept.prediction.probabilities == fitted.prediction.probabilities
+    assert kept.measurements == fitted.measurements and kept.flags == fitted.flags
 
 
 @pytest.mark.parametrize(

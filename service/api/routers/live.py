@@ -15,13 +15,16 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import threading
 import time
+from collections import OrderedDict
+from dataclasses import dataclass
 from functools import partial
 from typing import Annotated, Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Header, Path, Query, Request
-from fastapi.responses import JSONResponse, StreamingResponse
+from fastapi.responses import JSONResponse, Response, StreamingResponse
 from pydantic import ValidationError
 
 from service import convert, recordings
@@ -42,8 +45,9 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 MAX_ATTEMPTS = 50
 #: Largest record number a query may name (records per sweep are far fewer).
 MAX_SEQ = 2**31 - 1
-#: How often an event stream looks for new stored updates (s), and its keep-alive comment.
-POLL_S = 0.1
+#: How often an event stream looks for updates another process stored (s; this process's own
+#: wake its streams at once), and its keep-alive comment.
+POLL_S = 0.25
 KEEPALIVE_S = 15.0
 
 RECORD_FORM_SCHEMA = {
@@ -260,14 +264,23 @@ def _conflict(sweep_id: str, status: str) -> ApiProblem:
 )
 async def add_record(
     sweep_id: str, request: Request, state: StateDep, caller: CallerDep
-) -> JSONResponse:
+) -> Response:
     """A stored ``signal_id``, inline ``w`` with ``t``/``dt``, or a multipart file, with its
     ``control`` value. Answers 201: the record's detection, the classification, mu* with its
-    interval, the alarm and the next safe control value."""
+    interval, the alarm and the next safe control value.
+
+    The ``Server-Timing`` header splits the server time: ``read`` (the body), ``state`` (the
+    sweep's records: only those this process has not seen are read), ``detect``,
+    ``classify_predict``, ``policy`` (alarm, advice, sampling) and ``serialise`` (the wire
+    document) as measured in the analysis worker, ``pool`` (the hand-off to it), ``store``
+    (the update's append, and any wait for the record's own storage, which overlaps the
+    numerics) and ``app`` (the whole)."""
     t_start = time.perf_counter()
-    live_row = await _live_row(state, sweep_id, caller)
-    if live_row.status != store_live.OPEN:
-        raise _conflict(sweep_id, live_row.status)
+    timing: dict[str, float] = {}
+    st = await _read_state(state, sweep_id, caller, timing)
+    if st.row.status != store_live.OPEN:
+        raise _conflict(sweep_id, st.row.status)
+    t0 = time.perf_counter()
     ctype = request.headers.get("content-type", "").lower()
     if ctype.startswith("multipart/form-data"):
         item = await _record_from_form(request, state)
@@ -276,27 +289,27 @@ async def add_record(
     else:
         raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
                          field="content-type", value=ctype)  # fmt: skip
-    if "recording" in item:
-        item["signal_id"] = await _store_recording(state, item, live_row, caller)
+    stored = None
+    if "recording" in item:  # stored while the numerics run (the update names its id)
+        stored = asyncio.ensure_future(_store_recording(state, item, st.row, caller))
         item["w"], item["dt"] = item["recording"].w, item["recording"].dt
-    plan = _plan(live_row.options)
-    timing = {"read": time.perf_counter() - t_start}
-    t0 = time.perf_counter()
+    timing["read"] = time.perf_counter() - t0
     try:
-        det, meas, dflags = await state.run(
-            partial(numerics.measure, item["w"], dt=item["dt"], control=item["control"],
-                    method=plan.method)  # fmt: skip
-        )
-    except ValueError as exc:
-        raise invalid(getattr(exc, "parameter", "w"), getattr(exc, "value", None),
-                      str(exc)) from None  # fmt: skip
-    timing["detect"] = time.perf_counter() - t0
-    doc = await _append(state, sweep_id, item, det, meas, dflags, plan, timing)
+        doc = await _append(state, st, item, stored, timing)
+    finally:
+        if stored is not None:
+            _settle(stored)
+    t0 = time.perf_counter()
+    body = _json({**doc, "server_ms": 1e3 * (t0 - t_start)})
+    wall, cpu = timing.get("serialise", (0.0, 0.0))
+    timing["serialise"] = (wall + time.perf_counter() - t0, cpu)
+    _notify(sweep_id)
     ms = 1e3 * (time.perf_counter() - t_start)
-    parts = ", ".join(f"{k};dur={1e3 * v:.2f}" for k, v in timing.items())
-    return JSONResponse(
-        {**doc, "server_ms": ms},
+    parts = ", ".join(_timing_entry(k, v) for k, v in timing.items())
+    return Response(
+        body,
         status_code=201,
+        media_type="application/json",
         headers={
             "Location": f"/v1/sweeps/{sweep_id}/records/{doc['seq']}",
             "Server-Timing": f"{parts}, app;dur={ms:.2f}",
@@ -304,56 +317,192 @@ async def add_record(
     )
 
 
+def _settle(task: asyncio.Future) -> None:
+    """Cancel the record's storage when the update failed first (else retrieve its error)."""
+    if not task.done():
+        task.cancel()
+    elif not task.cancelled():
+        task.exception()
+
+
+def _json(doc: Any) -> bytes:
+    return json.dumps(doc, ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode()
+
+
+def _timing_entry(name: str, value: float | tuple[float, float]) -> str:
+    """``name;dur=<ms>`` (and ``desc="cpu <ms>"`` for what the worker measured)."""
+    if isinstance(value, tuple):
+        return f'{name};dur={1e3 * value[0]:.2f};desc="cpu {1e3 * value[1]:.2f}"'
+    return f"{name};dur={1e3 * value:.2f}"
+
+
+# ---------------------------------------------------------------------------------- the update
+@dataclass
+class _State:
+    """The sweep as the next update sees it: its row (status, version, options) and records."""
+
+    row: Any
+    records: list[numerics.LiveRecord]
+
+
+class _RecordCache:
+    """The parsed records of recently fed live sweeps in this process, by sweep id.
+
+    Records are immutable once stored and a sweep's ``version`` only grows, so a cached prefix
+    stays valid: a later update reads only the records stored after it (by any process).
+    """
+
+    def __init__(self, size: int = 256) -> None:
+        self._items: OrderedDict[str, tuple[int, list[numerics.LiveRecord]]] = OrderedDict()
+        self._lock = threading.Lock()
+        self._size = size
+
+    def get(self, sweep_id: str) -> tuple[int, list[numerics.LiveRecord]] | None:
+        with self._lock:
+            hit = self._items.get(sweep_id)
+            if hit is not None:
+                self._items.move_to_end(sweep_id)
+            return hit
+
+    def put(self, sweep_id: str, version: int, records: list[numerics.LiveRecord]) -> None:
+        with self._lock:
+            old = self._items.get(sweep_id)
+            if old is None or old[0] <= version:
+                self._items[sweep_id] = (version, records)
+                self._items.move_to_end(sweep_id)
+            while len(self._items) > self._size:
+                self._items.popitem(last=False)
+
+
+def _cache(state: AppState) -> _RecordCache:
+    cache = state.extra.get("live_records")
+    if cache is None:
+        cache = state.extra.setdefault("live_records", _RecordCache())
+    return cache
+
+
+def _load_state(store: Any, cache: _RecordCache, sweep_id: str) -> _State | None:
+    """The live row and its records: the cached prefix plus what was stored after it."""
+    hit = cache.get(sweep_id)
+    row, records = None, None
+    if hit is not None:
+        row, new = store_live.records_after(store, sweep_id, hit[0], MAX_SEQ)
+        if row is None:
+            return None
+        records = [*hit[1], *(numerics.record_from_dict(r.record) for r in new
+                              if r.seq <= row.version)]  # fmt: skip
+    if records is None or [r.seq for r in records] != list(range(1, row.version + 1)):
+        full = store_live.live_state(store, sweep_id)  # first read here (or a gap): all of it
+        if full is None:
+            return None
+        row, records = full.sweep, [numerics.record_from_dict(d) for d in full.records]
+    cache.put(sweep_id, row.version, records)
+    return _State(row, records)
+
+
+async def _read_state(
+    state: AppState, sweep_id: str, caller: Caller | None, timing: dict[str, Any]
+) -> _State:
+    t0 = time.perf_counter()
+    st = await to_thread.run_sync(_load_state, state.store, _cache(state), sweep_id)
+    if st is None or (caller is not None and not caller.sees(st.row.owner)):
+        raise not_found("live sweep", sweep_id)
+    timing["state"] = timing.get("state", 0.0) + time.perf_counter() - t0
+    return st
+
+
 async def _append(
-    state: AppState, sweep_id: str, item: dict[str, Any], det: Any, meas: Any, dflags: Any,
-    plan: numerics.LivePlan, timing: dict[str, float],
-) -> dict[str, Any]:  # fmt: skip
-    """Assess on the latest stored state and append; recompute and retry when another record
-    (or a close) came first. ``timing`` gets the seconds spent assessing and storing."""
-    timing["assess"] = timing["store"] = 0.0
+    state: AppState, st: _State, item: dict[str, Any], stored: Any, timing: dict[str, Any]
+) -> dict[str, Any]:
+    """Detect and assess on the latest stored state (one call to the analysis pool) and
+    append; when another record (or a close) came first, assess again on the new state (the
+    detection is kept) and retry. ``timing`` gets the seconds of each stage."""
+    sweep_id = st.row.id
+    plan = _plan(st.row.options)
+    measured = None
     for _ in range(MAX_ATTEMPTS):
+        if st.row.status != store_live.OPEN:
+            raise _conflict(sweep_id, st.row.status)
+        budget = st.row.options.get("budget")
+        finishing = budget is not None and len(st.records) + 1 >= int(budget)
         t0 = time.perf_counter()
-        st = await to_thread.run_sync(store_live.live_state, state.store, sweep_id)
-        if st is None:
-            raise not_found("live sweep", sweep_id)
-        if st.sweep.status != store_live.OPEN:
-            raise _conflict(sweep_id, st.sweep.status)
-        previous = [numerics.record_from_dict(d) for d in st.records]
-        budget = st.sweep.options.get("budget")
-        finishing = budget is not None and len(previous) + 1 >= int(budget)
-        t1 = time.perf_counter()
-        doc, record, final = await state.run(
-            partial(_assess, previous, det, meas, item["control"], plan, dflags, finishing,
-                    sweep_id, item["signal_id"])  # fmt: skip
-        )
-        t2 = time.perf_counter()
+        job = partial(_update, st.records, item if measured is None else None, measured,
+                      item["control"], plan, finishing, sweep_id)  # fmt: skip
+        try:
+            out = await state.run(job)
+        except ValueError as exc:  # the detector's validation of the record
+            raise invalid(getattr(exc, "parameter", "w"), getattr(exc, "value", None),
+                          str(exc)) from None  # fmt: skip
+        worker = out.pop("timing")
+        in_worker = 0.0
+        for k, v in worker.items():
+            prev = timing.get(k, (0.0, 0.0))
+            timing[k] = (prev[0] + v[0], prev[1] + v[1])
+            in_worker += v[0]
+        timing["pool"] = timing.get("pool", 0.0) + time.perf_counter() - t0 - in_worker
+        measured = out["measured"]
+        t0 = time.perf_counter()
+        signal_id = item.get("signal_id")
+        if stored is not None:
+            signal_id = item["signal_id"] = await stored
+        out["doc"]["signal_id"] = signal_id
         append = partial(
-            store_live.append_record, state.store, sweep_id, st.sweep.version,
-            signal_id=item["signal_id"], control=item["control"], record=record, doc=doc,
-            finish_result=final,
+            store_live.append_record, state.store, sweep_id, st.row.version,
+            signal_id=signal_id, control=item["control"], record=out["stored"],
+            doc=out["doc"], finish_result=out["final"],
         )  # fmt: skip
         row = await to_thread.run_sync(append)
-        timing["assess"] += t2 - t1
-        timing["store"] += (t1 - t0) + (time.perf_counter() - t2)
+        timing["store"] = timing.get("store", 0.0) + time.perf_counter() - t0
         if row is not None:
+            _cache(state).put(sweep_id, row.seq, [*st.records, out["record"]])
             return row.doc
+        st = await _read_state(state, sweep_id, None, timing)
     raise ApiProblem(503, f"live sweep {sweep_id!r} is too busy: retry the record",
                      headers={"Retry-After": "1"})  # fmt: skip
 
 
-def _assess(
-    previous: list[numerics.LiveRecord], det: Any, meas: Any, control: float,
-    plan: numerics.LivePlan, dflags: Any, finishing: bool, sweep_id: str, signal_id: str | None,
-) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any] | None]:  # fmt: skip
-    """(the update's wire document, the record's stored state, the final sweep document when
-    the record spends the budget); runs in the analysis pool."""
-    u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags)
-    doc = convert.live_update(u, sweep_id=sweep_id, signal_id=signal_id,
-                              created_at=as_utc(utcnow()), finished=finishing)  # fmt: skip
+def _clock() -> tuple[float, float]:
+    return time.perf_counter(), time.process_time()
+
+
+def _since(t: tuple[float, float]) -> tuple[float, float]:
+    return time.perf_counter() - t[0], time.process_time() - t[1]
+
+
+def _update(
+    previous: list[numerics.LiveRecord], item: dict[str, Any] | None, measured: Any,
+    control: float, plan: numerics.LivePlan, finishing: bool, sweep_id: str,
+) -> dict[str, Any]:  # fmt: skip
+    """One update in the analysis pool: detect the record (unless ``measured`` already holds
+    its detection), assess the sweep with it, and build the wire document, the stored record
+    and, when the record spends the budget, the final sweep document. Each stage's (wall, CPU)
+    seconds are returned under ``timing``."""
+    timing: dict[str, tuple[float, float]] = {}
+    if measured is None:
+        t = _clock()
+        measured = numerics.measure(item["w"], dt=item["dt"], control=control,
+                                    method=plan.method)  # fmt: skip
+        timing["detect"] = _since(t)
+    det, meas, dflags = measured
+    split: dict[str, float] = {}
+    t = _clock()
+    u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags,
+                        timings=split)  # fmt: skip
+    whole = _since(t)
+    pred = split.get("predict", (0.0, 0.0))
+    timing["classify_predict"] = pred
+    timing["policy"] = (whole[0] - pred[0], whole[1] - pred[1])
+    t = _clock()
+    doc = convert.live_update(u, sweep_id=sweep_id, created_at=as_utc(utcnow()),
+                              finished=finishing).model_dump(mode="json")  # fmt: skip
     final = None
-    if finishing:
-        final = _finish([*previous, u.record], plan, "budget")
-    return doc.model_dump(mode="json"), numerics.record_to_dict(u.record), final
+    if finishing:  # the final document reuses this update's prediction (no second fit)
+        r = numerics.finish([*previous, u.record], plan=plan, stopped="budget",
+                            prediction=u.prediction)  # fmt: skip
+        final = convert.sweep_result(r).model_dump(mode="json")
+    timing["serialise"] = _since(t)
+    return {"doc": doc, "stored": numerics.record_to_dict(u.record), "record": u.record,
+            "final": final, "measured": measured, "timing": timing}  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------- reading
@@ -403,18 +552,18 @@ async def get_record(
 )
 async def close_sweep(sweep_id: str, state: StateDep, caller: CallerDep) -> dict[str, Any]:
     """Idempotent: closing a closed (or finished) sweep answers it as it is."""
-    await _live_row(state, sweep_id, caller)
+    timing: dict[str, Any] = {}
+    st = await _read_state(state, sweep_id, caller, timing)
     for _ in range(MAX_ATTEMPTS):
-        st = await to_thread.run_sync(store_live.live_state, state.store, sweep_id)
-        if st.sweep.status != store_live.OPEN:
+        if st.row.status != store_live.OPEN:
             break
-        plan = _plan(st.sweep.options)
-        previous = [numerics.record_from_dict(d) for d in st.records]
-        result = await state.run(partial(_finish, previous, plan))
+        result = await state.run(partial(_finish, st.records, _plan(st.row.options)))
         done = await to_thread.run_sync(store_live.close_live, state.store, sweep_id,
-                                        st.sweep.version, result)  # fmt: skip
+                                        st.row.version, result)  # fmt: skip
         if done:
+            _notify(sweep_id)
             break
+        st = await _read_state(state, sweep_id, None, timing)
     else:
         raise ApiProblem(503, f"live sweep {sweep_id!r} is too busy: retry",
                          headers={"Retry-After": "1"})  # fmt: skip
@@ -480,33 +629,56 @@ async def events(
 
 
 async def _stream(request: Request, state: AppState, sweep_id: str, last: int, timeout: float):  # noqa: ANN202
-    """Stored updates with seq > last, then new ones as they are stored (in any process)."""
+    """Stored updates with seq > last, then new ones as they are stored: at once when this
+    process stored them (:func:`_notify`), within :data:`POLL_S` when another process did."""
     deadline = time.monotonic() + timeout
     quiet_since = time.monotonic()
     yield b"retry: 1000\n\n"
     known = -1
-    while True:
-        vs = await to_thread.run_sync(store_live.live_version, state.store, sweep_id)
-        if vs is None:
-            return
-        version, status = vs
-        if version > last and version != known:
-            _, recs = await to_thread.run_sync(store_live.records_after, state.store,
-                                               sweep_id, last, 500)  # fmt: skip
-            for r in recs:
-                yield _sse("update", r.seq, r.doc)
-                last = r.seq
-            known = version if last >= version else -1
-            quiet_since = time.monotonic()
-            continue
-        if status != store_live.OPEN and last >= version:
-            if last == version:
-                yield _sse("closed", version + 1, {"status": status, "n_records": version})
-            return
-        now = time.monotonic()
-        if now >= deadline or await request.is_disconnected():
-            return
-        if now - quiet_since >= KEEPALIVE_S:
-            yield b": keep-alive\n\n"
-            quiet_since = now
-        await asyncio.sleep(POLL_S)
+    wake = asyncio.Event()
+    listeners = _listeners.setdefault(sweep_id, set())
+    listeners.add(wake)
+    try:
+        while True:
+            wake.clear()
+            vs = await to_thread.run_sync(store_live.live_version, state.store, sweep_id)
+            if vs is None:
+                return
+            version, status = vs
+            if version > last and version != known:
+                _, recs = await to_thread.run_sync(store_live.records_after, state.store,
+                                                   sweep_id, last, 500)  # fmt: skip
+                for r in recs:
+                    yield _sse("update", r.seq, r.doc)
+                    last = r.seq
+                known = version if last >= version else -1
+                quiet_since = time.monotonic()
+                continue
+            if status != store_live.OPEN and last >= version:
+                if last == version:
+                    yield _sse("closed", version + 1, {"status": status, "n_records": version})
+                return
+            now = time.monotonic()
+            if now >= deadline or await request.is_disconnected():
+                return
+            if now - quiet_since >= KEEPALIVE_S:
+                yield b": keep-alive\n\n"
+                quiet_since = now
+            try:
+                await asyncio.wait_for(wake.wait(), timeout=POLL_S)
+            except TimeoutError:
+                pass
+    finally:
+        listeners.discard(wake)
+        if not listeners:
+            _listeners.pop(sweep_id, None)
+
+
+#: The event streams of this process waiting for a sweep's next update, by sweep id.
+_listeners: dict[str, set[asyncio.Event]] = {}
+
+
+def _notify(sweep_id: str) -> None:
+    """Wake this process's streams of ``sweep_id``: an update or a close was stored."""
+    for ev in list(_listeners.get(sweep_id, ())):
+        ev.set()
