@@ -208,8 +208,12 @@ class Browser:
                 tab.http_errors.append(f"HTTP {r['status']}: {r.get('url')}")
 
     # ---------------------------------------------------------------------- pages
-    def open(self, url: str, *, timeout: float = 120, cookies: list[dict] | None = None) -> Tab:
-        """A new tab showing ``url`` once its load event fired (and the network settled)."""
+    def open(
+        self, url: str, *, timeout: float = 120, cookies: list[dict] | None = None,
+        init_script: str | None = None,
+    ) -> Tab:  # fmt: skip
+        """A new tab showing ``url`` once its load event fired (and the network settled);
+        ``init_script`` runs in every document of the tab before the page's own scripts."""
         target = self.call("Target.createTarget", {"url": "about:blank"})["targetId"]
         session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})[
             "sessionId"
@@ -221,6 +225,8 @@ class Browser:
             tab.call(f"{domain}.enable")
         for c in cookies or []:
             tab.call("Network.setCookie", c)
+        if init_script:
+            tab.call("Page.addScriptToEvaluateOnNewDocument", {"source": init_script})
         self.navigate(tab, url, timeout=timeout)
         return tab
 

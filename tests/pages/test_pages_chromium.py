@@ -8,6 +8,7 @@ resource answers 404, as on /v1.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from typing import Any
@@ -23,9 +24,12 @@ def _login_cookie(site: Site, key: str) -> list[dict[str, Any]]:
     return [{"name": COOKIE, "value": key, "url": site.base, "httpOnly": True}]
 
 
-def _open(browser: Browser, site: Site, path: str, key: str | None) -> Tab:
+def _open(
+    browser: Browser, site: Site, path: str, key: str | None, init_script: str | None = None
+) -> Tab:
     browser.call("Storage.clearCookies", {})
-    return browser.open(site.base + path, cookies=_login_cookie(site, key) if key else None)
+    return browser.open(site.base + path, cookies=_login_cookie(site, key) if key else None,
+                        init_script=init_script)  # fmt: skip
 
 
 def _values(tab: Tab) -> dict[str, list[dict[str, Any]]]:
@@ -242,10 +246,28 @@ def test_api_chart_routes_carry_the_users_units(site: Site) -> None:
     assert png.status_code == 200 and png.content[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def _tab_events(browser: Browser, tab: Tab, since: int, method: str) -> list[dict[str, Any]]:
+    return [e["params"] for e in browser.events[since:]
+            if e.get("sessionId") == tab.session and e["method"] == method]  # fmt: skip
+
+
+def _requested(browser: Browser, tab: Tab, since: int = 0) -> list[str]:
+    return [p["request"]["url"]
+            for p in _tab_events(browser, tab, since, "Network.requestWillBeSent")]  # fmt: skip
+
+
+def _add_record(c: Any, sid: str, rec: tuple) -> None:
+    theta, dt, w = rec
+    r = c.post(f"/v1/sweeps/{sid}/records", json={"w": w.tolist(), "dt": dt, "control": theta})
+    assert r.status_code == 201, r.text
+
+
 @pytest.mark.slow
 def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots) -> None:
     """An open live sweep: the page shows the latest update's warning (the API's numbers) and
-    reloads by itself when the next record arrives."""
+    follows the sweep's event stream: a record added after the page loaded is pushed to it and
+    shown in place, without a reload and without a single polling request. A browser without
+    EventSource falls back to polling the job's status."""
     from _pages_site import lab_records
 
     recs = lab_records()
@@ -254,11 +276,10 @@ def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots
                                        "control": {"name": "theta", "unit": "deg"}})  # fmt: skip
         assert r.status_code == 201, r.text
         sid = r.json()["id"]
-        for theta, dt, w in recs[:6]:
-            r = c.post(f"/v1/sweeps/{sid}/records",
-                       json={"w": w.tolist(), "dt": dt, "control": theta})  # fmt: skip
-            assert r.status_code == 201, r.text
+        for rec in recs[:6]:
+            _add_record(c, sid, rec)
         last = c.get(f"/v1/sweeps/{sid}/records").json()["items"][-1]
+        start = len(browser.events)
         tab = _open(browser, site, f"/sweeps/{sid}", site.key_a)
         _assert_clean(tab)
         one = {k: xs[0] for k, xs in _values(tab).items()}
@@ -268,17 +289,54 @@ def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots
         assert one["alarm_level"]["value"] == last["alarm"]["level"]
         assert one["next_safe_mu"]["value"] == last["next_control"]
         assert len(_values(tab)["control"]) == 6
-        theta, dt, w = recs[6]
-        r = c.post(f"/v1/sweeps/{sid}/records", json={"w": w.tolist(), "dt": dt, "control": theta})
-        assert r.status_code == 201, r.text
+        # the page follows the stream of the records after the six it shows
+        tab.wait_for("document.getElementById('live-script').dataset.following === 'events'")
+        streams = [u for u in _requested(browser, tab, start) if "/events" in u]
+        assert streams == [f"{site.base}/sweeps/{sid}/events?after=6"], streams
+        tab.evaluate("window.__same_document = true")
+        mark = len(browser.events)
+        _add_record(c, sid, recs[6])
+        answered = time.monotonic()
         tab.wait_for("document.querySelectorAll('tr.record').length === 7", timeout=60)
+        shown = time.monotonic()
         browser.pump(0.5)
         last = c.get(f"/v1/sweeps/{sid}/records").json()["items"][-1]
     one = {k: xs[0] for k, xs in _values(tab).items()}
     assert one["mu_star"]["value"] == last["prediction"]["mu_star"]
+    assert one["next_safe_mu"]["value"] == last["next_control"]
     _assert_clean(tab)
+    # pushed: the stream carried record 7, the page was fetched again only after it arrived,
+    # in place (the same document), and nothing polled
+    pushed = [p for p in _tab_events(browser, tab, mark, "Network.eventSourceMessageReceived")
+              if p["eventName"] == "update"]  # fmt: skip
+    assert [p["eventId"] for p in pushed] == ["7"]
+    assert json.loads(pushed[0]["data"])["seq"] == 7
+    fetched = [p for p in _tab_events(browser, tab, mark, "Network.requestWillBeSent")
+               if p["request"]["url"] == f"{site.base}/sweeps/{sid}"]  # fmt: skip
+    assert fetched and all(p["timestamp"] >= pushed[0]["timestamp"] for p in fetched)
+    assert tab.evaluate("window.__same_document === true")
+    urls = _requested(browser, tab, start)
+    assert not any("status.json" in u for u in urls), urls
+    assert len([u for u in urls if "/events" in u]) == 1  # one stream, never reopened
+    print(f"record 7 shown {shown - answered:.2f} s after its POST was answered")
     tab.screenshot(shots / "live.png")
-    tab.close()
+    # the fallback: a browser without EventSource polls the job's status and reloads
+    start = len(browser.events)
+    old = _open(browser, site, f"/sweeps/{sid}", site.key_a,
+                init_script="delete window.EventSource;")  # fmt: skip
+    assert len(_values(old)["control"]) == 7
+    assert old.evaluate("document.getElementById('live-script').dataset.following") is None
+    with site.client(site.key_a) as c:
+        _add_record(c, sid, recs[7])
+    for t in (tab, old):
+        t.wait_for("document.querySelectorAll('tr.record').length === 8", timeout=60)
+    urls = _requested(browser, old, start)
+    assert any("status.json" in u for u in urls) and not any("/events" in u for u in urls)
+    assert not any("status.json" in u for u in _requested(browser, tab))
+    browser.pump(0.5)
+    for t in (tab, old):
+        _assert_clean(t)
+        t.close()
 
 
 def test_user_text_is_escaped_in_pages_and_charts(browser: Browser, site: Site) -> None:

@@ -10,12 +10,12 @@ import json
 import math
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 from urllib.parse import quote
 
 import jinja2
 from anyio import to_thread
-from fastapi import APIRouter, Form, Request, Response
+from fastapi import APIRouter, Form, Query, Request, Response
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
 from fastapi.templating import Jinja2Templates
 
@@ -32,6 +32,10 @@ from service.schemas.analysis import SweepResult
 HERE = Path(__file__).parent
 COOKIE = "snapwarn_key"
 RECENT = 20
+#: A page's event stream ends after this long (s); the browser reconnects where it left off.
+EVENTS_TIMEOUT_S = 300.0
+#: The largest record number a page's query may name.
+MAX_SEQ = 2**31 - 1
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=HERE / "templates")
@@ -438,12 +442,36 @@ async def sweep_page(request: Request, sweep_id: str) -> Response:
             "alarm": result.alarm[-1] if result is not None and result.alarm else doc.alarm,
             "next_value": next_value,
             "live_open": job.status == "open",
+            "n_updates": updates[-1].seq if updates else 0,
             "job": _job_view(job),
             "units": units,
             "records": _records(result),
             "chart": chart,
         }
         return _page(request, "sweep.html", ctx)
+
+    return await _serve(request, handler)
+
+
+@router.get("/sweeps/{sweep_id}/events")
+async def sweep_events(
+    request: Request,
+    sweep_id: str,
+    after: Annotated[int, Query(ge=0, le=MAX_SEQ)] = 0,
+) -> Response:
+    """What a live sweep's page follows: the server-sent events of ``/v1/sweeps/{id}/events``
+    (an ``update`` per record after ``after``, then ``closed``), for the page's own cookie
+    (an ``EventSource`` sends no ``Authorization`` header)."""
+
+    async def handler(caller: Caller, state: AppState) -> Response:
+        from service.api.routers import live
+        from service.api.storage import live as store_live
+
+        row = await to_thread.run_sync(store_live.get_live, state.store, sweep_id, caller.scope)
+        if row is None:
+            return JSONResponse({"detail": f"no live sweep {sweep_id!r}"}, status_code=404)
+        resume = request.headers.get("last-event-id")  # the browser's reconnection
+        return live.event_stream(request, state, sweep_id, after, resume, EVENTS_TIMEOUT_S)
 
     return await _serve(request, handler)
 

@@ -5,16 +5,16 @@ called by the sweeps router) and is an ordinary sweep resource: while it is open
 ``"open"``; once closed (or its budget spent) it is a finished sweep with the pipeline's
 document, for ``GET /v1/sweeps/{id}``, its charts, pages and listings.
 
-The numerics of an update live in :mod:`service.analysis.live` and run in the analysis pool;
-this module parses the record, stores it, serialises concurrent writers (see
-:mod:`service.api.storage.live`) and streams the stored updates.
+The numerics of an update live in :mod:`service.analysis.live` and run in the analysis pool
+(one call per record: detection, assessment and the wire document); this module reads the
+record (:mod:`service.api.routers._live_input`), stores it while the numerics run, serialises
+concurrent writers (see :mod:`service.api.storage.live`) and streams the stored updates.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
-import math
 import threading
 import time
 from collections import OrderedDict
@@ -25,13 +25,13 @@ from typing import Annotated, Any
 from anyio import to_thread
 from fastapi import APIRouter, Header, Path, Query, Request
 from fastapi.responses import JSONResponse, Response, StreamingResponse
-from pydantic import ValidationError
 
-from service import convert, recordings
+from service import convert
 from service.analysis import live as numerics
 from service.api.auth import Caller, CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
-from service.api.routers._common import body_validation_error, problems
+from service.api.routers import _live_input
+from service.api.routers._common import problems
 from service.api.routers.sweeps import sweep_doc
 from service.api.state import AppState, StateDep
 from service.api.storage import as_utc, utcnow
@@ -49,27 +49,6 @@ MAX_SEQ = 2**31 - 1
 #: wake its streams at once), and its keep-alive comment.
 POLL_S = 0.25
 KEEPALIVE_S = 15.0
-
-RECORD_FORM_SCHEMA = {
-    "type": "object",
-    "required": ["file"],
-    "properties": {
-        "file": {
-            "type": "string",
-            "format": "binary",
-            "description": "CSV with a header, .npy, .npz, .wav or .mat",
-        },
-        "control": {"type": "number", "description": "Control value of the record."},
-        "format": {"type": "string", "enum": list(recordings.FORMATS)},
-        "dt": {"type": "number", "description": "Sampling step when the file has no time."},
-        "t0": {"type": "number"},
-        "unit": {"type": "string", "description": "Time unit."},
-        "column": {"type": "string"},
-        "time_column": {"type": "string"},
-        "channel": {"type": "integer"},
-        "name": {"type": "string"},
-    },
-}
 
 
 # ---------------------------------------------------------------------------------- creation
@@ -115,128 +94,6 @@ async def _live_row(state: AppState, sweep_id: str, caller: Caller) -> Any:
     return row
 
 
-# ---------------------------------------------------------------------------------- records in
-def _recording_problem(exc: recordings.RecordingError) -> ApiProblem:
-    status = 422
-    if isinstance(exc, recordings.UnsupportedFormat):
-        status = 415
-    elif isinstance(exc, recordings.RecordingTooLarge):
-        status = 413
-    return ApiProblem(status, str(exc), field=exc.field, value=exc.value)
-
-
-def _finite_control(value: Any, field: str = "control") -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise invalid(field, value, "is not a number") from None
-    if not math.isfinite(v):
-        raise invalid(field, value, "must be finite")
-    return v
-
-
-async def _record_from_json(request: Request, state: AppState, caller: Caller) -> dict[str, Any]:
-    try:
-        doc = LiveRecordIn.model_validate_json(await request.body())
-    except ValidationError as exc:
-        raise body_validation_error(exc) from None
-    if doc.signal_id is not None:
-        if doc.w is not None or doc.t is not None:
-            raise invalid("signal_id", doc.signal_id, "give a signal_id or samples, not both")
-        sig = await to_thread.run_sync(state.store.get_signal, doc.signal_id, caller.scope)
-        if sig is None:
-            raise invalid("signal_id", doc.signal_id, "is not a stored signal")
-        value = doc.control if doc.control is not None else sig.row.control_value
-        if value is None:
-            raise invalid("control", None, "is required: the signal has no control value")
-        return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
-                "signal_id": sig.row.id}  # fmt: skip
-    if doc.w is None:
-        raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
-    if doc.control is None:
-        raise invalid("control", None, "is required with inline samples")
-    control = _finite_control(doc.control)
-    limit = state.settings.max_samples
-
-    def read() -> recordings.Recording:
-        return recordings.from_arrays(doc.w, doc.t, doc.dt, doc.t0, max_samples=limit,
-                                      unit=doc.unit, source="json")  # fmt: skip
-
-    try:
-        rec = await to_thread.run_sync(read)
-    except recordings.RecordingError as exc:
-        raise _recording_problem(exc) from None
-    return {"recording": rec, "control": control, "name": doc.name}
-
-
-def _form_text(form: Any, name: str, limit: int = 200) -> str | None:
-    v = form.get(name)
-    if v is None or v == "":
-        return None
-    if not isinstance(v, str):
-        raise invalid(name, getattr(v, "filename", "<file>"), "must be a text field")
-    if len(v) > limit:
-        raise invalid(name, v, f"is longer than {limit} characters")
-    return v
-
-
-async def _record_from_form(request: Request, state: AppState) -> dict[str, Any]:
-    s = state.settings
-    form = await request.form(max_files=1, max_fields=16, max_part_size=s.max_body_bytes)
-    upload = form.get("file")
-    if upload is None or isinstance(upload, str):
-        raise invalid("file", None, "is required (a multipart file field named 'file')")
-    data = await upload.read()
-    text = _form_text(form, "control")
-    if text is None:
-        raise invalid("control", None, "is required (the record's control value)")
-    control = _finite_control(text)
-    nums = {}
-    for k in ("dt", "t0", "channel"):
-        t = _form_text(form, k)
-        nums[k] = None if t is None else _finite_control(t, k)
-    opts = {k: _form_text(form, k) for k in ("column", "time_column")}
-
-    def read() -> recordings.Recording:
-        fmt = recordings.guess_format(upload.filename, upload.content_type,
-                                      _form_text(form, "format", 10))  # fmt: skip
-        return recordings.read_bytes(data, fmt, dt=nums["dt"], t0=nums["t0"],
-                                     channel=int(nums["channel"] or 0), max_samples=s.max_samples,
-                                     **opts)  # fmt: skip
-
-    try:
-        rec = await to_thread.run_sync(read)
-    except recordings.RecordingError as exc:
-        raise _recording_problem(exc) from None
-    unit = _form_text(form, "unit", 100)
-    if unit:
-        rec = recordings.Recording(rec.w, rec.t, rec.dt, rec.t0, unit, rec.value_unit,
-                                   rec.source, rec.flags, rec.metadata)  # fmt: skip
-    name = _form_text(form, "name", 500) or (upload.filename or "")[:500] or None
-    return {"recording": rec, "control": control, "name": name,
-            "metadata": {"file": {"filename": upload.filename, **rec.metadata}}}  # fmt: skip
-
-
-async def _store_recording(
-    state: AppState, item: dict[str, Any], live_row: Any, caller: Caller
-) -> str:
-    rec: recordings.Recording = item["recording"]
-    control = {"name": live_row.control_name, "value": item["control"],
-               "unit": live_row.control_unit}  # fmt: skip
-    meta = dict(item.get("metadata") or {})
-    meta["live_sweep"] = live_row.id
-    if rec.flags:
-        meta["flags"] = [f.to_dict() for f in rec.flags]
-    row = await to_thread.run_sync(
-        lambda: state.store.add_signal(
-            w=rec.w, dt=rec.dt, t0=rec.t0, t=rec.t, source=rec.source, name=item.get("name"),
-            unit=rec.unit, value_unit=rec.value_unit, control=control, metadata=meta,
-            owner=caller.owner,
-        )
-    )  # fmt: skip
-    return row.id
-
-
 def _conflict(sweep_id: str, status: str) -> ApiProblem:
     return ApiProblem(
         409,
@@ -257,7 +114,7 @@ def _conflict(sweep_id: str, status: str) -> ApiProblem:
             "required": True,
             "content": {
                 "application/json": {"schema": LiveRecordIn.model_json_schema()},
-                "multipart/form-data": {"schema": RECORD_FORM_SCHEMA},
+                "multipart/form-data": {"schema": _live_input.RECORD_FORM_SCHEMA},
             },
         }
     },
@@ -283,15 +140,15 @@ async def add_record(
     t0 = time.perf_counter()
     ctype = request.headers.get("content-type", "").lower()
     if ctype.startswith("multipart/form-data"):
-        item = await _record_from_form(request, state)
+        item = await _live_input.record_from_form(request, state)
     elif ctype.startswith("application/json") or ctype == "":
-        item = await _record_from_json(request, state, caller)
+        item = await _live_input.record_from_json(request, state, caller)
     else:
         raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
                          field="content-type", value=ctype)  # fmt: skip
     stored = None
     if "recording" in item:  # stored while the numerics run (the update names its id)
-        stored = asyncio.ensure_future(_store_recording(state, item, st.row, caller))
+        stored = asyncio.ensure_future(_live_input.store_recording(state, item, st.row, caller))
         item["w"], item["dt"] = item["recording"].w, item["recording"].dt
     timing["read"] = time.perf_counter() - t0
     try:
@@ -612,6 +469,15 @@ async def events(
     last_event_id: Annotated[str | None, Header(alias="Last-Event-ID")] = None,
 ) -> StreamingResponse:
     await _live_row(state, sweep_id, caller)
+    return event_stream(request, state, sweep_id, after, last_event_id, timeout)
+
+
+def event_stream(
+    request: Request, state: AppState, sweep_id: str, after: int | None,
+    last_event_id: str | None, timeout: float,
+) -> StreamingResponse:  # fmt: skip
+    """The event stream of a live sweep the caller may read (also behind the sweep's page,
+    which authenticates with its cookie): updates after ``after`` or ``Last-Event-ID``."""
     start = after or 0
     if last_event_id:
         try:

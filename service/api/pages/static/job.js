@@ -1,12 +1,9 @@
-// Poll the job's status while it runs; reload the page once it has finished (a live sweep's
-// page: also each time a record arrives).
+// Poll the job's status while it runs; reload the page once it has finished. (A live sweep's
+// page follows its event stream instead: live.js.)
 (function () {
   "use strict";
   var script = document.getElementById("job-script");
   var url = script.getAttribute("data-status-url");
-  var reloadOnChange = script.getAttribute("data-reload-on-change") === "1";
-  // what the page was rendered with: an update that lands before the first poll still reloads
-  var seen = script.hasAttribute("data-seen") ? script.getAttribute("data-seen") : null;
   var bar = document.getElementById("job-progress");
   var frac = document.getElementById("job-fraction");
   var msg = document.getElementById("job-message");
@@ -16,15 +13,6 @@
       .then(function (r) { return r.ok ? r.json() : null; })
       .then(function (d) {
         if (!d) { return; }
-        if (reloadOnChange) {  // a live sweep's page: reload when a record arrived or it closed
-          if (d.done || (seen !== null && d.progress.message !== seen)) {
-            window.location.reload();
-            return;
-          }
-          seen = d.progress.message;
-          window.setTimeout(tick, 1000);
-          return;
-        }
         bar.value = d.progress.fraction;
         frac.textContent = Math.round(100 * d.progress.fraction) + " %";
         frac.setAttribute("data-value", String(d.progress.fraction));
