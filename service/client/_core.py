@@ -1,6 +1,8 @@
-"""Requests as data: each SDK method builds a :class:`Call` and a parser of its response.
+"""Requests as data: each SDK method builds a :class:`Call` and a parser of its response, or
+a flow of them (:data:`Flow`: a generator yielding calls and :class:`Sleep` pauses).
 
-The sync and async clients only differ in how they send a call, so both share this module.
+The sync and async clients only differ in how they send a call and how they pause
+(:mod:`service.client._ops`), so both share this module.
 Nothing heavy is imported: numpy is used only if the caller already has it installed, and
 only when a method is called.
 """
@@ -12,11 +14,12 @@ import importlib.util
 import io
 import json
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
+import time
+from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
-from service.client.errors import error_for
+from service.client.errors import JobFailed, WaitTimeout, error_for
 from service.schemas import (
     Detection,
     Health,
@@ -30,6 +33,7 @@ from service.schemas import (
 )
 
 JSON_HEADERS = {"content-type": "application/json"}
+R = TypeVar("R")
 
 
 @dataclass
@@ -42,6 +46,25 @@ class Call:
     data: dict[str, Any] | None = None
     headers: dict[str, str] = field(default_factory=dict)
     parse: Callable[[Any], Any] = lambda r: r
+
+
+@dataclass(frozen=True)
+class Sleep:
+    """A pause of a flow: ``time.sleep`` or ``asyncio.sleep`` of ``seconds``."""
+
+    seconds: float
+
+
+#: A flow: yields what to do (a :class:`Call` to send, or a :class:`Sleep`), receives the
+#: parsed answer (None after a pause), returns the method's result.
+Flow = Generator["Call | Sleep", Any, R]
+
+
+def request_args(call: Call) -> dict[str, Any]:
+    """The keyword arguments of ``httpx2.Client.request`` (or ``AsyncClient.request``)."""
+    return {"method": call.method, "url": call.path, "params": call.params,
+            "content": call.content, "files": call.files, "data": call.data,
+            "headers": call.headers or None}  # fmt: skip
 
 
 def has_numpy() -> bool:
@@ -356,3 +379,26 @@ class Bar:
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
+
+
+def wait_flow(
+    job: Any, *, progress: bool, timeout: float | None, poll: float, raise_on_failure: bool
+) -> Flow[Any]:
+    """Poll a job until it ends (the clients' ``wait``)."""
+    jid = job_id_of(job)
+    bar = Bar(progress, f"job {jid[:8]}")
+    deadline = None if timeout is None else time.monotonic() + timeout
+    try:
+        while True:
+            j = yield get_job(jid)
+            bar.update(j)
+            if j.done:
+                break
+            if deadline is not None and time.monotonic() > deadline:
+                raise WaitTimeout(f"job {jid} still {j.status} after {timeout} s")
+            yield Sleep(poll)
+    finally:
+        bar.close()
+    if j.status == "failed" and raise_on_failure:
+        raise JobFailed(j)
+    return (yield get_sweep(job.id)) if isinstance(job, Sweep) else j

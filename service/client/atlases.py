@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from service.client._core import JSON_HEADERS, Call, dumps
+from service.client._core import JSON_HEADERS, Call, Flow, dumps, wait_flow
+from service.client._ops import Operations, operation
 from service.schemas.atlases import Atlas, AtlasCellPage, AtlasPage
 
 
@@ -77,53 +78,38 @@ def _id(atlas: Any) -> str:
     return atlas if isinstance(atlas, str) else atlas.id
 
 
-class AtlasMethods:
-    """``/v1/atlases`` for the blocking client."""
+class AtlasOperations(Operations):
+    """``/v1/atlases``, declared once for both clients (see :mod:`service.client._ops`)."""
 
-    def create_atlas(self, spec: Any, *, name: str | None = None) -> Atlas:
+    @operation
+    def create_atlas(self, spec: Any, *, name: str | None = None) -> Flow[Atlas]:
         """``POST /v1/atlases``: a spec (dict, model, or .json/.yaml path) -> the atlas (202)."""
-        return self._run(create_atlas(spec, name=name))  # type: ignore[attr-defined]
+        return (yield create_atlas(spec, name=name))
 
-    def get_atlas(self, atlas_id: str) -> Atlas:
+    @operation
+    def get_atlas(self, atlas_id: str) -> Flow[Atlas]:
         """``GET /v1/atlases/{id}``: progress (cells done) and, once done, the summary."""
-        return self._run(get_atlas(atlas_id))  # type: ignore[attr-defined]
+        return (yield get_atlas(atlas_id))
 
-    def list_atlases(self, *, limit: int = 50, offset: int = 0) -> AtlasPage:
+    @operation
+    def list_atlases(self, *, limit: int = 50, offset: int = 0) -> Flow[AtlasPage]:
         """``GET /v1/atlases``: a page of atlases, newest first."""
-        return self._run(list_atlases(limit=limit, offset=offset))  # type: ignore[attr-defined]
+        return (yield list_atlases(limit=limit, offset=offset))
 
-    def atlas_cells(self, atlas_id: str, **kw: Any) -> AtlasCellPage:
+    @operation
+    def atlas_cells(self, atlas_id: str, **kw: Any) -> Flow[AtlasCellPage]:
         """``GET /v1/atlases/{id}/cells``: finished cells (``limit``, ``offset``, ``status``)."""
-        return self._run(atlas_cells(atlas_id, **kw))  # type: ignore[attr-defined]
+        return (yield atlas_cells(atlas_id, **kw))
 
-    def atlas_heatmap(self, atlas_id: str, **kw: Any) -> bytes:
+    @operation
+    def atlas_heatmap(self, atlas_id: str, **kw: Any) -> Flow[bytes]:
         """PNG or CSV heatmap of a result (``metric``, ``x``, ``y``, ``format``)."""
-        return self._run(atlas_heatmap(atlas_id, **kw))  # type: ignore[attr-defined]
+        return (yield atlas_heatmap(atlas_id, **kw))
 
-    def wait_atlas(self, atlas: Any, **kw: Any) -> Atlas:
+    @operation
+    def wait_atlas(self, atlas: Any, **kw: Any) -> Flow[Atlas]:
         """Wait for the atlas's job (see :meth:`Client.wait`), then the refreshed atlas."""
-        self.wait(atlas.job.id if isinstance(atlas, Atlas) else atlas, **kw)  # type: ignore[attr-defined]
-        return self.get_atlas(_id(atlas))
-
-
-class AsyncAtlasMethods:
-    """``/v1/atlases`` for the asyncio client (the same methods, awaitable)."""
-
-    async def create_atlas(self, spec: Any, *, name: str | None = None) -> Atlas:
-        return await self._run(create_atlas(spec, name=name))  # type: ignore[attr-defined]
-
-    async def get_atlas(self, atlas_id: str) -> Atlas:
-        return await self._run(get_atlas(atlas_id))  # type: ignore[attr-defined]
-
-    async def list_atlases(self, *, limit: int = 50, offset: int = 0) -> AtlasPage:
-        return await self._run(list_atlases(limit=limit, offset=offset))  # type: ignore[attr-defined]
-
-    async def atlas_cells(self, atlas_id: str, **kw: Any) -> AtlasCellPage:
-        return await self._run(atlas_cells(atlas_id, **kw))  # type: ignore[attr-defined]
-
-    async def atlas_heatmap(self, atlas_id: str, **kw: Any) -> bytes:
-        return await self._run(atlas_heatmap(atlas_id, **kw))  # type: ignore[attr-defined]
-
-    async def wait_atlas(self, atlas: Any, **kw: Any) -> Atlas:
-        await self.wait(atlas.job.id if isinstance(atlas, Atlas) else atlas, **kw)  # type: ignore[attr-defined]
-        return await self.get_atlas(_id(atlas))
+        job = atlas.job.id if isinstance(atlas, Atlas) else atlas
+        opts = {"progress": False, "timeout": None, "poll": 0.25, "raise_on_failure": True, **kw}
+        yield from wait_flow(job, **opts)
+        return (yield get_atlas(_id(atlas)))

@@ -19,13 +19,15 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import AsyncIterator, Iterator
-from typing import Any
+from typing import Any, ClassVar, Literal
 
 from service.client import _core as core
+from service.client._core import Flow
+from service.client._ops import Operations, operation
 from service.schemas import Sweep
 from service.schemas.live import LiveEvent, LiveUpdate, LiveUpdatePage
 
-__all__ = ["AsyncLiveSweep", "LiveSweep", "SseParser"]
+__all__ = ["AsyncLiveSweep", "LiveSweep", "SseParser", "open_or_attach"]
 
 
 # ---------------------------------------------------------------------------------- calls
@@ -138,15 +140,65 @@ class SseParser:
         return None  # an event kind this SDK does not know
 
 
-def _stream_params(after: int | None, timeout: float) -> dict[str, Any]:
-    params: dict[str, Any] = {"timeout": timeout}
-    if after is not None:
-        params["after"] = after
-    return params
+class _Stream:
+    """One ``events()`` iteration, sans I/O: the request of each (re)connection, resuming
+    after the last event received, and the events parsed from its lines."""
+
+    def __init__(self, sweep_id: str, after: int | None, timeout: float) -> None:
+        self.sweep_id, self.last, self.timeout = sweep_id, after, timeout
+        self.parser = SseParser()
+        self.done = False
+
+    def request(self) -> dict[str, Any]:
+        """``httpx2`` ``stream()`` arguments of the next connection (a fresh parser)."""
+        import httpx2
+
+        self.parser = SseParser()
+        params: dict[str, Any] = {"timeout": self.timeout}
+        headers = {"accept": "text/event-stream"}
+        if self.last is not None:
+            params["after"] = self.last
+            headers["last-event-id"] = str(self.last)
+        return {"method": "GET", "url": f"/v1/sweeps/{self.sweep_id}/events", "params": params,
+                "headers": headers, "timeout": httpx2.Timeout(30.0, read=60.0)}  # fmt: skip
+
+    def feed(self, line: str) -> LiveEvent | None:
+        """The event a line completes (None: not yet); ``done`` after ``closed``."""
+        ev = self.parser.feed(line)
+        if ev is not None:
+            self.last = ev.id
+            self.done = ev.event == "closed"
+        return ev
+
+    def events(self, lines: Iterator[str]) -> Iterator[LiveEvent]:
+        """The events of a connection's lines, up to ``closed``."""
+        for line in lines:
+            if (ev := self.feed(line)) is not None:
+                yield ev
+            if self.done:
+                return
 
 
-class LiveSweep:
-    """An open live sweep of a blocking :class:`~service.client.Client`.
+def _dropped() -> tuple[type[Exception], ...]:
+    """A connection the server ended or lost: resumed with ``Last-Event-ID``."""
+    import httpx2
+
+    return (httpx2.ReadTimeout, httpx2.RemoteProtocolError, httpx2.ReadError)
+
+
+def open_or_attach(
+    name: str | None, control: str, unit: str | None, sweep_id: str | None,
+    options: dict[str, Any],
+) -> core.Call:  # fmt: skip
+    """The call of ``live_sweep``: open a new live sweep, or read ``sweep_id`` to attach."""
+    if sweep_id is not None:
+        return core.get_sweep(sweep_id)
+    return create_live_sweep(name, control=control, unit=unit, **options)
+
+
+class _LiveOperations(Operations):
+    """What a live sweep does, declared once for :class:`LiveSweep` and
+    :class:`AsyncLiveSweep` (see :mod:`service.client._ops`).
 
     Attributes
     ----------
@@ -161,24 +213,37 @@ class LiveSweep:
         self.sweep = sweep
         self.id = sweep.id
 
-    def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> LiveUpdate:
+    def _run(self, call: core.Call) -> Any:
+        return self._client._run(call)
+
+    @operation
+    def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> Flow[LiveUpdate]:
         """Add one record: a file (path or bytes), ``w=`` with ``t=``/``dt=``, or
         ``signal_id=``; always ``control=`` (its control value). Returns the updated warning."""
-        return self._client._run(add_record(self.id, file, **kw))
+        return (yield add_record(self.id, file, **kw))
 
-    def records(self, *, after: int = 0) -> LiveUpdatePage:
+    @operation
+    def records(self, *, after: int = 0) -> Flow[LiveUpdatePage]:
         """Every update so far (arrival order)."""
-        return self._client._run(records(self.id, after=after))
+        return (yield records(self.id, after=after))
 
-    def close(self) -> Sweep:
+    @operation
+    def close(self) -> Flow[Sweep]:
         """Close the sweep (idempotent): it becomes a finished sweep."""
-        self.sweep = self._client._run(close(self.id))
+        self.sweep = yield close(self.id)
         return self.sweep
 
-    def get(self) -> Sweep:
+    @operation
+    def get(self) -> Flow[Sweep]:
         """``GET /v1/sweeps/{id}``."""
-        self.sweep = self._client.get_sweep(self.id)
+        self.sweep = yield core.get_sweep(self.id)
         return self.sweep
+
+
+class LiveSweep(_LiveOperations):
+    """An open live sweep of a blocking :class:`~service.client.Client`."""
+
+    _is_async: ClassVar[Literal[False]] = False
 
     def events(
         self, *, after: int | None = None, timeout: float = 300.0, reconnect: bool = True
@@ -188,31 +253,15 @@ class LiveSweep:
         A stream the server ends (its ``timeout``) or a dropped connection is resumed with
         ``Last-Event-ID`` when ``reconnect`` is true; nothing is lost or repeated.
         """
-        import httpx2
-
-        last = after
-        while True:
-            parser = SseParser()
-            headers = {"accept": "text/event-stream"}
-            if last is not None:
-                headers["last-event-id"] = str(last)
+        s = _Stream(self.id, after, timeout)
+        while not s.done:
             try:
-                with self._client._http.stream(
-                    "GET", f"/v1/sweeps/{self.id}/events", params=_stream_params(last, timeout),
-                    headers=headers, timeout=httpx2.Timeout(30.0, read=60.0),
-                ) as r:  # fmt: skip
+                with self._client._http.stream(**s.request()) as r:
                     if r.status_code >= 400:
                         r.read()
                         core.raise_for_problem(r)
-                    for line in r.iter_lines():
-                        ev = parser.feed(line)
-                        if ev is None:
-                            continue
-                        last = ev.id
-                        yield ev
-                        if ev.event == "closed":
-                            return
-            except (httpx2.ReadTimeout, httpx2.RemoteProtocolError, httpx2.ReadError):
+                    yield from s.events(r.iter_lines())
+            except _dropped():
                 if not reconnect:
                     raise
             if not reconnect:
@@ -225,57 +274,28 @@ class LiveSweep:
         self.close()
 
 
-class AsyncLiveSweep:
+class AsyncLiveSweep(_LiveOperations):
     """An open live sweep of an :class:`~service.client.AsyncClient` (see :class:`LiveSweep`)."""
 
-    def __init__(self, client: Any, sweep: Sweep) -> None:
-        self._client = client
-        self.sweep = sweep
-        self.id = sweep.id
-
-    async def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> LiveUpdate:
-        return await self._client._run(add_record(self.id, file, **kw))
-
-    async def records(self, *, after: int = 0) -> LiveUpdatePage:
-        return await self._client._run(records(self.id, after=after))
-
-    async def close(self) -> Sweep:
-        self.sweep = await self._client._run(close(self.id))
-        return self.sweep
-
-    async def get(self) -> Sweep:
-        self.sweep = await self._client.get_sweep(self.id)
-        return self.sweep
+    _is_async: ClassVar[Literal[True]] = True
 
     async def events(
         self, *, after: int | None = None, timeout: float = 300.0, reconnect: bool = True
     ) -> AsyncIterator[LiveEvent]:
         """See :meth:`LiveSweep.events`."""
-        import httpx2
-
-        last = after
-        while True:
-            parser = SseParser()
-            headers = {"accept": "text/event-stream"}
-            if last is not None:
-                headers["last-event-id"] = str(last)
+        s = _Stream(self.id, after, timeout)
+        while not s.done:
             try:
-                async with self._client._http.stream(
-                    "GET", f"/v1/sweeps/{self.id}/events", params=_stream_params(last, timeout),
-                    headers=headers, timeout=httpx2.Timeout(30.0, read=60.0),
-                ) as r:  # fmt: skip
+                async with self._client._http.stream(**s.request()) as r:
                     if r.status_code >= 400:
                         await r.aread()
                         core.raise_for_problem(r)
                     async for line in r.aiter_lines():
-                        ev = parser.feed(line)
-                        if ev is None:
-                            continue
-                        last = ev.id
-                        yield ev
-                        if ev.event == "closed":
+                        if (ev := s.feed(line)) is not None:
+                            yield ev
+                        if s.done:
                             return
-            except (httpx2.ReadTimeout, httpx2.RemoteProtocolError, httpx2.ReadError):
+            except _dropped():
                 if not reconnect:
                     raise
             if not reconnect:
