@@ -136,6 +136,11 @@ async def _resolve_measurements(
 async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
     """Answers 202 with the sweep and its job; poll ``/v1/sweeps/{id}`` or ``/v1/jobs/{id}``.
 
+    ``control`` (``{"name", "unit"}``) names the control values of recorded signals: kept with
+    the request and used on the sweep's page and charts (422 when its unit contradicts the unit
+    a signal's own control value was stored in). ``live`` options, and a ``control`` for a
+    simulated sweep, are refused with a 422 naming the field.
+
     With ``"mode": "live"`` answers 201 with an open sweep (``service.api.routers.live``)."""
     if req.mode == "live":
         from service.api.routers.live import create_live
