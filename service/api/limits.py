@@ -110,6 +110,20 @@ def check_depth(obj: Any, field: str, max_depth: int) -> None:
             stack.extend((v, d + 1) for v in (x.values() if isinstance(x, dict) else x))
 
 
+def check_finite_json(obj: Any, field: str) -> None:
+    """422 naming the first non-finite number in ``obj`` (parsed JSON; ``metadata.a[2].b``):
+    ``NaN`` and ``Infinity`` are not JSON numbers, whichever way the body was parsed."""
+    stack = [(obj, field)]
+    while stack:
+        x, where = stack.pop()
+        if isinstance(x, float) and not math.isfinite(x):
+            raise invalid(where, x, "must be finite (NaN and Infinity are not numbers of JSON)")
+        if isinstance(x, dict):
+            stack.extend((v, f"{where}.{k}") for k, v in reversed(list(x.items())))
+        elif isinstance(x, list):
+            stack.extend((v, f"{where}[{i}]") for i, v in reversed(list(enumerate(x))))
+
+
 def loads_bounded(text: str, field: str, max_depth: int) -> Any:
     """``json.loads`` that refuses nesting beyond ``max_depth`` before parsing (no recursion)."""
     import json
@@ -143,7 +157,12 @@ def loads_bounded(text: str, field: str, max_depth: int) -> Any:
 def check_json_samples(body: bytes, max_samples: int, extra: int = 100_000) -> None:
     """413 before parsing when a JSON body holds more numbers than ``w`` and ``t`` may have
     (counted as commas: a C scan of the bytes, no parsing)."""
-    commas = body.count(b",")
+    check_value_count(body.count(b","), max_samples, extra)
+
+
+def check_value_count(commas: int, max_samples: int, extra: int = 100_000) -> None:
+    """413 when ``commas`` (counted in a JSON body, or in its part read so far) exceed what
+    ``w`` and ``t`` of ``max_samples`` samples each, plus ``extra`` other values, need."""
     if commas > 2 * max_samples + extra:
         from service.api.problems import too_large
 

@@ -73,6 +73,12 @@ class Settings(BaseSettings):
         description="Largest uncompressed size of the arrays in an NPZ/MAT upload (zip bombs).",
     )
     max_json_depth: int = Field(default=32, ge=2, description="Deepest nesting of metadata.")
+    json_stream_bytes: int = Field(
+        default=1 << 20,
+        ge=0,
+        description="JSON bodies larger than this are parsed as they arrive, their sample "
+        "arrays straight into float64 (bounded memory); smaller ones in one piece (faster).",
+    )
     max_elements: int = Field(default=400, ge=4, description="Most rod elements of a scene.")
     max_sim_duration: float = Field(
         default=500.0, gt=0, description="Longest simulated duration (time units)."

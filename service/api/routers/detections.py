@@ -7,14 +7,13 @@ from typing import Any
 import numpy as np
 from anyio import to_thread
 from fastapi import APIRouter, Request
-from pydantic import ValidationError
 
 from service import convert, recordings
 from service.analysis.detect import detect
-from service.api import limits
+from service.api import jsonbody, limits
 from service.api.auth import CallerDep
 from service.api.problems import as_problems, invalid, not_found
-from service.api.routers._common import body_validation_error, problems
+from service.api.routers._common import problems
 from service.api.state import StateDep
 from service.schemas import Detection, DetectionRequest
 
@@ -45,10 +44,9 @@ async def create_detection(
     The body is parsed by pydantic-core straight from the bytes (8x faster than
     ``json.loads`` then validation for a 1e4-sample signal: this is the hot path).
     """
-    try:
-        req = DetectionRequest.model_validate_json(await request.body())
-    except ValidationError as exc:
-        raise body_validation_error(exc) from None
+    # Bodies over ``json_stream_bytes`` are parsed as they arrive instead, the samples straight
+    # into float64 (service.api.jsonbody): bounded memory for big inline signals.
+    req = await jsonbody.read_model(request, DetectionRequest, state.settings)
     if req.signal_id is not None:
         if req.w is not None or req.t is not None or req.dt is not None:
             raise invalid(

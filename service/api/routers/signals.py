@@ -9,13 +9,12 @@ from typing import Annotated, Any
 from anyio import to_thread
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
-from pydantic import ValidationError
 
 from service import convert, recordings
-from service.api import limits, plots
+from service.api import jsonbody, limits, plots
 from service.api.auth import CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
-from service.api.routers._common import MAX_OFFSET, body_validation_error
+from service.api.routers._common import MAX_OFFSET
 from service.api.state import AppState, StateDep, signal_meta
 from service.schemas import Control, SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.common import PROBLEM_MEDIA_TYPE
@@ -121,12 +120,7 @@ class CleanSignal:
 
 
 async def _from_json(request: Request, state: AppState) -> CleanSignal:
-    body = await request.body()
-    limits.check_json_samples(body, state.settings.max_samples)
-    try:
-        doc = SignalIn.model_validate_json(body)
-    except ValidationError as exc:
-        raise body_validation_error(exc) from None
+    doc = await jsonbody.read_model(request, SignalIn, state.settings)
     s = state.settings
     rec = await to_thread.run_sync(
         lambda: recordings.from_arrays(
@@ -135,6 +129,7 @@ async def _from_json(request: Request, state: AppState) -> CleanSignal:
             resample=doc.resample,
         )
     )  # fmt: skip
+    limits.check_finite_json(doc.metadata, "metadata")
     clean = CleanSignal.of(rec, doc.metadata)
     clean.metadata.setdefault("_name", doc.name)
     clean.metadata.setdefault("_control", doc.control.model_dump() if doc.control else None)
@@ -160,6 +155,7 @@ async def _from_form(request: Request, state: AppState) -> CleanSignal:
         metadata = limits.loads_bounded(meta_text, "metadata", s.max_json_depth)
         if not isinstance(metadata, dict):
             raise invalid("metadata", meta_text, "must be a JSON object")
+        limits.check_finite_json(metadata, "metadata")
 
     resample = (_form_str(form, "resample") or "false").lower() in ("1", "true", "yes", "on")
 
