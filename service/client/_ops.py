@@ -23,7 +23,7 @@ import functools
 import inspect
 import re
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from typing import (
     Any,
     ClassVar,
@@ -49,7 +49,8 @@ class _Steps:
     ``value``."""
 
     def __init__(self, flow: Flow[Any]) -> None:
-        self.flow, self.value = flow, None
+        self.flow = flow
+        self.value: Any = None
         self.next: Call | Sleep | None = self._go(flow.send, None)
 
     def _go(self, how: Callable[[Any], Any], arg: Any) -> Any:
@@ -68,12 +69,22 @@ class _Steps:
         self.next = self._go(self.flow.throw, exc)
 
 
+def _pause(seconds: float) -> Any:
+    """A pause of a blocking flow (it answers None)."""
+    time.sleep(seconds)
+
+
+async def _apause(seconds: float) -> Any:
+    """A pause of an asyncio flow (it answers None)."""
+    await asyncio.sleep(seconds)
+
+
 def drive(run: Callable[[Call], Any], flow: Flow[R]) -> R:
     """Run ``flow`` to its end with a blocking transport ``run`` (a client's ``_run``)."""
     s = _Steps(flow)
     while (step := s.next) is not None:
         try:
-            answer = time.sleep(step.seconds) if isinstance(step, Sleep) else run(step)
+            answer = _pause(step.seconds) if isinstance(step, Sleep) else run(step)
         except Exception as exc:  # noqa: BLE001 - the flow decides
             s.fail(exc)
         else:
@@ -86,10 +97,7 @@ async def drive_async(run: Callable[[Call], Awaitable[Any]], flow: Flow[R]) -> R
     s = _Steps(flow)
     while (step := s.next) is not None:
         try:
-            if isinstance(step, Sleep):
-                answer = await asyncio.sleep(step.seconds)
-            else:
-                answer = await run(step)
+            answer = await (_apause(step.seconds) if isinstance(step, Sleep) else run(step))
         except Exception as exc:  # noqa: BLE001 - the flow decides
             s.fail(exc)
         else:
@@ -119,15 +127,14 @@ class operation(Generic[P, R]):  # noqa: N801 - used as a decorator
     def method(self, is_async: bool, module: str, qualname: str) -> Callable[..., Any]:
         """The client method: ``flow`` driven by the client's ``_run``."""
         flow = self.flow
-        if is_async:
 
-            async def method(self: Any, /, *args: Any, **kwargs: Any) -> Any:
-                return await drive_async(self._run, flow(self, *args, **kwargs))
+        async def coroutine(self: Any, /, *args: Any, **kwargs: Any) -> Any:
+            return await drive_async(self._run, flow(self, *args, **kwargs))
 
-        else:
+        def blocking(self: Any, /, *args: Any, **kwargs: Any) -> Any:
+            return drive(self._run, flow(self, *args, **kwargs))
 
-            def method(self: Any, /, *args: Any, **kwargs: Any) -> Any:
-                return drive(self._run, flow(self, *args, **kwargs))
+        method: Any = coroutine if is_async else blocking
 
         sig = inspect.signature(flow)
         ret = sig.return_annotation
@@ -144,7 +151,7 @@ class operation(Generic[P, R]):  # noqa: N801 - used as a decorator
     @overload
     def __get__(self, obj: None, owner: type) -> operation[P, R]: ...
     @overload
-    def __get__(self, obj: _AsyncClient, owner: type) -> Callable[P, Awaitable[R]]: ...
+    def __get__(self, obj: _AsyncClient, owner: type) -> Callable[P, Coroutine[Any, Any, R]]: ...
     @overload
     def __get__(self, obj: _SyncClient, owner: type) -> Callable[P, R]: ...
     def __get__(self, obj: Any, owner: type) -> Any:
