@@ -41,6 +41,7 @@ from service.analysis._likelihood import (
     _nll,
     _Profile,
     _profile,
+    _profile_screen,
     _sigma_comp,
     _sigma_exps,
     _variants,
@@ -96,6 +97,15 @@ def _chi2_sf(x: float, dof: int) -> float:
     return 1.0 if x < 0 else float(special.chdtrc(dof, x))
 
 
+def _chi2_isf(alpha: float, dof: int) -> float:
+    """Critical chi^2 value exceeded with probability ``alpha`` (``scipy.stats.chi2.isf``)."""
+    return float(special.chdtri(dof, alpha))
+
+
+_SCREEN = 10.0  # a window missed by this factor times the critical chi^2 at the screening
+# search's best point is rejected without the full search
+
+
 def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
     """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2.
 
@@ -105,6 +115,8 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
     best: _Sel | None = None
     fallback: _Sel | None = None
     misses = 0
+    t_prev: float | None = None  # log(mu* - mu_last) of the last fit (continuation)
+    last = float(sw.mu[-1])
     for n in _window_sizes(N):
         idx = slice(N - n, N)
         ok = False
@@ -114,8 +126,15 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
                 if dof < 1:
                     break
                 comp = _sigma_comp(sw, idx, p, h, K, cf)
-                prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
-                pv = _chi2_sf(prof.nll, dof)
+                # screening: a cheap search decides a window that passes at its point, or one
+                # missed by more than _SCREEN times the critical chi^2; the full search only
+                # decides the rest
+                t_prev, nll = _profile_screen(sw.mu[idx], [comp], scale, t_prev)
+                crit = _chi2_isf(_ALPHA, dof)
+                if crit < nll <= _SCREEN * crit:
+                    prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
+                    nll, t_prev = prof.nll, math.log(max(prof.mu_star - last, 1e-300))
+                pv = _chi2_sf(nll, dof)
                 if fallback is None or pv > fallback.pvalue:
                     fallback = _Sel(n, K, False, pv, cf)
                 if pv >= _ALPHA:
@@ -256,6 +275,7 @@ class ModelFit:
 
 
 _K_CRITERION = "aicc"
+_NO_PROFILE = _Profile(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
 
 
 def _crit(nll: float, bic: float, k: int, m: int) -> float:
@@ -284,7 +304,8 @@ def _fit_candidate(
     n_w = n if n_w is None else n_w
     idx_w = slice(N - n_w, N)
     best: ModelFit | None = None
-    best_crit = math.inf
+    best_crit = best_pen = math.inf
+    t_prev: float | None = None
     kw_range = [0]
     if sw.w is not None and b is not None:
         kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
@@ -304,16 +325,18 @@ def _fit_candidate(
                     assert wc is not None
                     comps.append(wc)
                     bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
-                prof = _profile(sw.mu[idx], comps, scale, with_interval=False)
-                bic = prof.nll + bic_pen
+                # the terms are chosen on a screening search (continued from the previous
+                # terms' optimum); the chosen law gets the full search below
+                t_prev, nll = _profile_screen(sw.mu[idx], comps, scale, t_prev)
+                bic = nll + bic_pen
                 k_all = K + 2 + int(cf) + (Kw + 1 if Kw else 0)
                 m_all = n + (n_w if Kw else 0)
-                crit = _crit(prof.nll, bic, k_all, m_all)
+                crit = _crit(nll, bic, k_all, m_all)
                 if best is None or crit < best_crit:
-                    best_crit = crit
+                    best_crit, best_pen = crit, bic_pen
                     best = ModelFit(
-                        name, a, b if b is not None else math.nan, h, n, K, Kw, bic, prof, n_w,
-                        cf,
+                        name, a, b if b is not None else math.nan, h, n, K, Kw, bic, _NO_PROFILE,
+                        n_w, cf,
                     )  # fmt: skip
     assert best is not None
     comps = [_sigma_comp(sw, idx, 2 * a, h, best.K, best.conformal)]
@@ -325,9 +348,9 @@ def _fit_candidate(
     # series holds) widens its interval by the reduced chi-square (Birge ratio)
     inflate = 1.0
     fl: list[Flag] = []
+    chi = _profile(sw.mu[idx], comps, scale, with_interval=False).nll
     if all(c.known for c in comps):
         dof = n - best.K - 2 - int(best.conformal) + (n_w - best.Kw - 1 if best.Kw else 0)
-        chi = best.profile.nll
         if dof >= 1 and chi > dof and _chi2_sf(chi, dof) < 0.01:
             inflate = chi / dof
             fl.append(
@@ -340,7 +363,9 @@ def _fit_candidate(
     prof = _profile(sw.mu[idx], comps, scale, level=level, inflate=inflate)
     if fl:
         prof = replace(prof, flags=(*prof.flags, *fl))
-    return ModelFit(name, a, best.b, h, n, best.K, best.Kw, best.bic, prof, n_w, best.conformal)
+    return ModelFit(
+        name, a, best.b, h, n, best.K, best.Kw, chi + best_pen, prof, n_w, best.conformal
+    )
 
 
 def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[Flag]]:
@@ -659,7 +684,9 @@ def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
                   conformal=fit.conformal)
         ]  # fmt: skip
 
-    a2, a2_se = _free_exponent(sweep.mu[idx], make, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale)
+    a2, a2_se = _free_exponent(
+        sweep.mu[idx], make, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale, center=2 * fit.a
+    )
     return a2 / 2, a2_se / 2
 
 

@@ -20,11 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis._laws_kernels import nll_rows
+from service.analysis._laws_kernels import _work, nll_rows
+from service.analysis._profile_kernels import profile_search
 from service.analysis._sweep import Sweep
 from service.analysis.common import Flag
 
-_GRID = 111
+_GRID = 111  # scan of log(mu* - mu_last) for a plain law
+_GRID_CF = 61  # for a conformal law (the fold parameter profiled at every point)
 
 @dataclass(frozen=True)
 class _Comp:
@@ -42,29 +44,57 @@ class _Comp:
 
 
 _LOGU = np.linspace(math.log(1e-4), math.log(10.0), 11)  # u = (mu* - mu_last) / delta
+_T_LO, _T_HI, _T_MIN = math.log(1e-9), math.log(30.0), math.log(1e-12)  # range of log(d/scale)
+_UNIT = {n: np.linspace(0.0, 1.0, n) for n in (21, _GRID_CF, _GRID)}  # scans of the range
+_NEAR = np.linspace(-1.0, 1.0, 9)  # around a known optimum
+_FINE = np.linspace(-0.01, 0.01, 5)  # around a two-point seed
+_SEED = {k: np.linspace(-1, 1, k) for k in (15, 41)}
+_SEED_FINE = {k: np.linspace(-0.01, 0.01, k) for k in (9, 41)}
+
+
+def _range_grid(scale: float, n: int) -> np.ndarray:
+    """``n`` points of ``log(mu* - mu_last)`` from ``1e-9`` to ``30`` times ``scale``."""
+    lo = math.log(scale) + _T_LO
+    return lo + (_T_HI - _T_LO) * _UNIT[n]
+
+
+def _clip(t: np.ndarray, scale: float) -> np.ndarray:
+    ls = math.log(scale)
+    return t[(t >= ls + _T_MIN) & (t <= ls + _T_HI)]
 
 
 def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple:
-    mus = [np.asarray(mu_w if c.mu is None else c.mu, dtype=float) for c in comps]
-    start = np.zeros(len(comps) + 1, dtype=np.int64)
-    start[1:] = np.cumsum([m.size for m in mus])
-    kmax = max(c.exps.size for c in comps)
-    exps = np.zeros((len(comps), kmax))
+    """The components as the kernels' plain arrays ``(mu, y, wt, start, exps, nexp, opts)``."""
+    nc = len(comps)
+    mus = [mu_w if c.mu is None else c.mu for c in comps]
+    start = np.zeros(nc + 1, dtype=np.int64)
+    nexp = np.empty(nc, dtype=np.int64)
+    opts = np.empty((nc, 5), dtype=np.int64)
+    for i, (c, m) in enumerate(zip(comps, mus, strict=True)):
+        start[i + 1] = start[i] + m.size
+        nexp[i] = c.exps.size
+        opts[i] = (c.known, c.lead, c.lead_col, c.signed, c.conformal)
+    exps = np.zeros((nc, int(nexp.max())))
     for i, c in enumerate(comps):
         exps[i, : c.exps.size] = c.exps
-    nexp = np.array([c.exps.size for c in comps], dtype=np.int64)
-    opts = np.array(
-        [[c.known, c.lead, c.lead_col, c.signed, c.conformal] for c in comps], dtype=np.int64
-    )
+    if nc == 1:
+        c = comps[0]
+        return (np.asarray(mus[0], dtype=float), np.asarray(c.y, dtype=float),
+                np.asarray(c.wt, dtype=float), start, exps, nexp, opts)  # fmt: skip
     return (
-        np.concatenate(mus),
-        np.concatenate([np.asarray(c.y, dtype=float) for c in comps]),
-        np.concatenate([np.asarray(c.wt, dtype=float) for c in comps]),
+        np.concatenate(mus).astype(float, copy=False),
+        np.concatenate([c.y for c in comps]).astype(float, copy=False),
+        np.concatenate([c.wt for c in comps]).astype(float, copy=False),
         start,
         exps,
         nexp,
         opts,
     )
+
+
+def _work_arrays(packed: tuple) -> tuple:
+    """Work arrays of the kernels for packed components (see :func:`_pack`)."""
+    return _work(packed[0], packed[5])
 
 
 def _nll_u(
@@ -167,96 +197,45 @@ def _profile_uncached(
     # a conformal law profiles the secondary fold at every mu* (some 25 fits each): a coarser
     # grid around the same seeds keeps its cost near the plain laws'
     cf = any(c.conformal for c in comps)
-    t = np.linspace(math.log(scale * 1e-9), math.log(scale * 30.0), 61 if cf else _GRID)
+    t = _range_grid(scale, _GRID_CF if cf else _GRID)
     seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
     if seeds:
         k1, k2 = (15, 9) if cf else (41, 41)
-        extra = [
-            np.log(d0) + np.concatenate([np.linspace(-1, 1, k1), np.linspace(-0.01, 0.01, k2)])
-            for d0 in seeds
-        ]
-        t = np.unique(np.concatenate([t, *extra]))
-        t = t[(t >= math.log(scale * 1e-12)) & (t <= math.log(scale * 30.0))]
-
-    def ev(tt: np.ndarray, refine: bool = True) -> np.ndarray:
-        ms = np.ascontiguousarray(last + np.exp(tt))
-        return nll_rows(ms, *packed, last, _LOGU, refine)[0]
-
-    def g(tt: float) -> float:
-        v = float(ev(np.array([tt]))[0])
-        return v if math.isfinite(v) else 1e300
-
-    # a conformal law's coarse scan takes the fold parameter on its grid only (an upper bound);
-    # the lowest points, the minimisation and the interval ends use the refined profile
-    f = ev(t, refine=not cf)
-    f = np.where(np.isfinite(f), f, np.inf)
-    if cf:
-        low = np.argsort(f)[:5]
-        f[low] = ev(t[low])
-        f = np.where(np.isfinite(f), f, np.inf)
-        exact = np.zeros(t.size, dtype=bool)
-        exact[low] = True
-    i = int(np.argmin(f))
-    G = t.size
-    flags: list[Flag] = []
-
-    def fval(j: int) -> float:
-        """Refined value at grid point j (the scan's upper bound replaced on first use)."""
-        if cf and not exact[j]:
-            f[j] = g(float(t[j]))
-            exact[j] = True
-        return float(f[j])
-
-    a_, b_ = t[max(i - 1, 0)], t[min(i + 1, G - 1)]
-    # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-6 for model selection
+        offs = np.concatenate([_SEED[k1], _SEED_FINE[k2]])
+        t = _clip(np.unique(np.concatenate([t, *[math.log(d0) + offs for d0 in seeds]])), scale)
+    # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-5 for model selection
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
-    res = optimize.minimize_scalar(g, bounds=(a_, b_), method="bounded", options={"xatol": tol})
-    th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
+    d95 = float(stats.chi2.ppf(level, 1)) * inflate if with_interval else 0.0
+    th, fh, ig, tl, tu, tl68, tu68 = profile_search(
+        np.ascontiguousarray(t), packed, last, _LOGU, cf, tol, d95, 1.0 * inflate
+    )
+    i, G = int(ig), t.size
+    flags: list[Flag] = []
     if i == 0:
         flags.append(
             Flag("mu_star_at_last_point", f"the fit puts mu* at the last measured mu={last:.6g}")
         )
     if i == G - 1:
         flags.append(Flag("mu_star_far", "the fit puts mu* far beyond the measured range"))
+    mh = last + math.exp(th)
     if not with_interval:
-        mh = last + math.exp(th)
         return _Profile(mh, fh, mh, mh, mh, mh, tuple(flags))
-
-    def bounds(delta: float) -> tuple[float, float, bool, bool]:
-        # lower side
-        j = int(np.searchsorted(t, th)) - 1
-        while j >= 0 and fval(j) - fh < delta:
-            j -= 1
-        if j < 0:
-            lo, lo_open = last, True
-        else:
-            tl = optimize.brentq(lambda s: g(s) - fh - delta, t[j], th, xtol=1e-9)
-            lo, lo_open = last + math.exp(tl), False
-        j = int(np.searchsorted(t, th))
-        while j < G and fval(j) - fh < delta:
-            j += 1
-        if j >= G:
-            hi, hi_open = last + math.exp(t[-1]), True
-        else:
-            tu = optimize.brentq(lambda s: g(s) - fh - delta, th, t[j], xtol=1e-9)
-            hi, hi_open = last + math.exp(tu), False
-        return lo, hi, lo_open, hi_open
-
-    d95 = float(stats.chi2.ppf(level, 1)) * inflate
-    lo, hi, lo_open, hi_open = bounds(d95)
-    lo68, hi68, _, _ = bounds(1.0 * inflate)
-    if hi_open:
+    lo = last if math.isnan(tl) else last + math.exp(tl)
+    hi = last + math.exp(t[-1]) if math.isnan(tu) else last + math.exp(tu)
+    lo68 = last if math.isnan(tl68) else last + math.exp(tl68)
+    hi68 = last + math.exp(t[-1]) if math.isnan(tu68) else last + math.exp(tu68)
+    if math.isnan(tu):
         flags.append(
             Flag("interval_unbounded", "the profile likelihood does not bound mu* from above")
         )
-    if lo_open:
+    if math.isnan(tl):
         flags.append(
             Flag(
                 "interval_reaches_last_point",
                 f"the {100 * level:.0f}% interval reaches the last measured mu={last:.6g}",
             )
         )
-    return _Profile(last + math.exp(th), fh, lo, hi, lo68, hi68, tuple(flags))
+    return _Profile(mh, fh, lo, hi, lo68, hi68, tuple(flags))
 
 
 def _seeds(mu_w: np.ndarray, c: _Comp) -> list[float]:
@@ -344,22 +323,88 @@ def _exp_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
     return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
 
 
+def _profile_near(
+    mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float, xatol: float
+) -> tuple[float, float]:
+    """Minimum of the profile near ``t0 = log(mu* - mu_w[-1])`` (a law close to one whose
+    optimum is known): a local grid of +-1 around ``t0`` and the law's own two-point seeds,
+    then Brent's method. Falls back to the full search when the minimum sits on the local
+    grid's edge (the optimum has moved away). Returns ``(t, -2 log L)``."""
+    last = float(mu_w[-1])
+    parts = [t0 + _NEAR]
+    if comps[0].lead:
+        parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
+    t = np.unique(np.concatenate(parts))
+    cf = any(c.conformal for c in comps)
+    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, xatol, 0.0, 0.0)
+    th, fh, ig = float(out[0]), float(out[1]), int(out[2])
+    if 0 < ig < t.size - 1:
+        return th, fh
+    pr = _profile(mu_w, comps, scale, with_interval=False, xatol=xatol)
+    return math.log(max(pr.mu_star - last, 1e-300)), pr.nll
+
+
+def _profile_screen(
+    mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float | None
+) -> tuple[float, float]:
+    """A cheap search of the profile's minimum for a screening test: a coarse grid over the
+    whole range (21 points), +-1 around ``t0`` (the optimum of a neighbouring window or law,
+    if any) and the law's two-point seeds, then Brent's method. An upper bound of the global
+    minimum (equal to it unless a valley narrower than the grid lies away from every seed).
+    Returns ``(t, -2 log L)`` with ``t = log(mu* - mu_w[-1])``."""
+    last = float(mu_w[-1])
+    parts = [_range_grid(scale, 21)]
+    if t0 is not None and math.isfinite(t0):
+        parts.append(t0 + _NEAR)
+    if comps[0].lead:
+        parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
+    t = _clip(np.unique(np.concatenate(parts)), scale)
+    cf = any(c.conformal for c in comps)
+    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, 1e-5, 0.0, 0.0)
+    return float(out[0]), float(out[1])
+
+
 def _free_exponent(
     mu_w: np.ndarray,
     make: Callable[[float], list[_Comp]],
     grid: np.ndarray,
     scale: float,
     fixed_mu: float | None = None,
+    center: float | None = None,
 ) -> tuple[float, float]:
-    """Profile -2 log L over an exponent; return (estimate, standard error from Delta = 1)."""
+    """Profile -2 log L over an exponent; return (estimate, standard error from Delta = 1).
+
+    With mu* profiled, the profile at each exponent is searched near the optimum of the
+    neighbouring exponent (continuation from ``center``, the law's own exponent, whose profile
+    gets the full search): the optimum moves smoothly with the exponent."""
+    last = float(mu_w[-1])
+    known: dict[float, float] = {}  # exponent -> log(mu* - mu_last) at its optimum
+
+    values: dict[float, float] = {}  # exponent -> profile value (a point is searched once)
 
     def prof(e: float) -> float:
+        e = float(e)
+        if e in values:
+            return values[e]
         comps = make(e)
         if fixed_mu is not None:
-            return float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
-        return _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7).nll
+            v = float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
+        elif not known:
+            pr = _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7)
+            known[e] = math.log(max(pr.mu_star - last, 1e-300))
+            v = pr.nll
+        else:
+            near = min(known, key=lambda k: abs(k - e))
+            known[e], v = _profile_near(mu_w, comps, scale, known[near], 1e-7)
+        values[e] = v
+        return v
 
-    f = np.array([prof(e) for e in grid])
+    c = float(grid[np.argmin(np.abs(grid - center))]) if center is not None else float(grid[0])
+    ic = int(np.searchsorted(grid, c))
+    order = [ic, *range(ic + 1, grid.size), *range(ic - 1, -1, -1)]
+    f = np.empty(grid.size)
+    for j in order:
+        f[j] = prof(float(grid[j]))
     f = np.where(np.isfinite(f), f, np.inf)
     i = int(np.argmin(f))
     a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]

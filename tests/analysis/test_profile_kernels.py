@@ -1,0 +1,157 @@
+"""The compiled profile search against a slow reference built from scipy.
+
+Reference: the same grid scanned with ``nll_rows`` (the per-mu* kernel, tested against numpy
+least squares in ``test_laws_kernels``), ``scipy.optimize.minimize_scalar(method="bounded")`` in
+the bracket of the lowest grid point, ``scipy.optimize.brentq`` for the interval ends. Also: the
+warm-started fold parameter reaches the full search's value, the screening search is an upper
+bound of the full one, and the exponent profile continued from exponent to exponent finds the
+exponent of the full search.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import optimize, stats
+
+from service.analysis._laws_kernels import nll_fixed_u, nll_rows, profile_u_near
+from service.analysis._likelihood import (
+    _LOGU,
+    _Comp,
+    _free_exponent,
+    _pack,
+    _profile,
+    _profile_screen,
+    _range_grid,
+    _sigma_exps,
+    _work_arrays,
+)
+from service.analysis._profile_kernels import profile_search
+
+
+def _sweep(seed: int, n: int = 16, rel: float = 1e-4, fold: bool = False):
+    """|sigma^2| of a pitchfork law (exponent 1, corrections) near mu* = 2, relative noise
+    ``rel``; ``fold``: the branch folds at mu* + 0.012 (|sigma^2| ~ sqrt(mu2* - mu) - ...)."""
+    rng = np.random.default_rng(seed)
+    mu = np.sort(rng.uniform(0.5, 1.97, n))
+    x = 2.0 - mu
+    if fold:
+        d = 0.012
+        y = 40 * (np.sqrt(d + x) - math.sqrt(d)) * (1 + 0.2 * x)
+    else:
+        y = 30 * x * (1 + 0.3 * x - 0.1 * x**2)
+    return mu, y * (1 + rel * rng.standard_normal(n)), rel * y
+
+
+def _reference(t, mu, comps, d95):
+    packed = _pack(mu, comps)
+    last = float(mu[-1])
+
+    def g(tt: float) -> float:
+        v = float(nll_rows(np.array([last + math.exp(tt)]), *packed, last, _LOGU)[0][0])
+        return v if math.isfinite(v) else 1e300
+
+    f = np.array([g(tt) for tt in t])
+    i = int(np.argmin(f))
+    res = optimize.minimize_scalar(
+        g, bounds=(t[max(i - 1, 0)], t[min(i + 1, t.size - 1)]), method="bounded",
+        options={"xatol": 1e-10},
+    )  # fmt: skip
+    th, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(t[i]), float(f[i]))
+    j = int(np.searchsorted(t, th)) - 1
+    while j >= 0 and f[j] - fh < d95:
+        j -= 1
+    lo = optimize.brentq(lambda s: g(s) - fh - d95, t[j], th, xtol=1e-9) if j >= 0 else math.nan
+    j = int(np.searchsorted(t, th))
+    while j < t.size and f[j] - fh < d95:
+        j += 1
+    hi = optimize.brentq(lambda s: g(s) - fh - d95, th, t[j], xtol=1e-9) if j < t.size else math.nan
+    return th, fh, lo, hi
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("K", [0, 1, 2])
+def test_plain_search_matches_the_scipy_reference(seed: int, K: int) -> None:
+    mu, y, sd = _sweep(seed)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 111)
+    d95 = float(stats.chi2.ppf(0.95, 1))
+    got = profile_search(t, _pack(mu, comps), float(mu[-1]), _LOGU, False, 1e-10, d95, 1.0)
+    th, fh, lo, hi = _reference(t, mu, comps, d95)
+    assert got[1] == pytest.approx(fh, rel=1e-9, abs=1e-9)
+    assert got[0] == pytest.approx(th, abs=1e-5)
+    for a, b in ((got[3], lo), (got[4], hi)):
+        assert (math.isnan(a) and math.isnan(b)) or a == pytest.approx(b, abs=1e-7)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fold_search_matches_the_scipy_reference(seed: int) -> None:
+    mu, y, sd = _sweep(seed, fold=True)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=True)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 61)
+    got = profile_search(t, _pack(mu, comps), float(mu[-1]), _LOGU, True, 1e-8, 0.0, 0.0)
+    th, fh, _, _ = _reference(t, mu, comps, 3.84)
+    # the compiled search warm-starts the fold parameter: its minimum is at or below the
+    # reference's, and it is the true minimum over the fold parameter at its mu* (a brute force
+    # over 4000 values of u)
+    assert got[1] <= fh + 1e-6 * max(1.0, abs(fh))
+    last = float(mu[-1])
+    ms = np.array([last + math.exp(got[0])])
+    us = np.exp(np.linspace(_LOGU[0] - 1, _LOGU[-1] + 1, 4000))
+    brute = min(nll_fixed_u(ms, u, *_pack(mu, comps), last)[0] for u in [0.0, *us])
+    assert got[1] == pytest.approx(brute, rel=1e-4)
+
+
+def test_warm_started_fold_parameter_reaches_the_full_search() -> None:
+    mu, y, sd = _sweep(1, fold=True)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=True)]
+    packed = _pack(mu, comps)
+    last = float(mu[-1])
+    W = _work_arrays(packed)
+    for ms in (2.0, 2.001, 2.01):
+        full, u = nll_rows(np.array([ms]), *packed, last, _LOGU, True)
+        lu = math.log(u[0]) if u[0] > 0 else math.nan
+        for start in (math.nan, lu - 0.2 if math.isfinite(lu) else math.nan):
+            v, _ = profile_u_near(ms, *packed, last, _LOGU, W, start)
+            assert v <= full[0] + 1e-7 * max(1.0, abs(full[0]))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_screening_search_bounds_the_full_search_from_above(seed: int) -> None:
+    mu, y, sd = _sweep(seed, n=20, rel=1e-3)
+    scale = float(mu[-1] - mu[0])
+    for K in (0, 1, 2):
+        comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True)]
+        full = _profile(mu, comps, scale, with_interval=False)
+        _, screen = _profile_screen(mu, comps, scale, None)
+        assert screen >= full.nll - 1e-6 * max(1.0, full.nll)
+        # on a smooth single-valley profile both find the same minimum
+        assert screen == pytest.approx(full.nll, rel=1e-6, abs=1e-6)
+
+
+def test_continued_exponent_profile_matches_the_full_one() -> None:
+    """The exponent profile searched near the neighbouring exponent's optimum gives the same
+    estimate and standard error as a full search at every exponent."""
+    mu, y, sd = _sweep(2, n=20, rel=1e-4)
+    scale = float(mu[-1] - mu[0])
+
+    def make(p: float) -> list[_Comp]:
+        return [_Comp(y, 1.0 / sd, _sigma_exps(p, 1.0, 1), True, True)]
+
+    grid = np.unique(np.concatenate([np.linspace(0.2, 2.5, 16), [0.48, 0.5, 0.52, 1.0, 2.0]]))
+    e_cont, se_cont = _free_exponent(mu, make, grid, scale, center=1.0)
+
+    def full(p: float) -> float:
+        return _profile(mu, make(p), scale, with_interval=False, xatol=1e-7).nll
+
+    f = np.array([full(p) for p in grid])
+    i = int(np.argmin(f))
+    res = optimize.minimize_scalar(
+        full, bounds=(grid[i - 1], grid[i + 1]), method="bounded", options={"xatol": 1e-4}
+    )
+    assert e_cont == pytest.approx(res.x, abs=max(1e-3, 0.05 * se_cont))
+    assert se_cont > 0 and math.isfinite(se_cont)
