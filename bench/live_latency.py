@@ -228,6 +228,10 @@ def main(argv: list[str] | None = None) -> int:
         "round_trip_ms_median": float(np.median(wall)),
         "server_cpu_ms_median": float(np.median(cpu)),
         "server_split_ms_median": {k: v[0] for k, v in split.items()},
+        "server_timing_entries_ms_median": {
+            k: float(np.median([r[2]["_timing"].get(k, (0.0,))[0] for r in res]))
+            for k in res[0][2]["_timing"]
+        },
         "server_split_cpu_ms_median": {k: v[1] for k, v in split.items() if math.isfinite(v[1])},
         "in_process_detect_cpu_ms": local["detect_cpu_ms"],
         "in_process_assess_cpu_ms": local["assess_cpu_ms"],
