@@ -47,6 +47,7 @@ _LOGU = np.linspace(math.log(1e-4), math.log(10.0), 11)  # u = (mu* - mu_last) /
 _T_LO, _T_HI, _T_MIN = math.log(1e-9), math.log(30.0), math.log(1e-12)  # range of log(d/scale)
 _UNIT = {n: np.linspace(0.0, 1.0, n) for n in (21, _GRID_CF, _GRID)}  # scans of the range
 _NEAR = np.linspace(-1.0, 1.0, 9)  # around a known optimum
+_CLOSE = np.linspace(-0.3, 0.3, 5)  # around the optimum of a neighbouring exponent
 _FINE = np.linspace(-0.01, 0.01, 5)  # around a two-point seed
 _SEED = {k: np.linspace(-1, 1, k) for k in (15, 41)}
 _SEED_FINE = {k: np.linspace(-0.01, 0.01, k) for k in (9, 41)}
@@ -327,19 +328,18 @@ def _profile_near(
     mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float, xatol: float
 ) -> tuple[float, float]:
     """Minimum of the profile near ``t0 = log(mu* - mu_w[-1])`` (a law close to one whose
-    optimum is known): a local grid of +-1 around ``t0`` and the law's own two-point seeds,
-    then Brent's method. Falls back to the full search when the minimum sits on the local
-    grid's edge (the optimum has moved away). Returns ``(t, -2 log L)``."""
+    optimum is known): a local grid of +-0.3 around ``t0`` (moved while the minimum sits on its
+    edge; the full search after four moves), then Brent's method. Returns ``(t, -2 log L)``."""
     last = float(mu_w[-1])
-    parts = [t0 + _NEAR]
-    if comps[0].lead:
-        parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
-    t = np.unique(np.concatenate(parts))
     cf = any(c.conformal for c in comps)
-    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, xatol, 0.0, 0.0)
-    th, fh, ig = float(out[0]), float(out[1]), int(out[2])
-    if 0 < ig < t.size - 1:
-        return th, fh
+    packed = _pack(mu_w, comps)
+    for _ in range(4):  # follow the valley while it leaves the local grid
+        t = t0 + _CLOSE
+        out = profile_search(t, packed, last, _LOGU, cf, xatol, 0.0, 0.0)
+        th, fh, ig = float(out[0]), float(out[1]), int(out[2])
+        if 0 < ig < t.size - 1:
+            return th, fh
+        t0 = float(t[ig])
     pr = _profile(mu_w, comps, scale, with_interval=False, xatol=xatol)
     return math.log(max(pr.mu_star - last, 1e-300)), pr.nll
 
@@ -360,7 +360,7 @@ def _profile_screen(
         parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
     t = _clip(np.unique(np.concatenate(parts)), scale)
     cf = any(c.conformal for c in comps)
-    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, 1e-5, 0.0, 0.0)
+    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, 1e-4, 0.0, 0.0)
     return float(out[0]), float(out[1])
 
 
@@ -395,7 +395,7 @@ def _free_exponent(
             v = pr.nll
         else:
             near = min(known, key=lambda k: abs(k - e))
-            known[e], v = _profile_near(mu_w, comps, scale, known[near], 1e-7)
+            known[e], v = _profile_near(mu_w, comps, scale, known[near], 1e-6)
         values[e] = v
         return v
 
