@@ -183,9 +183,17 @@ class Api(AtlasOperations):
         *,
         simulate: Mapping[str, Any] | None = None,
         name: str | None = None,
+        control: str | None = None,
+        unit: str | None = None,
     ) -> Flow[Sweep]:
-        """``POST /v1/sweeps``: ``[(signal_id, control_value), ...]`` or ``simulate={...}``."""
-        return (yield core.create_sweep(measurements, simulate=simulate, name=name))
+        """``POST /v1/sweeps``: ``[(signal_id, control_value), ...]`` or ``simulate={...}``;
+        ``control``/``unit``: the name and unit of the control the signals were recorded along
+        (recorded sweeps only)."""
+        return (
+            yield core.create_sweep(
+                measurements, simulate=simulate, name=name, control=control, unit=unit
+            )
+        )
 
     @operation
     def get_sweep(self, sweep_id: str) -> Flow[Sweep]:

@@ -308,6 +308,8 @@ def create_sweep(
     *,
     simulate: Mapping[str, Any] | None = None,
     name: str | None = None,
+    control: str | None = None,
+    unit: str | None = None,
 ) -> Call:
     doc: dict[str, Any] = {}
     if measurements is not None:
@@ -316,6 +318,9 @@ def create_sweep(
         doc["simulate"] = {k: v for k, v in simulate.items() if v is not None}
     if name is not None:
         doc["name"] = name
+    named = {k: v for k, v in (("name", control), ("unit", unit)) if v is not None}
+    if named:
+        doc["control"] = named
     return Call(
         "POST", "/v1/sweeps", content=dumps(doc), headers=dict(JSON_HEADERS), parse=_model(Sweep)
     )

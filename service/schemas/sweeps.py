@@ -49,8 +49,14 @@ class SweepRequest(BaseModel):
     mode: Literal["batch", "live"] = Field(
         default="batch", description="'live': an open sweep fed by POST /v1/sweeps/{id}/records."
     )
-    control: LiveControl | None = Field(default=None, description="Live: the control stepped.")
-    live: LiveOptions | None = Field(default=None, description="Live: margin, step, budget...")
+    control: LiveControl | None = Field(
+        default=None,
+        description="The control parameter's name and unit: the one a live sweep steps, or the "
+        "one a batch sweep of recorded signals was measured along (refused on simulated sweeps).",
+    )
+    live: LiveOptions | None = Field(
+        default=None, description="Live sweeps only (refused in batch mode): margin, step, budget."
+    )
 
 
 class Sweep(BaseModel):

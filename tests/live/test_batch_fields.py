@@ -97,3 +97,21 @@ def test_control_of_a_batch_sweep_is_stored_and_shown(http: httpx2.Client) -> No
                                       "control": {"unit": "deg"}})  # fmt: skip
     assert r.status_code == 202, r.text
     assert r.json()["request"]["control"] == {"unit": "deg"}
+
+
+def test_sdk_names_the_control_of_a_batch_sweep(server, http: httpx2.Client) -> None:  # noqa: ANN001
+    """The SDK's ``create_sweep(control=..., unit=...)`` sends what the wire takes: the same
+    stored request as the raw HTTP call, and only the keys the user named."""
+    from service.client import Client
+    from service.client.errors import InvalidInput
+
+    ids = _signals(http, [0.0, 0.3, 0.6], None)
+    with Client(server.url) as client:
+        sweep = client.create_sweep(list(zip(ids, [0.0, 0.3, 0.6], strict=True)),
+                                    control="angle", unit="deg")  # fmt: skip
+        assert sweep.request["control"] == {"name": "angle", "unit": "deg"}
+        sweep = client.create_sweep(list(zip(ids, [0.0, 0.3, 0.6], strict=True)), unit="deg")
+        assert sweep.request["control"] == {"unit": "deg"}
+        with pytest.raises(InvalidInput) as err:
+            client.create_sweep(simulate={"actuation": "asymmetric"}, control="angle")
+        assert err.value.status == 422 and err.value.field == "control"
