@@ -353,6 +353,14 @@ def _profile_screen(
     minimum (equal to it unless a valley narrower than the grid lies away from every seed).
     Returns ``(t, -2 log L)`` with ``t = log(mu* - mu_w[-1])``."""
     last = float(mu_w[-1])
+    packed = _pack(mu_w, comps)
+    memo = _MEMO.get()
+    key = None
+    if memo is not None:  # the per-law refits of a prediction repeat the same screens
+        key = b"screen" + _memo_key(mu_w, comps, packed, scale, 0.0, 1.0, False, t0)
+        hit = memo.get(key)
+        if hit is not None:
+            return hit  # type: ignore[return-value]
     parts = [_range_grid(scale, 21)]
     if t0 is not None and math.isfinite(t0):
         parts.append(t0 + _NEAR)
@@ -360,8 +368,11 @@ def _profile_screen(
         parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
     t = _clip(np.unique(np.concatenate(parts)), scale)
     cf = any(c.conformal for c in comps)
-    out = profile_search(t, _pack(mu_w, comps), last, _LOGU, cf, 1e-4, 0.0, 0.0)
-    return float(out[0]), float(out[1])
+    out = profile_search(t, packed, last, _LOGU, cf, 1e-4, 0.0, 0.0)
+    res = (float(out[0]), float(out[1]))
+    if key is not None:
+        memo[key] = res  # type: ignore[assignment]
+    return res
 
 
 def _free_exponent(
