@@ -39,3 +39,10 @@ def tree_cpu(root: int) -> float:
                 tree.add(pid)
                 grew = True
     return sum(times.get(p, 0.0) for p in tree)
+
+
+def proc_cpu(pid: int) -> float:
+    """User + system CPU seconds of ``pid`` alone (its threads, not its children)."""
+    with open(f"/proc/{pid}/stat") as fh:
+        fields = fh.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK

@@ -1,24 +1,33 @@
-"""Service benchmark: POST /v1/detections with a 1e4-sample inline signal, over loopback.
+"""Service benchmark: POST /v1/detections with a 1e4-sample inline signal, over loopback,
+against the core-bound throughput of the same work measured in-process, in one run.
 
     python bench/service.py                 # 1, 8 and 32 concurrent clients, 8 s each
     python bench/service.py --seconds 3     # quicker
     python bench/service.py --clients 1 4   # other levels
+    python bench/service.py --http-workers 2
 
-Starts a real server (`snapwarn serve`, uvicorn, SQLite file in a temporary folder) on
-127.0.0.1, warms it up, then for each level of concurrency runs that many client tasks
-(httpx2.AsyncClient, keep-alive) back to back for a bounded time and reports:
+Core-bound throughput: the request's whole work without HTTP -- parse and validate the same
+body, detect, serialise the answer (``inline_detection``, exactly what a server's analysis
+worker runs per request) -- looped in one process per core for ``--core-seconds``, measured
+before and after the service levels (the load may change in between: both are printed, their
+mean is the reference).
 
-- latency p50 / p95 / p99 / max (ms) and throughput (requests per second),
-- errors (any non-200 answer or transport error) and the slowest client's request count
-  (starvation: a client that got far fewer answers than the others),
-- the server's CPU time per request: user + system time of the server process and all its
-  descendants (the analysis pool) from /proc, divided by the requests answered,
-- the capacity the cores allow, cores / CPU time per request, and the throughput as a fraction
-  of it; also with the load generator's own CPU per request counted (it shares the cores).
+The service: a real server (`snapwarn serve`, uvicorn, SQLite file in a temporary folder) on
+127.0.0.1, warmed up; for each level of concurrency that many client tasks
+(httpx2.AsyncClient, keep-alive) run back to back for a bounded time. Reported per level:
 
-The client runs in this process on the same machine: its CPU competes with the server's, and
-the cores are shared with whatever else runs (the load average is recorded). Writes
-bench/results/service.json and bench/results/service.csv.
+- latency p50 / p95 / p99 / max (ms), throughput (requests per second), errors (any non-200
+  answer or transport error), the slowest and fastest client's request counts (starvation);
+- the throughput as a fraction of the core-bound throughput; and of the core-bound throughput
+  on the part of the cores the load generator left (it runs in this process, on the same
+  cores: ``core-bound x (1 - client CPU / (wall x cores))``);
+- CPU per request (/proc): the server process (uvicorn's event loop and its threads), its
+  analysis pool, the client; the in-process work's CPU per request; their ratio, the CPU
+  ceiling: the fraction the service could reach if every core were busy with this test;
+- the share of the cores the server and the client got (on a shared machine the rest went to
+  other processes), and the 1-minute load average before and after.
+
+Writes bench/results/service.json and bench/results/service.csv.
 """
 
 from __future__ import annotations
@@ -46,6 +55,7 @@ if str(ROOT) not in sys.path:
 import httpx2  # noqa: E402
 
 from bench._proc import free_port as _free_port  # noqa: E402
+from bench._proc import proc_cpu as _proc_cpu  # noqa: E402
 from bench._proc import tree_cpu as _tree_cpu  # noqa: E402
 
 
@@ -178,10 +188,116 @@ def _detect_reference(body: bytes, n: int = 200) -> dict:
     }
 
 
+_ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def _core_loop(body: bytes, start: float, seconds: float) -> tuple[int, float]:
+    """One core's share of the core-bound measurement (a spawned process): the request's work
+    back to back from ``start`` (wall clock) for ``seconds``; (requests done, CPU seconds)."""
+    from service.api.routers.detections import inline_detection
+    from service.api.settings import Settings
+
+    s = Settings()
+    for _ in range(20):  # imports, JIT, caches
+        kind, _out = inline_detection(body, s.max_samples, s.uniform_rtol)
+        assert kind == "json", kind
+    while time.time() < start:
+        time.sleep(0.001)
+    n, c0, end = 0, time.process_time(), start + seconds
+    while time.time() < end:
+        inline_detection(body, s.max_samples, s.uniform_rtol)
+        n += 1
+    return n, time.process_time() - c0
+
+
+def core_bound(body: bytes, cores: int, seconds: float) -> dict:
+    """Throughput of the request's work alone, one process per core (no HTTP, no hand-off)."""
+    import multiprocessing as mp
+
+    saved = {k: os.environ.get(k) for k in _ONE_THREAD}
+    os.environ.update({k: "1" for k in _ONE_THREAD})  # as the server's analysis workers
+    try:
+        with mp.get_context("spawn").Pool(cores) as pool:
+            start = time.time() + 20.0  # every process imported and warm by then
+            load0 = os.getloadavg()[0]
+            got = pool.starmap(_core_loop, [(body, start, seconds)] * cores)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    n = sum(g[0] for g in got)
+    return {
+        "processes": cores,
+        "seconds": seconds,
+        "requests": n,
+        "throughput_rps": n / seconds,
+        "cpu_ms_per_request": 1e3 * sum(g[1] for g in got) / max(1, n),
+        "cpu_share": sum(g[1] for g in got) / (seconds * cores),
+        "loadavg_1min_before": load0,
+        "loadavg_1min_after": os.getloadavg()[0],
+    }
+
+
+def _measure(
+    proc: subprocess.Popen, url: str, body: bytes, clients: int, seconds: float, cores: int
+) -> dict:
+    """One level of concurrency, with the CPU of the server, its pool and the client."""
+    tree0, main0, me0 = _tree_cpu(proc.pid), _proc_cpu(proc.pid), time.process_time()
+    load0 = os.getloadavg()[0]
+    res = asyncio.run(_level(url, body, clients, seconds))
+    tree, main = _tree_cpu(proc.pid) - tree0, _proc_cpu(proc.pid) - main0
+    me = time.process_time() - me0
+    n, wall = max(1, res["requests"]), res["wall_s"]
+    res["server_cpu_ms_per_request"] = 1e3 * tree / n
+    res["server_main_cpu_ms_per_request"] = 1e3 * main / n
+    res["server_pool_cpu_ms_per_request"] = 1e3 * (tree - main) / n
+    res["client_cpu_ms_per_request"] = 1e3 * me / n
+    res["client_cpu_share"] = me / (wall * cores)
+    res["server_cpu_share"] = tree / (wall * cores)
+    res["server_and_client_cpu_share"] = (tree + me) / (wall * cores)
+    res["loadavg_1min_before"] = load0
+    res["loadavg_1min_after"] = os.getloadavg()[0]
+    return res
+
+
+def _print_level(r: dict) -> None:
+    if not r["requests"]:
+        print(f"{r['clients']:3d} clients: no answer; errors: {r['error_samples']}")
+        return
+    print(
+        f"{r['clients']:3d} clients: p50 {r['p50_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
+        f"p99 {r['p99_ms']:.1f} ms  {r['throughput_rps']:.1f} req/s = "
+        f"{100 * r['fraction_of_core_bound']:.0f}% of core-bound "
+        f"({100 * r['fraction_of_core_bound_client_left']:.0f}% of it on the cores the client "
+        f"left)  errors {r['errors']}  per-client {r['min_requests_per_client']}.."
+        f"{r['max_requests_per_client']}\n"
+        f"             cpu ms/req: server {r['server_cpu_ms_per_request']:.2f} (event loop "
+        f"process {r['server_main_cpu_ms_per_request']:.2f}, pool "
+        f"{r['server_pool_cpu_ms_per_request']:.2f}), client "
+        f"{r['client_cpu_ms_per_request']:.2f}; cpu ceiling {100 * r['cpu_ceiling']:.0f}%; "
+        f"cores used {100 * r['server_and_client_cpu_share']:.0f}% "
+        f"(load {r['loadavg_1min_before']:.1f} -> {r['loadavg_1min_after']:.1f})",
+        flush=True,
+    )
+
+
+def _print_core(label: str, c: dict) -> None:
+    print(
+        f"core-bound ({label}): {c['throughput_rps']:.1f} req/s, {c['processes']} processes "
+        f"x {c['seconds']:g} s, cpu {c['cpu_ms_per_request']:.2f} ms/req, cores used "
+        f"{100 * c['cpu_share']:.0f}% (load {c['loadavg_1min_before']:.1f} -> "
+        f"{c['loadavg_1min_after']:.1f})",
+        flush=True,
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clients", type=int, nargs="+", default=[1, 8, 32])
     ap.add_argument("--seconds", type=float, default=8.0, help="per level (bounded run)")
+    ap.add_argument("--core-seconds", type=float, default=6.0, help="per core-bound run")
     ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--http-workers", type=int, default=1)
     ap.add_argument(
@@ -195,6 +311,8 @@ def main(argv: list[str] | None = None) -> int:
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     body = json.dumps(_signal(args.samples)).encode()
+    before = core_bound(body, cores, args.core_seconds)
+    _print_core("before", before)
     rows = []
     with tempfile.TemporaryDirectory() as d:
         proc, url = start_server(
@@ -204,66 +322,38 @@ def main(argv: list[str] | None = None) -> int:
             health = httpx2.get(url + "/healthz").json()
             asyncio.run(_level(url, body, max(args.clients), args.warmup))  # warm every worker
             for c in args.clients:
-                cpu0 = _tree_cpu(proc.pid)
-                me0 = time.process_time()
-                load0 = os.getloadavg()[0]
-                res = asyncio.run(_level(url, body, c, args.seconds))
-                cpu = _tree_cpu(proc.pid) - cpu0
-                res["client_cpu_ms_per_request"] = (
-                    1e3 * (time.process_time() - me0) / max(1, res["requests"])
-                )
-                res["server_cpu_ms_per_request"] = 1e3 * cpu / max(1, res["requests"])
-                cap = cores / (cpu / max(1, res["requests"])) if cpu > 0 else None
-                res["capacity_rps"] = cap
-                res["fraction_of_capacity"] = res["throughput_rps"] / cap if cap else None
-                # the load generator shares the cores: what they allow with it counted
-                both = (cpu / max(1, res["requests"])) + res["client_cpu_ms_per_request"] / 1e3
-                res["capacity_with_client_rps"] = cores / both if both > 0 else None
-                res["fraction_of_capacity_with_client"] = (
-                    res["throughput_rps"] / res["capacity_with_client_rps"]
-                    if res["capacity_with_client_rps"]
-                    else None
-                )
-                res["loadavg_1min_before"] = load0
-                res["loadavg_1min_after"] = os.getloadavg()[0]
-                # the share of the cores the server (and the client) got: on a shared machine
-                # a throughput below capacity with a share below 1 is other processes' doing
-                res["server_cpu_share"] = cpu / (res["wall_s"] * cores)
-                res["server_and_client_cpu_share"] = (
-                    cpu + (time.process_time() - me0)
-                ) / (res["wall_s"] * cores)
-                rows.append(res)
-                if not res["requests"]:
-                    print(f"{c:3d} clients: no answer; errors: {res['error_samples']}")
-                    continue
-                frac = 100 * (res["fraction_of_capacity"] or 0)
-                frac2 = 100 * (res["fraction_of_capacity_with_client"] or 0)
-                print(
-                    f"{c:3d} clients: p50 {res['p50_ms']:.1f} ms  p95 {res['p95_ms']:.1f} ms  "
-                    f"p99 {res['p99_ms']:.1f} ms  {res['throughput_rps']:.1f} req/s  "
-                    f"cpu {res['server_cpu_ms_per_request']:.2f} ms/req (client "
-                    f"{res['client_cpu_ms_per_request']:.2f})  capacity "
-                    f"{cap or float('nan'):.1f} req/s ({frac:.0f}%, {frac2:.0f}"
-                    f"% counting the client)  errors {res['errors']}  per-client "
-                    f"{res['min_requests_per_client']}..{res['max_requests_per_client']}  "
-                    f"cores used {100 * res['server_and_client_cpu_share']:.0f}% "
-                    f"(load {load0:.1f})",
-                    flush=True,
-                )
+                rows.append(_measure(proc, url, body, c, args.seconds, cores))
         finally:
             proc.send_signal(signal.SIGTERM)
             try:
                 proc.wait(20)
             except subprocess.TimeoutExpired:
                 proc.kill()
-    ref = _detect_reference(body)
+    after = core_bound(body, cores, args.core_seconds)
+    _print_core("after", after)
+    ref = {
+        "throughput_rps": (before["throughput_rps"] + after["throughput_rps"]) / 2,
+        "cpu_ms_per_request": (before["cpu_ms_per_request"] + after["cpu_ms_per_request"]) / 2,
+    }
+    print(f"core-bound reference (mean): {ref['throughput_rps']:.1f} req/s")
+    if min(before["cpu_share"], after["cpu_share"]) < 0.9:
+        print(
+            "note: the core-bound runs got less than 90% of the cores (a shared machine): the "
+            "req/s fractions compare two runs that each got what the others left; the cpu "
+            "ceiling (in-process CPU / server+client CPU per request) does not depend on it"
+        )
+    for r in rows:  # against the mean of both core-bound runs
+        r.update(_relative(r, ref))
+        _print_level(r)
+    det = _detect_reference(body)
     print(
-        f"reference: detect() alone in one process: p50 {ref['p50_ms']:.2f} ms, "
-        f"p95 {ref['p95_ms']:.2f} ms"
+        f"reference: detect() alone in one process: p50 {det['p50_ms']:.2f} ms, "
+        f"p95 {det['p95_ms']:.2f} ms"
     )
     doc = {
         "benchmark": "POST /v1/detections, inline signal",
-        "detect_in_process": ref,
+        "core_bound": {"before": before, "after": after, "reference": ref},
+        "detect_in_process": det,
         "samples": args.samples,
         "seconds_per_level": args.seconds,
         "http_workers": args.http_workers,
@@ -290,6 +380,18 @@ def main(argv: list[str] | None = None) -> int:
         w.writerows(rows)
     print(f"wrote {args.out.with_suffix('.json')} and .csv")
     return 0 if all(r["errors"] == 0 for r in rows) else 1
+
+
+def _relative(r: dict, ref: dict) -> dict:
+    """The level's figures against the core-bound reference ``ref``."""
+    frac = r["throughput_rps"] / ref["throughput_rps"]
+    return {
+        "core_bound_rps": ref["throughput_rps"],
+        "fraction_of_core_bound": frac,
+        "fraction_of_core_bound_client_left": frac / max(1e-9, 1.0 - r["client_cpu_share"]),
+        "cpu_ceiling": ref["cpu_ms_per_request"]
+        / (r["server_cpu_ms_per_request"] + r["client_cpu_ms_per_request"]),
+    }
 
 
 if __name__ == "__main__":

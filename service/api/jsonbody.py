@@ -68,7 +68,29 @@ _CUT_AFTER = (b",", b"[", b":", b" ", b"\n")
 async def read_model(
     request: Request, model: type[M], settings: Settings, arrays: tuple[str, ...] = ARRAY_FIELDS
 ) -> M:
-    """The body of ``request`` validated as ``model``; see the module notes.
+    """The body of ``request`` validated as ``model``; see the module notes and
+    :func:`read_small_or_model`."""
+    got = await read_small_or_model(request, model, settings, arrays)
+    return validate_small(model, got) if isinstance(got, bytes) else got
+
+
+def validate_small(model: type[M], body: bytes) -> M:
+    """``model`` from a whole small body (pydantic-core parses the bytes); a 422 naming the
+    fields, as FastAPI's own (``loc`` under "body")."""
+    try:
+        return model.model_validate_json(body)
+    except ValidationError as exc:
+        raise body_validation_error(exc) from None
+
+
+async def read_small_or_model(
+    request: Request, model: type[M], settings: Settings, arrays: tuple[str, ...] = ARRAY_FIELDS
+) -> bytes | M:
+    """The whole body when it is small (up to ``json_stream_bytes``; the values counted), else
+    the model parsed from it as it streamed.
+
+    A route may then validate the small body where the work runs (an analysis worker), with
+    :func:`validate_small`.
 
     Parameters
     ----------
@@ -84,9 +106,9 @@ async def read_model(
 
     Returns
     -------
-    M
-        The model; when the body was streamed, the fields in ``arrays`` hold 1-D float64
-        numpy arrays instead of lists.
+    bytes or M
+        The small body, or the model; the fields in ``arrays`` of a streamed body hold 1-D
+        float64 numpy arrays instead of lists.
 
     Raises
     ------
@@ -103,13 +125,10 @@ async def read_model(
             size += len(chunk)
             if size > settings.json_stream_bytes:
                 break
-        else:  # the whole body is here and small: pydantic-core parses it from the bytes
+        else:  # the whole body is here and small: pydantic-core parses it in one piece
             body = b"".join(head)
             limits.check_json_samples(body, settings.max_samples)
-            try:
-                return model.model_validate_json(body)
-            except ValidationError as exc:
-                raise body_validation_error(exc) from None
+            return body
     parser = StreamParser(settings.max_samples, settings.max_json_depth, arrays)
     for chunk in head:
         step = parser.push(chunk)

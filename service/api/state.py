@@ -162,4 +162,10 @@ def job_doc(row: JobRow) -> dict[str, Any]:
     }
 
 
-StateDep = Annotated[AppState, Depends(get_state)]
+async def _state(request: Request) -> AppState:
+    """``get_state`` as an async dependency: FastAPI runs a plain ``def`` dependency in its
+    thread pool (a thread hand-off per request on the hot path)."""
+    return get_state(request)
+
+
+StateDep = Annotated[AppState, Depends(_state)]
