@@ -54,6 +54,7 @@ if str(ROOT) not in sys.path:
 
 import httpx2  # noqa: E402
 
+from bench._proc import children as _children  # noqa: E402
 from bench._proc import free_port as _free_port  # noqa: E402
 from bench._proc import proc_cpu as _proc_cpu  # noqa: E402
 from bench._proc import tree_cpu as _tree_cpu  # noqa: E402
@@ -240,14 +241,29 @@ def core_bound(body: bytes, cores: int, seconds: float) -> dict:
     }
 
 
+def _loop_processes(pid: int, http_workers: int) -> list[int]:
+    """The processes running event loops: the server itself, or with several HTTP workers its
+    uvicorn worker processes (its children; their analysis pools are their children)."""
+    return [pid] + (_children(pid) if http_workers > 1 else [])
+
+
 def _measure(
-    proc: subprocess.Popen, url: str, body: bytes, clients: int, seconds: float, cores: int
+    proc: subprocess.Popen,
+    url: str,
+    body: bytes,
+    clients: int,
+    seconds: float,
+    cores: int,
+    http_workers: int = 1,
 ) -> dict:
-    """One level of concurrency, with the CPU of the server, its pool and the client."""
-    tree0, main0, me0 = _tree_cpu(proc.pid), _proc_cpu(proc.pid), time.process_time()
+    """One level of concurrency, with the CPU of the server (event loops, pools), the client."""
+    loops = _loop_processes(proc.pid, http_workers)
+    tree0, me0 = _tree_cpu(proc.pid), time.process_time()
+    main0 = sum(_proc_cpu(p) for p in loops)
     load0 = os.getloadavg()[0]
     res = asyncio.run(_level(url, body, clients, seconds))
-    tree, main = _tree_cpu(proc.pid) - tree0, _proc_cpu(proc.pid) - main0
+    tree = _tree_cpu(proc.pid) - tree0
+    main = sum(_proc_cpu(p) for p in loops) - main0
     me = time.process_time() - me0
     n, wall = max(1, res["requests"]), res["wall_s"]
     res["server_cpu_ms_per_request"] = 1e3 * tree / n
@@ -255,6 +271,7 @@ def _measure(
     res["server_pool_cpu_ms_per_request"] = 1e3 * (tree - main) / n
     res["client_cpu_ms_per_request"] = 1e3 * me / n
     res["client_cpu_share"] = me / (wall * cores)
+    res["http_workers"] = http_workers
     res["server_cpu_share"] = tree / (wall * cores)
     res["server_and_client_cpu_share"] = (tree + me) / (wall * cores)
     res["loadavg_1min_before"] = load0
@@ -273,8 +290,9 @@ def _print_level(r: dict) -> None:
         f"({100 * r['fraction_of_core_bound_client_left']:.0f}% of it on the cores the client "
         f"left)  errors {r['errors']}  per-client {r['min_requests_per_client']}.."
         f"{r['max_requests_per_client']}\n"
-        f"             cpu ms/req: server {r['server_cpu_ms_per_request']:.2f} (event loop "
-        f"process {r['server_main_cpu_ms_per_request']:.2f}, pool "
+        f"             cpu ms/req: server {r['server_cpu_ms_per_request']:.2f} (event "
+        f"loop{'s' if r.get('http_workers', 1) > 1 else ''} "
+        f"{r['server_main_cpu_ms_per_request']:.2f}, pool "
         f"{r['server_pool_cpu_ms_per_request']:.2f}), client "
         f"{r['client_cpu_ms_per_request']:.2f}; cpu ceiling {100 * r['cpu_ceiling']:.0f}%; "
         f"cores used {100 * r['server_and_client_cpu_share']:.0f}% "
@@ -322,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
             health = httpx2.get(url + "/healthz").json()
             asyncio.run(_level(url, body, max(args.clients), args.warmup))  # warm every worker
             for c in args.clients:
-                rows.append(_measure(proc, url, body, c, args.seconds, cores))
+                rows.append(_measure(proc, url, body, c, args.seconds, cores, args.http_workers))
         finally:
             proc.send_signal(signal.SIGTERM)
             try:
