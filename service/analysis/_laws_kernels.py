@@ -264,42 +264,6 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine)
 
 
 @njit(cache=True, error_model="numpy")
-def profile_u_near(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, lu0):
-    """:func:`_profile_u` (refined) warm-started at the log fold parameter ``lu0`` of a nearby
-    mu* (``-inf``: the plain law was best there): the plain law, and a local refinement on
-    ``lu0 +- 0.3`` when ``lu0`` is still a local minimum; otherwise the full search (grid, then
-    refinement). Returns (-2 log L, log u) with ``log u`` the fold law's best (the hint for
-    the next mu*), also when the plain law is lower."""
-    x_last = ms - mu_last
-    if x_last < 1e-300:
-        x_last = 1e-300
-    best = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
-    if math.isfinite(lu0):
-        h = 0.3
-        f0 = _total(ms, math.exp(lu0), mu, y, wt, start, exps, nexp, opts, x_last, W)
-        fl = _total(ms, math.exp(lu0 - h), mu, y, wt, start, exps, nexp, opts, x_last, W)
-        fr = _total(ms, math.exp(lu0 + h), mu, y, wt, start, exps, nexp, opts, x_last, W)
-        if math.isfinite(f0) and f0 <= fl and f0 <= fr:
-            xb, fxb = _refine_u(ms, lu0 - h, lu0 + h, lu0, f0, mu, y, wt, start, exps, nexp,
-                                opts, x_last, W)  # fmt: skip
-            return min(best, fxb), xb
-    G = logu.size
-    jb = 0
-    fb = math.inf
-    for g in range(G):
-        v = _total(ms, math.exp(logu[g]), mu, y, wt, start, exps, nexp, opts, x_last, W)
-        if math.isfinite(v) and v < fb:
-            fb = v
-            jb = g
-    if not math.isfinite(fb):
-        return best, lu0
-    a = logu[jb - 1] if jb > 0 else logu[0]
-    c = logu[jb + 1] if jb < G - 1 else logu[G - 1]
-    xb, fxb = _refine_u(ms, a, c, logu[jb], fb, mu, y, wt, start, exps, nexp, opts, x_last, W)
-    return min(best, fxb), xb
-
-
-@njit(cache=True, error_model="numpy")
 def _work(mu, nexp):
     k = 1
     for c in range(nexp.size):

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis._laws_kernels import _work, nll_rows
+from service.analysis._laws_kernels import nll_rows
 from service.analysis._profile_kernels import profile_search
 from service.analysis._sweep import Sweep
 from service.analysis.common import Flag
@@ -91,11 +91,6 @@ def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple:
         nexp,
         opts,
     )
-
-
-def _work_arrays(packed: tuple) -> tuple:
-    """Work arrays of the kernels for packed components (see :func:`_pack`)."""
-    return _work(packed[0], packed[5])
 
 
 def _nll_u(

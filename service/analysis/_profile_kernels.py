@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._laws_kernels import _profile_u, _total, _work, profile_u_near
+from service.analysis._laws_kernels import _profile_u, _total, _work
 
 _GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08
@@ -28,15 +28,11 @@ BIG = 1e300  # value of a non-finite -2 log L inside the searches
 
 
 @njit(cache=True, error_model="numpy")
-def _row(ms, P, mu_last, logu, W, cf, refine, hint):
-    """-2 log L at one mu* (fold parameter profiled for a conformal law); BIG if not finite.
-    ``hint[0]``: the log fold parameter at the previous refined mu* (NaN: none), updated."""
+def _row(ms, P, mu_last, logu, W, cf, refine):
+    """-2 log L at one mu* (fold parameter profiled for a conformal law: on its grid only
+    without ``refine``); BIG if not finite."""
     mu, y, wt, start, exps, nexp, opts = P
-    if cf and refine:
-        v, hint[0] = profile_u_near(
-            ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, hint[0]
-        )
-    elif cf:
+    if cf:
         v, _ = _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine)
     else:
         x_last = ms - mu_last
@@ -47,10 +43,10 @@ def _row(ms, P, mu_last, logu, W, cf, refine, hint):
 
 
 @njit(cache=True, error_model="numpy")
-def _minimise(a, b, xatol, P, mu_last, logu, W, cf, hint):
+def _minimise(a, b, xatol, P, mu_last, logu, W, cf):
     """Brent's bounded minimisation of the refined profile on ``[a, b]`` (in t); (t, value)."""
     x = a + _GOLD * (b - a)
-    fx = _row(mu_last + math.exp(x), P, mu_last, logu, W, cf, True, hint)
+    fx = _row(mu_last + math.exp(x), P, mu_last, logu, W, cf, True)
     v, w, fv, fw = x, x, fx, fx
     d = 0.0
     e = 0.0
@@ -81,7 +77,7 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, hint):
             e = (b - x) if x < xm else (a - x)
             d = _GOLD * e
         u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
-        fu = _row(mu_last + math.exp(u), P, mu_last, logu, W, cf, True, hint)
+        fu = _row(mu_last + math.exp(u), P, mu_last, logu, W, cf, True)
         if fu <= fx:
             if u < x:
                 b = x
@@ -101,7 +97,7 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, hint):
 
 
 @njit(cache=True, error_model="numpy")
-def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf, hint):
+def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf):
     """t in [a, b] where the refined profile equals ``level`` (Brent's root finder on
     ``f - level``; ``fa``, ``fb``: the differences at the ends, of opposite signs)."""
     xtol = 1e-9
@@ -145,64 +141,64 @@ def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf, hint):
                 e = m
         a, fa = b, fb
         b += d if abs(d) > tol else (tol if m > 0.0 else -tol)
-        fb = _row(mu_last + math.exp(b), P, mu_last, logu, W, cf, True, hint) - level
+        fb = _row(mu_last + math.exp(b), P, mu_last, logu, W, cf, True) - level
     return b
 
 
 @njit(cache=True, error_model="numpy")
-def _scan(t, P, mu_last, logu, W, cf, f, exact, hint):
+def _scan(t, P, mu_last, logu, W, cf, f, exact):
     """Fill ``f`` with the profile on the grid ``t``: a conformal law's fold parameter on its
     own grid only (an upper bound) except at the five lowest points, refined."""
     G = t.size
     for j in range(G):
-        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, not cf, hint)
+        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, not cf)
         exact[j] = not cf
     if cf:
         order = np.argsort(f)
-        for r in range(min(5, G) - 1, -1, -1):  # the lowest last: its fold parameter is the hint
+        for r in range(min(5, G)):
             j = order[r]
-            f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True, hint)
+            f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True)
             exact[j] = True
 
 
 @njit(cache=True, error_model="numpy")
-def _fval(j, t, f, exact, P, mu_last, logu, W, cf, hint):
+def _fval(j, t, f, exact, P, mu_last, logu, W, cf):
     if not exact[j]:
-        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True, hint)
+        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True)
         exact[j] = True
     return f[j]
 
 
 @njit(cache=True, error_model="numpy")
-def _ends(th, fh, delta, t, f, exact, P, mu_last, logu, W, cf, hint):
+def _ends(th, fh, delta, t, f, exact, P, mu_last, logu, W, cf):
     """Interval ends (in t) where the profile rises ``delta`` above ``fh``; open ends as NaN."""
     G = t.size
     j = np.searchsorted(t, th) - 1
-    while j >= 0 and _fval(j, t, f, exact, P, mu_last, logu, W, cf, hint) - fh < delta:
+    while j >= 0 and _fval(j, t, f, exact, P, mu_last, logu, W, cf) - fh < delta:
         j -= 1
     lo = math.nan
     if j >= 0:
         lo = _crossing(
-            t[j], th, f[j] - fh - delta, -delta, fh + delta, P, mu_last, logu, W, cf, hint
+            t[j], th, f[j] - fh - delta, -delta, fh + delta, P, mu_last, logu, W, cf
         )
     j = np.searchsorted(t, th)
-    while j < G and _fval(j, t, f, exact, P, mu_last, logu, W, cf, hint) - fh < delta:
+    while j < G and _fval(j, t, f, exact, P, mu_last, logu, W, cf) - fh < delta:
         j += 1
     hi = math.nan
     if j < G:
         hi = _crossing(
-            th, t[j], -delta, f[j] - fh - delta, fh + delta, P, mu_last, logu, W, cf, hint
+            th, t[j], -delta, f[j] - fh - delta, fh + delta, P, mu_last, logu, W, cf
         )
     return lo, hi
 
 
 @njit(cache=True, error_model="numpy")
-def _polish(i, t, f, xatol, P, mu_last, logu, W, cf, hint):
+def _polish(i, t, f, xatol, P, mu_last, logu, W, cf):
     """Minimum in the bracket of grid point ``i`` (its neighbours), never above ``f[i]``."""
     G = t.size
     a = t[i - 1] if i > 0 else t[0]
     b = t[i + 1] if i < G - 1 else t[G - 1]
-    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, hint)
+    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf)
     if not fh <= f[i]:
         th, fh = t[i], f[i]
     return th, fh
@@ -242,10 +238,9 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     G = t.size
     f = np.empty(G)
     exact = np.zeros(G, dtype=np.bool_)
-    hint = np.full(1, np.nan)
-    _scan(t, P, mu_last, logu, W, cf, f, exact, hint)
+    _scan(t, P, mu_last, logu, W, cf, f, exact)
     i = int(np.argmin(f))
-    th, fh = _polish(i, t, f, xatol, P, mu_last, logu, W, cf, hint)
+    th, fh = _polish(i, t, f, xatol, P, mu_last, logu, W, cf)
     if polish > 1:
         # the next lowest local minima of the scan: a narrow valley between grid points may
         # hold a lower minimum than the basin of the lowest grid point
@@ -261,12 +256,12 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         order = np.argsort(vals)
         for r in range(min(polish - 1, nc)):
             j = cand[order[r]]
-            tj, fj = _polish(j, t, f, xatol, P, mu_last, logu, W, cf, hint)
+            tj, fj = _polish(j, t, f, xatol, P, mu_last, logu, W, cf)
             if fj < fh:
                 th, fh, i = tj, fj, j
     out = np.full(7, math.nan)
     out[0], out[1], out[2] = th, fh, i
     if d95 > 0.0:
-        out[3], out[4] = _ends(th, fh, d95, t, f, exact, P, mu_last, logu, W, cf, hint)
-        out[5], out[6] = _ends(th, fh, d68, t, f, exact, P, mu_last, logu, W, cf, hint)
+        out[3], out[4] = _ends(th, fh, d95, t, f, exact, P, mu_last, logu, W, cf)
+        out[5], out[6] = _ends(th, fh, d68, t, f, exact, P, mu_last, logu, W, cf)
     return out
