@@ -27,6 +27,10 @@ The service: a real server (`snapwarn serve`, uvicorn, SQLite file in a temporar
 - the share of the cores the server and the client got (on a shared machine the rest went to
   other processes), and the 1-minute load average before and after.
 
+Then the live sweeps' latency (``--live-trials``, default 5; 0 skips): the time from one
+1e4-sample record's upload to its answer in a 20-record live sweep, with its Server-Timing split
+(``bench/live_latency.py``, run from here; target 50 ms of server time).
+
 Writes bench/results/service.json and bench/results/service.csv.
 """
 
@@ -311,6 +315,26 @@ def _print_core(label: str, c: dict) -> None:
     )
 
 
+def _live_record(trials: int) -> dict | None:
+    """Time from a live record's upload to its answer (``bench/live_latency.py``: a real
+    server, a 1e4-sample record added to a 20-record live sweep, Server-Timing split), run here
+    so that this benchmark reports it with the rest; None when skipped."""
+    if trials <= 0:
+        return None
+    sys.path.insert(0, str(ROOT / "bench"))
+    import live_latency  # noqa: PLC0415 (a sibling script, imported only when run)
+
+    print("\nlive sweeps: one record added to an open sweep (bench/live_latency.py)")
+    live_latency.main(["--trials", str(trials)])
+    res = json.loads((RESULTS / "live_latency.json").read_text())
+    print(
+        f"live record ({res['samples']} samples, {res['records_before']}-record sweep): server "
+        f"{res['server_ms_median']:.0f} ms median (target {res['target_server_ms']:.0f} ms), "
+        f"round trip {res['round_trip_ms_median']:.0f} ms"
+    )
+    return res
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--clients", type=int, nargs="+", default=[1, 8, 32])
@@ -325,6 +349,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--http", default="auto", help="uvicorn HTTP parser: auto, httptools, h11")
     ap.add_argument("--loop", default="auto", help="uvicorn event loop: auto, uvloop, asyncio")
     ap.add_argument("--out", type=Path, default=RESULTS / "service")
+    ap.add_argument(
+        "--live-trials", type=int, default=5,
+        help="live sweeps: trials of one 1e4-sample record added to a 20-record sweep (0: skip)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
@@ -368,8 +396,10 @@ def main(argv: list[str] | None = None) -> int:
         f"reference: detect() alone in one process: p50 {det['p50_ms']:.2f} ms, "
         f"p95 {det['p95_ms']:.2f} ms"
     )
+    live = _live_record(args.live_trials)
     doc = {
         "benchmark": "POST /v1/detections, inline signal",
+        "live_record": live,
         "core_bound": {"before": before, "after": after, "reference": ref},
         "detect_in_process": det,
         "samples": args.samples,
