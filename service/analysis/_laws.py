@@ -1,4 +1,4 @@
-"""The shared profile-likelihood engine: candidate laws, windows, noise, fits.
+"""The shared profile-likelihood engine: candidate laws, their fits and comparison.
 
 Laws fitted along the measured stable branch, ``x = mu* - mu > 0`` (paper, Sec. "Asymptotic
 analysis"; eqs. saddleGrowthRate, pitchforkGrowthRate, saddleEquilibriums,
@@ -17,8 +17,9 @@ and ``sigma^2(mu)`` carries a square-root branch point at ``mu* + delta``, while
 ``z ~ s - sqrt(delta)`` converges far beyond. As ``delta -> inf`` the law is the plain one.
 
 The number of correction terms and the window of "informative" points (the nearest points where
-the law holds) are chosen by a chi-square goodness-of-fit test against the measurement noise;
-the candidates are compared on a common window by BIC, which gives the model probabilities.
+the law holds) are chosen by a chi-square goodness-of-fit test against the measurement noise
+(:mod:`service.analysis._windows`, with the noise estimate); the candidates are compared on a
+common window by BIC, which gives the model probabilities.
 
 Public entry points (used by :mod:`service.analysis.classify` and
 :mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_mu_star`,
@@ -31,17 +32,14 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import optimize, special, stats
+from scipy import optimize
 
-from service.analysis._laws_kernels import REL_FLOOR as _REL_FLOOR
 from service.analysis._likelihood import (
     _Comp,
     _exp_grid,
     _free_exponent,
-    _nll,
     _Profile,
     _profile,
-    _profile_screen,
     _sigma_comp,
     _sigma_exps,
     _variants,
@@ -49,6 +47,20 @@ from service.analysis._likelihood import (
     _w_exps,
 )
 from service.analysis._sweep import Sweep
+from service.analysis._windows import (
+    _KMAX,
+    _KW_MAX,
+    _MIN_NOISE_DOF,
+    CANDIDATES,
+    _chi2_sf,
+    _estimate_noise,
+    _noise_flag,
+    _Sel,
+    _select_window,
+    _sigma_chi2,
+    _static_window,
+    _with_damping,
+)
 from service.analysis.common import Flag
 
 __all__ = [
@@ -61,167 +73,6 @@ __all__ = [
     "probabilities",
     "refit_mu_star",
 ]
-
-# name -> (a, b, h): a, b exponents; h the step of the regular corrections in powers of x.
-CANDIDATES: dict[str, tuple[float, float, float]] = {
-    "saddle-node": (0.25, 0.5, 0.5),
-    "subcritical-pitchfork": (0.5, 1.0, 1.0),
-    "supercritical-pitchfork": (0.5, 0.5, 1.0),
-}
-
-_KMAX = 3  # most correction terms in the sigma^2 law
-_KW_MAX = 3  # most terms beyond the constant in the static law
-_ALPHA = 0.05  # goodness-of-fit level for accepting a window
-
-def _window_sizes(n: int) -> list[int]:
-    if n <= 40:
-        return list(range(3, n + 1))
-    sizes = sorted(set(np.unique(np.round(np.geomspace(3, n, 36)).astype(int)).tolist()))
-    return sizes
-
-
-@dataclass(frozen=True)
-class _Sel:
-    """The informative window and number of correction terms for a sigma^2 law."""
-
-    n: int
-    K: int
-    accepted: bool
-    pvalue: float
-    conformal: bool = False
-
-
-def _chi2_sf(x: float, dof: int) -> float:
-    """``scipy.stats.chi2.sf(x, dof)`` (the same value) without the distribution machinery's
-    per-call overhead (some 50 us, paid hundreds of times per prediction)."""
-    return 1.0 if x < 0 else float(special.chdtrc(dof, x))
-
-
-def _chi2_isf(alpha: float, dof: int) -> float:
-    """Critical chi^2 value exceeded with probability ``alpha`` (``scipy.stats.chi2.isf``)."""
-    return float(special.chdtri(dof, alpha))
-
-
-def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
-    """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2.
-
-    Windows grow from the 3 nearest points; the scan stops after ``patience`` consecutive
-    window sizes that no number of corrections can fit (the law has stopped holding)."""
-    N = sw.mu.size
-    best: _Sel | None = None
-    fallback: _Sel | None = None
-    misses = 0
-    t_prev: float | None = None  # log(mu* - mu_last) of the last fit (continuation)
-    last = float(sw.mu[-1])
-    for n in _window_sizes(N):
-        idx = slice(N - n, N)
-        ok = False
-        for K in range(_KMAX + 1):
-            for cf in _variants(p, h, K):
-                dof = n - K - 2 - int(cf)
-                if dof < 1:
-                    break
-                comp = _sigma_comp(sw, idx, p, h, K, cf)
-                # screening: a cheap search accepts a window that passes at its best point (an
-                # upper bound of the minimum); the full search decides the rest (a screening
-                # search can miss the narrow valley of precise data: never a rejection from it)
-                t_prev, nll = _profile_screen(sw.mu[idx], [comp], scale, t_prev)
-                if nll > _chi2_isf(_ALPHA, dof):
-                    prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
-                    nll, t_prev = prof.nll, math.log(max(prof.mu_star - last, 1e-300))
-                pv = _chi2_sf(nll, dof)
-                if fallback is None or pv > fallback.pvalue:
-                    fallback = _Sel(n, K, False, pv, cf)
-                if pv >= _ALPHA:
-                    best = _Sel(n, K, True, pv, cf)
-                    ok = True
-                    break
-            if ok:
-                break
-        misses = 0 if ok else misses + 1
-        if misses >= patience and (best is not None or n >= 8):
-            break
-    if best is not None:
-        return best
-    assert fallback is not None
-    return fallback
-
-
-def _sigma_chi2(
-    sw: Sweep, p: float, h: float, n: int, K: int, scale: float, conformal: bool | None = None
-) -> float:
-    """Best chi^2 of the law on the nearest n points (over its variants when ``conformal`` is
-    None)."""
-    N = sw.mu.size
-    idx = slice(N - n, N)
-    cfs = _variants(p, h) if conformal is None else (conformal,)
-    return min(
-        _profile(sw.mu[idx], [_sigma_comp(sw, idx, p, h, K, cf)], scale, with_interval=False).nll
-        for cf in cfs
-    )
-
-
-_ASSUMED_REL = 1e-2  # relative noise assumed when it can be neither given nor estimated
-_MIN_NOISE_DOF = 3
-
-
-def _estimate_noise(sw: Sweep) -> Sweep:
-    """Relative noise of |sigma^2| when not given: residual scatter of the nearest points about
-    the best candidate law with two corrections (at least 3 degrees of freedom); with fewer than
-    6 points it cannot be estimated and ``_ASSUMED_REL`` is assumed (see ``_noise_flag``)."""
-    if sw.noise_given:
-        return sw
-    N = sw.mu.size
-    n = min(N, max(8, N // 2))
-    idx = slice(N - n, N)
-    scale = float(sw.mu[-1] - sw.mu[0])
-    best = math.inf
-    K = min(2, n - 2 - _MIN_NOISE_DOF)
-    if K >= 0:
-        for _, (a, _, h) in CANDIDATES.items():
-            for cf in _variants(2 * a, h):
-                if n - K - 2 - int(cf) < 1:
-                    continue
-                c = _Comp(sw.y[idx], 1.0 / sw.y[idx], _sigma_exps(2 * a, h, K), True, True,
-                          conformal=cf)  # fmt: skip
-                prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
-                best = min(best, prof.nll / (n - K - 2 - int(cf)))
-    s = math.sqrt(best) if math.isfinite(best) else _ASSUMED_REL
-    s = max(s, _REL_FLOOR)
-    return replace(sw, sd=s * sw.y, noise_given=False)
-
-
-def _noise_flag(sw: Sweep) -> Flag:
-    """The flag telling how the noise of an estimated-noise sweep was obtained."""
-    which = "sigma2_std" if sw.kind == "sigma2" else "omega_std"
-    rel = float(np.median(sw.sd / sw.y))
-    if sw.mu.size < 4 + _MIN_NOISE_DOF:
-        return Flag(
-            "noise_assumed",
-            f"no {which} given and only {sw.mu.size} points: relative noise of |sigma2| "
-            f"assumed to be {rel:.2g}",
-        )
-    return Flag(
-        "noise_estimated",
-        f"no {which} given: relative noise of |sigma2| estimated from the scatter as {rel:.2g}",
-    )
-
-
-def _with_damping(sw: Sweep, xi: float) -> Sweep:
-    """Map observed rates to |sigma^2| for damping ``xi``: omega^2 above xi/2, omega (xi - omega)
-    below it (the slow over-damped pole r satisfies r (xi - r) = s1 s2 = |sigma^2|)."""
-    assert sw.omega is not None
-    r = sw.omega
-    over = r < xi / 2
-    y = np.where(over, r * (xi - r), r**2)
-    if sw.omega_sd is not None:
-        d = np.where(over, np.abs(xi - 2 * r), 2 * r)
-        sd = np.sqrt((d * sw.omega_sd) ** 2 + 2 * sw.omega_sd**4)
-    else:
-        rel = sw.sd / sw.y  # estimated relative noise of omega^2
-        sd = rel * y * np.where(over, np.abs(xi - 2 * r) / np.maximum(xi - r, 1e-300) / 2, 1.0)
-        sd = np.maximum(sd, _REL_FLOOR * y)
-    return replace(sw, y=y, sd=sd, damping=xi)
 
 
 # --------------------------------------------------------------------------------------------
@@ -361,77 +212,6 @@ def _fit_candidate(
     return ModelFit(
         name, a, best.b, h, n, best.K, best.Kw, chi + best_pen, prof, n_w, best.conformal
     )
-
-
-def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[Flag]]:
-    """Window of the static law (>= n points) and, when not given, the noise of w.
-
-    The noise of w is estimated from the scatter about the widest static series (b = 1/2, five
-    terms, which contains the smooth b = 1 law) on the nearest max(8, n) points. The window then
-    grows while either static law (<= 1 + _KW_MAX terms, mu* fixed at the eigenvalue estimate)
-    passes the chi-square test; the candidates are compared on the largest such window, where
-    the wrong law cannot follow the data."""
-    flags: list[Flag] = []
-    N = sw.mu.size
-    if sw.w is None:
-        return sw, n, flags
-    if sw.w_sd is None:
-        m = min(N, max(8, n))
-        if m - 5 < _MIN_NOISE_DOF:
-            return sw, n, flags
-        idx = slice(N - m, N)
-        c = _Comp(sw.w[idx], np.ones(m), np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
-        rss = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0])
-        sig = max(math.sqrt(rss / (m - 5)), _REL_FLOOR * float(np.max(np.abs(sw.w))), 1e-300)
-        sw = replace(sw, w_sd=np.full(N, sig), w_noise_given=False)
-        flags.append(
-            Flag(
-                "w_noise_estimated", f"no w_static_std given: estimated from the scatter, {sig:.2g}"
-            )
-        )
-    else:
-        # over-dispersion of the static data (e.g. the mean of a kicked, nonlinear record is
-        # shifted by ~ amplitude^2 / |sigma^2|, far above a detector's stated offset error):
-        # scale the given noise by the reduced chi-square of the widest static series
-        m = min(N, max(8, n))
-        if m - 5 >= _MIN_NOISE_DOF:
-            idx = slice(N - m, N)
-            c = _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
-            phi = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0]) / (m - 5)
-            if phi > float(stats.chi2.ppf(0.99, m - 5)) / (m - 5):
-                sw = replace(sw, w_sd=sw.w_sd * math.sqrt(phi))
-                flags.append(
-                    Flag(
-                        "w_noise_underestimated",
-                        f"the static deflections scatter {math.sqrt(phi):.3g} times more than "
-                        "w_static_std: that noise was scaled up by this factor",
-                    )
-                )
-    best_n = n
-    for b in (0.5, 1.0):
-        misses = 0
-        for m in range(n, N + 1):
-            idx = slice(N - m, N)
-            ok = False
-            for Kw in range(1, _KW_MAX + 1):
-                dof = m - Kw - 1
-                if dof < 1:
-                    break
-                wc = _w_comp(sw, idx, b, Kw)
-                assert wc is not None
-                wc = _Comp(wc.y, wc.wt, wc.exps, True, True, 1, False, wc.mu)  # chi^2 test
-                chi = float(_nll(sw.mu[idx], [wc], np.array([mu_star]))[0])
-                if _chi2_sf(chi, dof) >= _ALPHA:
-                    ok = True
-                    break
-            if ok:
-                best_n = max(best_n, m)
-                misses = 0
-            else:
-                misses += 1
-                if misses >= 3:
-                    break
-    return sw, best_n, flags
 
 
 def _candidates(sw: Sweep) -> list[tuple[str, float, float | None, float]]:
