@@ -10,7 +10,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictFloat
 
 from service.schemas.analysis import (
     Alarm,
@@ -68,8 +68,8 @@ class LiveRecordIn(BaseModel):
 
     control: float | None = Field(default=None, allow_inf_nan=True)
     signal_id: str | None = Field(default=None, max_length=64)
-    w: list[float] | None = None
-    t: list[float] | None = None
+    w: list[StrictFloat] | None = None
+    t: list[StrictFloat] | None = None
     dt: float | None = None
     t0: float | None = None
     unit: str | None = Field(default=None, max_length=100)

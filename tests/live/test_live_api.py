@@ -147,6 +147,36 @@ def test_bad_input_names_the_field(client: Client, server) -> None:  # noqa: ANN
     live.close()
 
 
+def test_large_inline_record_is_streamed_and_booleans_refused(client: Client, server) -> None:  # noqa: ANN001
+    """A record of 80,000 samples (a ~1.6 MB JSON body, above the 1 MiB streaming threshold) is
+    read as a stream and detected as in process; booleans are not samples (a 422 naming the
+    item), in a small body as in a streamed one."""
+    import json
+
+    import numpy as np
+
+    from service.analysis.detect import detect
+
+    live = client.live_sweep("long record", step=0.3)
+    t, w = record(0.0, n=80_000)
+    body = json.dumps({"control": 0.0, "w": w.tolist(), "dt": DT}).encode()
+    assert len(body) > 1 << 20
+    r = httpx2.post(f"{server.url}/v1/sweeps/{live.id}/records", content=body,
+                    headers={"content-type": "application/json"}, timeout=120.0)  # fmt: skip
+    assert r.status_code == 201, r.text
+    ref = detect(w, dt=DT)
+    got = r.json()["detection"]["fundamental"]["sigma2"]
+    assert got == pytest.approx(ref.fundamental.sigma2, rel=1e-12)
+    for n in (10, 80_000):
+        doc = {"control": 0.3, "w": [0.0] * n, "dt": DT}
+        doc["w"][3] = True
+        r = httpx2.post(f"{server.url}/v1/sweeps/{live.id}/records", json=doc, timeout=120.0)
+        assert r.status_code == 422, r.text
+        assert r.json()["errors"][0]["field"] == "w[3]"
+    assert np.isfinite(got)
+    live.close()
+
+
 def test_two_clients_at_once_lose_nothing(server) -> None:  # noqa: ANN001
     """Two clients add four records each to one sweep at the same time: eight records, seq
     1..8, each answer computed on exactly the records before it, each client's order kept."""

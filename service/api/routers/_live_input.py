@@ -12,12 +12,11 @@ from typing import Any
 
 from anyio import to_thread
 from fastapi import Request
-from pydantic import ValidationError
 
 from service import recordings
+from service.api import jsonbody
 from service.api.auth import Caller
 from service.api.problems import ApiProblem, invalid
-from service.api.routers._common import body_validation_error
 from service.api.state import AppState
 from service.schemas.live import LiveRecordIn
 
@@ -65,10 +64,8 @@ def _finite_control(value: Any, field: str = "control") -> float:
 
 
 async def record_from_json(request: Request, state: AppState, caller: Caller) -> dict[str, Any]:
-    try:
-        doc = LiveRecordIn.model_validate_json(await request.body())
-    except ValidationError as exc:
-        raise body_validation_error(exc) from None
+    # a large record is parsed as a stream (samples straight into float64, bounded memory)
+    doc = await jsonbody.read_model(request, LiveRecordIn, state.settings)
     if doc.signal_id is not None:
         if doc.w is not None or doc.t is not None:
             raise invalid("signal_id", doc.signal_id, "give a signal_id or samples, not both")
