@@ -1,7 +1,7 @@
 """Calibration of the predictor on random lab plans: coverage of the 95 % interval, type, error
 against the paper's two-point rule on the same data.
 
-    python bench/calibration.py [--plans N] [--seed S] [--workers W] [--quick]
+    python bench/calibration.py [--plans N] [--seed S] [--workers W] [--quick] [--from-csv]
 
 A lab plan is what an experimenter does without knowing mu*: a fixed grid of control values
 ``mu_k = mu_last - k h`` (step ``h`` uniform in [0.02, 0.1], every point >= 0) that stops at
@@ -12,8 +12,10 @@ given). The truth is the Euler beam's own spectrum (``sim.euler_beam.spectrum``,
 of the U_A branch) and static deflection, for the three actuations, and the normal-form records
 (``sim.normal_form``: sigma^2 and the amplitude of the amplitude equation, exact laws).
 
-Per source and actuation the table gives: coverage of the 95 % interval (target 93-97 %; also
-split by plans with and without static data), the
+Per source and actuation the table gives: coverage of the 95 % interval (target 93-97 %) with
+its binomial 95 % range (Clopper-Pearson: what the plan count can tell), split by plans with and
+without static data; the median of |error| / half-width (the half on the truth's side): 0.34 for
+a calibrated interval of Gaussian errors, smaller when the interval is wider than its errors; the
 transition named right (``pitchfork`` without static data counts as right for a pitchfork), a
 confident wrong criticality (a named transition that is wrong), median |mu* error| ours and the
 paper's rule (``T > 10 T0`` and two-point extrapolation with the true exponent, the rule's best
@@ -38,6 +40,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -181,6 +184,22 @@ def run_plan(plan: Plan) -> dict:
     }
 
 
+def binomial_range(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Clopper-Pearson ``level`` range of a proportion from ``k`` successes in ``n`` trials."""
+    a = (1 - level) / 2
+    lo = float(stats.beta.ppf(a, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(stats.beta.ppf(1 - a, k + 1, n - k)) if k < n else 1.0
+    return lo, hi
+
+
+def error_over_half_width(r: dict) -> float:
+    """|error| over the interval's half on the truth's side (``error``, ``lo``, ``hi`` relative
+    to mu*): below 1 when covered; about 0.34 at the median for a calibrated interval."""
+    err, lo, hi = float(r["error"]), float(r["lo"]), float(r["hi"])
+    half = (hi - err) if err < 0 else (err - lo)  # mu* = 0 lies above the estimate when err < 0
+    return abs(err) / half if half > 0 else math.inf
+
+
 def summarise(rows: list[dict]) -> list[dict]:
     out = []
     groups = sorted({(r["source"], r["actuation"]) for r in rows}, key=lambda g: (
@@ -191,9 +210,12 @@ def summarise(rows: list[dict]) -> list[dict]:
         worse = [r for r in g if r["worse"]]
         gw = [r for r in g if r["with_w"]]
         go = [r for r in g if not r["with_w"]]
+        k = sum(r["covered"] for r in g)
         out.append({
             "source": src, "actuation": act, "plans": n,
-            "coverage": sum(r["covered"] for r in g) / n,
+            "coverage": k / n,
+            "coverage_range": binomial_range(k, n),
+            "median_err_over_half": float(np.median([error_over_half_width(r) for r in g])),
             "coverage_w": sum(r["covered"] for r in gw) / max(len(gw), 1),
             "coverage_no_w": sum(r["covered"] for r in go) / max(len(go), 1),
             "type_right": sum(r["right"] for r in g) / n,
@@ -214,26 +236,34 @@ def table_md(summary: list[dict], meta: str) -> str:
         "",
         meta,
         "",
-        "| source | actuation | plans | coverage 95 % | (with w / without) | type right | "
+        "| source | actuation | plans | coverage 95 % | binomial 95 % range | (with w / without) | "
+        "median abs err / half-width | type right | "
         "confident wrong | median abs err ours | median abs err paper's rule | "
         "worse than rule | of which flagged | of which missed | median CPU s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summary:
         lines.append(
             f"| {s['source']} | {s['actuation']} | {s['plans']} | {100 * s['coverage']:.1f} % | "
+            f"{100 * s['coverage_range'][0]:.0f}-{100 * s['coverage_range'][1]:.0f} % | "
             f"{100 * s['coverage_w']:.0f} % / {100 * s['coverage_no_w']:.0f} % | "
+            f"{s['median_err_over_half']:.2f} | "
             f"{100 * s['type_right']:.0f} % | {s['confident_wrong']} | {s['median_err']:.2e} | "
             f"{s['median_rule_err']:.2e} | {100 * s['worse']:.1f} % | {s['worse_flagged']} | "
             f"{s['worse_missed']} | "
             f"{s['median_cpu_s']:.2f} |"
         )
+    n = sum(s["plans"] for s in summary)
+    k = round(sum(s["coverage"] * s["plans"] for s in summary))
+    lo, hi = binomial_range(k, n)
+    lines += ["", f"All {n} plans: coverage {100 * k / n:.1f} % (binomial 95 % range "
+              f"{100 * lo:.1f}-{100 * hi:.1f} %)."]  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--plans", type=int, default=60, help="plans per (source, actuation)")
+    ap.add_argument("--plans", type=int, default=100, help="plans per (source, actuation)")
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="10 plans per (source, actuation)")
@@ -278,7 +308,7 @@ def _from_csv() -> list[dict]:
         d: dict = dict(r)
         for k in ("covered", "right", "confident_wrong", "worse", "flagged", "with_w"):
             d[k] = r[k] == "True"
-        for k in ("error", "rule_error", "cpu_s"):
+        for k in ("error", "lo", "hi", "rule_error", "cpu_s"):
             d[k] = float(r[k])
         rows.append(d)
     summary = summarise(rows)
