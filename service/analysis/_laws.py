@@ -22,7 +22,7 @@ the law holds) are chosen by a chi-square goodness-of-fit test against the measu
 common window by BIC, which gives the model probabilities.
 
 Public entry points (used by :mod:`service.analysis.classify` and
-:mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_mu_star`,
+:mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_profile`,
 :func:`free_exponent_a`, :func:`free_exponent_b`, :class:`ModelFit`, :data:`CANDIDATES`.
 """
 
@@ -71,7 +71,7 @@ __all__ = [
     "free_exponent_a",
     "free_exponent_b",
     "probabilities",
-    "refit_mu_star",
+    "refit_profile",
 ]
 
 
@@ -434,16 +434,18 @@ def probabilities(fits: list[ModelFit]) -> dict[str, float]:
     return _probabilities(fits)
 
 
-def refit_mu_star(sweep: Sweep, fit: ModelFit, n: int, K: int) -> float:
+def refit_profile(sweep: Sweep, fit: ModelFit, n: int, K: int) -> tuple[float, float]:
     """mu* of ``fit``'s eigenvalue law refitted on the nearest ``n`` points with ``K``
-    corrections (same variant); NaN when that fit has no degrees of freedom left."""
+    corrections (same variant) and its standard deviation, half the width of the 68 % profile
+    interval (control units); NaNs when that fit has no degrees of freedom left."""
     if n - K - 2 - int(fit.conformal) < 1 or n < 3 or K < 0 or n > sweep.mu.size:
-        return math.nan
+        return math.nan, math.nan
     N = sweep.mu.size
     idx = slice(N - n, N)
     comp = _sigma_comp(sweep, idx, 2 * fit.a, fit.h, K, fit.conformal)
     scale = float(sweep.mu[-1] - sweep.mu[0])
-    return _profile(sweep.mu[idx], [comp], scale, with_interval=False).mu_star
+    prof = _profile(sweep.mu[idx], [comp], scale, with_interval=True)
+    return prof.mu_star, 0.5 * (prof.hi68 - prof.lo68)
 
 
 def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis._laws import CANDIDATES, ModelFit, analyse
-from service.analysis._likelihood import _profile, _sigma_comp, profile_memo
+from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
+from service.analysis._likelihood import profile_memo
 from service.analysis._sweep import Sweep, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
@@ -273,20 +273,6 @@ def _mixture(
     return mean, std, q_lo, q_hi
 
 
-def _refit(sw: Sweep, fit: ModelFit, n: int, K: int) -> tuple[float, float]:
-    """(mu*, std) of ``fit``'s eigenvalue law refitted on the nearest ``n`` points with ``K``
-    corrections (same variant); std is the half-width of the 68 % profile interval. NaNs when
-    that fit has no degrees of freedom left. (The engine's ``refit_mu_star`` gives mu* alone;
-    this is it with the interval, until the engine offers that.)"""
-    if n - K - 2 - int(fit.conformal) < 1 or n < 3 or K < 0 or n > sw.mu.size:
-        return math.nan, math.nan
-    N = sw.mu.size
-    idx = slice(N - n, N)
-    comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, K, fit.conformal)
-    prof = _profile(sw.mu[idx], [comp], float(sw.mu[-1] - sw.mu[0]), with_interval=True)
-    return prof.mu_star, 0.5 * (prof.hi68 - prof.lo68)
-
-
 _RICHARDSON = 2.0  # bias of the main fit over the bias its less-truncated neighbours reveal
 
 
@@ -319,7 +305,7 @@ def _truncation_spread(sw: Sweep, fit: ModelFit) -> tuple[float, float]:
     alternatives = {(fit.n, fit.K + 1), (fit.n - 1, fit.K + 1), (half, fit.K), (half, fit.K + 1)}
     alternatives |= {(fit.n - d, fit.K) for d in (1, 2, 3)}
     for n2, K2 in sorted(alternatives):
-        alt, s_alt = _refit(sw, fit, n2, K2)
+        alt, s_alt = refit_profile(sw, fit, n2, K2)
         if not (math.isfinite(alt) and math.isfinite(s_alt) and math.isfinite(s0)):
             continue
         d = alt - m0
