@@ -23,7 +23,8 @@ common window by BIC, which gives the model probabilities.
 
 Public entry points (used by :mod:`service.analysis.classify` and
 :mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_profile`,
-:func:`free_exponent_a`, :func:`free_exponent_b`, :class:`ModelFit`, :data:`CANDIDATES`.
+:func:`free_exponent_a`, :func:`free_exponent_b`, :func:`secondary_fold`, :class:`ModelFit`,
+:data:`CANDIDATES`.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from service.analysis._likelihood import (
     _Comp,
     _exp_grid,
     _free_exponent,
+    _nll_u,
     _Profile,
     _profile,
     _sigma_comp,
@@ -72,6 +74,7 @@ __all__ = [
     "free_exponent_b",
     "probabilities",
     "refit_profile",
+    "secondary_fold",
 ]
 
 
@@ -446,6 +449,19 @@ def refit_profile(sweep: Sweep, fit: ModelFit, n: int, K: int) -> tuple[float, f
     scale = float(sweep.mu[-1] - sweep.mu[0])
     prof = _profile(sweep.mu[idx], [comp], scale, with_interval=True)
     return prof.mu_star, 0.5 * (prof.hi68 - prof.lo68)
+
+
+def secondary_fold(sweep: Sweep, fit: ModelFit) -> float:
+    """Distance ``delta`` from ``fit``'s mu* to the secondary fold its conformal law profiled
+    (control units; ``inf`` for a plain law or when the plain law is best at that mu*)."""
+    if not fit.conformal or not math.isfinite(fit.profile.mu_star):
+        return math.inf
+    N = sweep.mu.size
+    idx = slice(N - fit.n, N)
+    comp = _sigma_comp(sweep, idx, 2 * fit.a, fit.h, fit.K, True)
+    _, u = _nll_u(sweep.mu[idx], [comp], np.array([fit.profile.mu_star]))
+    x_last = fit.profile.mu_star - float(sweep.mu[-1])
+    return x_last / float(u[0]) if u[0] > 0 else math.inf
 
 
 def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:

@@ -43,7 +43,8 @@ class _Comp:
     conformal: bool = False  # series in z (a secondary fold at mu* + delta, delta profiled)
 
 
-_LOGU = np.linspace(math.log(1e-4), math.log(10.0), 11)  # u = (mu* - mu_last) / delta
+U_MAX = 10.0  # largest u = (mu* - mu_last) / delta: a secondary fold no nearer than that
+_LOGU = np.linspace(math.log(1e-4), math.log(U_MAX), 11)  # grid of log u
 _T_LO, _T_HI, _T_MIN = math.log(1e-9), math.log(30.0), math.log(1e-12)  # range of log(d/scale)
 _UNIT = {n: np.linspace(0.0, 1.0, n) for n in (21, _GRID_CF, _GRID)}  # scans of the range
 _NEAR = np.linspace(-1.0, 1.0, 9)  # around a known optimum

@@ -46,7 +46,9 @@ from service.analysis._laws import (
     free_exponent_a,
     free_exponent_b,
     probabilities,
+    secondary_fold,
 )
+from service.analysis._likelihood import U_MAX as FOLD_U_MAX
 from service.analysis._likelihood import profile_memo
 from service.analysis._sweep import Sweep, prepare_sweep
 from service.analysis.common import Flag
@@ -297,6 +299,25 @@ def classify_sweep(
                 f"the best candidate {top.name} has probability {p_top:.2f} < {min_probability}",
             )
         )
+    if "pitchfork" in transition:
+        # a pitchfork law in the conformal variable whose secondary fold sits at the nearest the
+        # law allows (delta = x_last / FOLD_U_MAX) is a fold in disguise: over the measured
+        # range (x >> delta) its series in z ~ sqrt(delta x) is a fold's, and the fit asks for
+        # delta -> 0, a branch that simply ends (measured: a coarse noisy fold plan called a
+        # pitchfork at 0.99995, delta pinned at that limit; the symmetric beam's true secondary
+        # fold, 0.0119 beyond mu*, stays inside it for every plan stopping within 0.1)
+        delta = secondary_fold(sw, top)
+        x_last = float(top.profile.mu_star - sw.mu[-1])
+        if delta <= x_last / (FOLD_U_MAX * (1 - 1e-6)):
+            transition = "undetermined"
+            flags.append(
+                Flag(
+                    "fold_indistinct",
+                    f"the {top.name} law needs a secondary fold {delta:.3g} beyond mu*, nearer "
+                    f"than the last record ({x_last:.3g} before it): a fold explains the records "
+                    "as well, the type is not named",
+                )
+            )
     t_ratio = math.sqrt(float(sw0.y[0] / sw0.y[-1]))
     if t_ratio < MIN_T_RATIO and transition != "undetermined":
         # the asymptotic laws are not reached yet: far from mu* a fold and a pitchfork with a

@@ -161,3 +161,19 @@ def test_no_type_named_while_the_other_exponent_keeps_five_percent() -> None:
     assert row["transition"] == "undetermined"
     assert "type_withheld" in row["flags"]
     assert 0.05 <= row["p_true"] < 0.1  # the fold, the rival kept above 5 %
+
+
+def test_fold_in_disguise_is_not_called_a_pitchfork() -> None:
+    """A coarse noisy fold plan (a calibration plan: step 0.095, stop 0.0058 before mu*, noise
+    5.6e-4, no static data): the pitchfork law in the conformal variable fits it best by pinning
+    its secondary fold at the nearest it allows -- a branch that simply ends, i.e. a fold. The
+    type is then withheld (flag ``fold_indistinct``) where it was called a pitchfork at
+    0.99995; the symmetric beam's true secondary fold never trips it (test above)."""
+    d = lab_sweep("asymmetric", 0.09537325053274796, 0.005772852750816229,
+                  rel=0.0005575226606433603, seed=201188064)  # fmt: skip
+    c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
+    assert c.probabilities["pitchfork"] > 0.99  # what the comparison alone would say
+    assert c.transition == "undetermined"
+    assert "fold_indistinct" in {f.code for f in c.flags}
+    p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
+    assert p.transition not in ("pitchfork", "subcritical-pitchfork", "supercritical-pitchfork")
