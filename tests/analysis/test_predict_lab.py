@@ -139,10 +139,8 @@ def test_noise_free_fold_gives_an_interval_not_an_error() -> None:
     assert abs(p.mu_star - 2.0) < 1e-6
 
 
-def test_no_type_named_while_the_other_exponent_keeps_five_percent() -> None:
-    """A coarse, noisy asymmetric plan (step 0.085, stop 0.0057 before the fold, noise 9e-4,
-    no static data) was called a pitchfork at probability 0.93: while the other exponent keeps
-    >= 5 % the type is withheld (flag), never named wrong, and the interval covers mu*."""
+def _calibration_plan(**kw: object) -> dict:
+    """One plan of bench/calibration.py run through it (its data and predict)."""
     import importlib.util
     import sys
     from pathlib import Path
@@ -153,14 +151,32 @@ def test_no_type_named_while_the_other_exponent_keeps_five_percent() -> None:
     cal = importlib.util.module_from_spec(spec)
     sys.modules["calibration"] = cal
     spec.loader.exec_module(cal)
-    plan = cal.Plan(index=14, source="euler-beam", actuation="asymmetric",
-                    step=0.08530704830552606, stop=0.005739741625910706,
-                    rel=0.000906767130229382, with_w=False, seed=1266997513)  # fmt: skip
-    row = cal.run_plan(plan)
+    return cal.run_plan(cal.Plan(source="euler-beam", actuation="asymmetric", **kw))
+
+
+def test_no_type_named_while_the_other_exponent_keeps_five_percent() -> None:
+    """A fold plan (step 0.082, stop 0.035 before it, noise 1.4e-5, no static data) where the
+    saddle-node wins at 0.94 and the pitchfork keeps 0.06: while the other exponent keeps
+    >= 5 % the type is withheld (flag), never named wrong, and the interval covers mu*."""
+    row = _calibration_plan(index=51, step=0.08172296303253954, stop=0.03471226328353402,
+                            rel=1.4346494951659886e-05, with_w=False, seed=455565353)  # fmt: skip
     assert row["covered"]
     assert row["transition"] == "undetermined"
     assert "type_withheld" in row["flags"]
-    assert 0.05 <= row["p_true"] < 0.1  # the fold, the rival kept above 5 %
+    assert 0.9 <= row["p_true"] <= 0.95  # the fold favoured, the rival kept above 5 %
+
+
+def test_coarse_noisy_fold_named_a_pitchfork_before_is_withheld() -> None:
+    """A coarse, noisy asymmetric plan (step 0.085, stop 0.0057 before the fold, noise 9e-4,
+    no static data) was called a pitchfork at probability 0.93: the pitchfork law's secondary
+    fold is pinned at its limit (a fold in disguise), the type is withheld, the interval covers
+    mu*."""
+    row = _calibration_plan(index=14, step=0.08530704830552606, stop=0.005739741625910706,
+                            rel=0.000906767130229382, with_w=False, seed=1266997513)  # fmt: skip
+    assert row["covered"]
+    assert row["transition"] == "undetermined"
+    assert "fold_indistinct" in row["flags"]
+    assert 0.05 <= row["p_true"] < 0.1  # the comparison alone favours the pitchfork
 
 
 def test_fold_in_disguise_is_not_called_a_pitchfork() -> None:
