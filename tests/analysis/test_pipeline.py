@@ -59,9 +59,26 @@ def test_warn_meets_the_accuracy_target(actuation: str) -> None:
     res = warn(actuation, seed=3, max_measurements=30)
     t = res.to_dict()["truth"]
     assert abs(t["error"]) <= 1e-5
-    assert t["covered"]  # coverage over seeds is measured by bench/warn.py
     assert t["transition_correct"]
     assert t["max_mu_measured"] < t["mu_star"]
+
+
+@pytest.mark.slow
+def test_warn_interval_covers_mu_star_over_seeds() -> None:
+    """The 95 % interval of warn's final prediction over 12 seeds x 3 actuations covers mu* at
+    least as often as a 95 % interval would with probability 0.99 (binomial lower bound,
+    computed; a calibrated interval misses one seed in twenty, so one seed alone says little).
+    Measured: 32 of 36."""
+    from scipy import stats
+
+    seeds, acts = range(12), ("asymmetric", "symmetric", "antisymmetric")
+    covered = sum(
+        bool(warn(a, seed=s, max_measurements=30).to_dict()["truth"]["covered"])
+        for a in acts
+        for s in seeds
+    )
+    n = len(seeds) * len(acts)
+    assert covered >= stats.binom.ppf(0.01, n, 0.95)  # 31 of 36: P(X <= 30) = 0.8 %
 
 
 def _lab_records(actuation: str, mus: np.ndarray, *, deg: float, seconds: float):
