@@ -13,9 +13,9 @@ with conformal components the secondary fold distance is profiled out per ``mu*`
 ``u = (mu* - mu_last) / delta`` in ``[0, u_max]`` (a grid, then golden-section/parabolic
 refinement in ``log u``).
 
-Components are packed in plain arrays (``start[c]:start[c+1]`` slices of ``mu``, ``y``, ``wt``;
-``exps[c, :nexp[c]]``; ``opts[c] = (known, lead, lead_col, signed, conformal)``). A slow numpy
-reference lives in the tests.
+Components are packed in three plain arrays (``D``: rows mu, y, wt of all components one after
+the other; ``E[c, :k]``: exponents; ``M[c] = (offset, n, k, known, lead, lead_col, signed,
+conformal)``). A slow numpy reference lives in the tests.
 """
 
 from __future__ import annotations
@@ -44,89 +44,95 @@ def _pow(x, e):
 
 
 @njit(cache=True, error_model="numpy")
-def _comp_nll(
-    ms, u, mu, y, wt, exps, k, known, lead, lead_col, signed, conformal, x_last, A, A0, b, R, coef
-):
-    """-2 log L of one component at transition point ``ms`` and fold parameter ``u``
-    (``A``, ``A0``, ``b``, ``R``, ``coef``: work arrays of at least (n, k), (n, k), (n,), (k, k),
-    (k,))."""
-    n = mu.size
+def _comp_nll(ms, u, D, E, M, c, x_last, WK, RK):
+    """-2 log L of component ``c`` at transition point ``ms`` and fold parameter ``u``.
+
+    ``D``: (3, N) rows mu, y, wt; ``E``: (C, kmax) exponents; ``M``: (C, 8) integers
+    ``(offset, n, k, known, lead, lead_col, signed, conformal)``; ``WK``: work of at least
+    (2 kmax + 1, N) (rows: the design, its copy, the data); ``RK``: (kmax, kmax + 1) (R and the
+    coefficients). Few arrays, rows contiguous: per evaluation, passing arrays costs more than
+    the arithmetic of a small window."""
+    o, n, k = M[c, 0], M[c, 1], M[c, 2]
+    known, lead, lead_col, signed = M[c, 3] == 1, M[c, 4] == 1, M[c, 5], M[c, 6] == 1
+    conformal = M[c, 7] == 1
     delta = x_last / u if (conformal and u > 0.0) else 0.0
     arith = k >= 2
-    step = exps[1] - exps[0] if k >= 2 else 0.0
+    step = E[c, 1] - E[c, 0] if k >= 2 else 0.0
     for j in range(2, k):
-        if abs(exps[j] - exps[j - 1] - step) > 1e-12:
+        if abs(E[c, j] - E[c, j - 1] - step) > 1e-12:
             arith = False
+    e0 = E[c, 0]
+    kb = 2 * k  # row of the data in WK; the design: rows 0..k-1, its copy: k..2k-1
     bmax = 0.0
     for i in range(n):
-        x = ms - mu[i]
+        x = ms - D[0, o + i]
         if x < 1e-300:
             x = 1e-300
         if delta > 0.0:
             x = 2.0 * x / (1.0 + math.sqrt(1.0 + x / delta))
+        wi = D[2, o + i]
         if arith:
-            v = _pow(x, exps[0])
+            v = _pow(x, e0)
             r = _pow(x, step)
             for j in range(k):
-                A[i, j] = v * wt[i]
+                WK[j, i] = v * wi
                 v *= r
         else:
             for j in range(k):
-                A[i, j] = _pow(x, exps[j]) * wt[i]
-        b[i] = y[i] * wt[i]
-        if abs(b[i]) > bmax:
-            bmax = abs(b[i])
+                WK[j, i] = _pow(x, E[c, j]) * wi
+        bi = D[1, o + i] * wi
+        WK[kb, i] = bi
+        if abs(bi) > bmax:
+            bmax = abs(bi)
     for j in range(k):
         s = 0.0
         for i in range(n):
-            s += A[i, j] * A[i, j]
+            s += WK[j, i] * WK[j, i]
         s = math.sqrt(s)
         if s == 0.0 or not math.isfinite(s):
             s = 1.0 if s == 0.0 else s
         for i in range(n):
-            A[i, j] /= s
-            A0[i, j] = A[i, j]
-    # Householder QR, applied to b as we go
+            WK[j, i] /= s
+            WK[k + j, i] = WK[j, i]
     for j in range(k):
         for jj in range(k):
-            R[j, jj] = 0.0
+            RK[j, jj] = 0.0
     for j in range(k):
         nrm = 0.0
         for i in range(j, n):
-            nrm += A[i, j] * A[i, j]
+            nrm += WK[j, i] * WK[j, i]
         nrm = math.sqrt(nrm)
         if nrm == 0.0:
             continue
-        alpha = -nrm if A[j, j] > 0 else nrm
-        v0 = A[j, j] - alpha
+        alpha = -nrm if WK[j, j] > 0 else nrm
+        v0 = WK[j, j] - alpha
         vnorm2 = v0 * v0
         for i in range(j + 1, n):
-            vnorm2 += A[i, j] * A[i, j]
+            vnorm2 += WK[j, i] * WK[j, i]
         if vnorm2 == 0.0:
-            R[j, j] = A[j, j]
+            RK[j, j] = WK[j, j]
             continue
-        # reflect the remaining columns
         for jj in range(j + 1, k):
-            d = v0 * A[j, jj]
+            d = v0 * WK[jj, j]
             for i in range(j + 1, n):
-                d += A[i, j] * A[i, jj]
+                d += WK[j, i] * WK[jj, i]
             f = 2.0 * d / vnorm2
-            A[j, jj] -= f * v0
+            WK[jj, j] -= f * v0
             for i in range(j + 1, n):
-                A[i, jj] -= f * A[i, j]
-        d = v0 * b[j]
+                WK[jj, i] -= f * WK[j, i]
+        d = v0 * WK[kb, j]
         for i in range(j + 1, n):
-            d += A[i, j] * b[i]
+            d += WK[j, i] * WK[kb, i]
         f = 2.0 * d / vnorm2
-        b[j] -= f * v0
+        WK[kb, j] -= f * v0
         for i in range(j + 1, n):
-            b[i] -= f * A[i, j]
-        A[j, j] = alpha
+            WK[kb, i] -= f * WK[j, i]
+        WK[j, j] = alpha
         for jj in range(j, k):
-            R[j, jj] = A[j, jj]
+            RK[j, jj] = WK[jj, j]
     rss = 0.0
     for i in range(k, n):
-        rss += b[i] * b[i]
+        rss += WK[kb, i] * WK[kb, i]
     if known:
         out = rss
     else:
@@ -134,24 +140,25 @@ def _comp_nll(
         dof = n - k if n - k > 1 else 1
         out = dof * math.log(max(rss, floor) / n)
     if lead and k > lead_col + 1:
+        kc = k  # the coefficients: column k of RK
         for j in range(k):
-            coef[j] = 0.0
+            RK[j, kc] = 0.0
         ok = True
         for j in range(k - 1, -1, -1):
-            s = b[j]
+            s = WK[kb, j]
             for jj in range(j + 1, k):
-                s -= R[j, jj] * coef[jj]
-            if R[j, j] == 0.0:
+                s -= RK[j, jj] * RK[jj, kc]
+            if RK[j, j] == 0.0:
                 ok = False
                 break
-            coef[j] = s / R[j, j]
+            RK[j, kc] = s / RK[j, j]
         if ok:
             worst = 0.0
             for i in range(n):
-                ld = A0[i, lead_col] * coef[lead_col]
+                ld = WK[k + lead_col, i] * RK[lead_col, kc]
                 corr = 0.0
                 for j in range(lead_col + 1, k):
-                    corr += A0[i, j] * coef[j]
+                    corr += WK[k + j, i] * RK[j, kc]
                 if signed:
                     r = abs(corr) / ld if ld > 0 else math.inf
                 else:
@@ -165,23 +172,16 @@ def _comp_nll(
                 out += 1e4 * ex * ex
     return out
 
-
 @njit(cache=True, error_model="numpy")
-def _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, W):
-    A, A0, b, R, coef = W
+def _total(ms, u, D, E, M, x_last, WK, RK):
     out = 0.0
-    for c in range(start.size - 1):
-        a, e = start[c], start[c + 1]
-        out += _comp_nll(
-            ms, u, mu[a:e], y[a:e], wt[a:e], exps[c], nexp[c], opts[c, 0] == 1,
-            opts[c, 1] == 1, opts[c, 2], opts[c, 3] == 1, opts[c, 4] == 1, x_last, A, A0, b, R,
-            coef,
-        )  # fmt: skip
+    for c in range(M.shape[0]):
+        out += _comp_nll(ms, u, D, E, M, c, x_last, WK, RK)
     return out
 
 
 @njit(cache=True, error_model="numpy")
-def _refine_u(ms, a, c, xb, fxb, mu, y, wt, start, exps, nexp, opts, x_last, W):
+def _refine_u(ms, a, c, xb, fxb, D, E, M, x_last, WK, RK):
     """Golden section with parabolic steps for the log fold parameter on ``[a, c]`` around
     ``xb`` (value ``fxb``); returns the best (log u, -2 log L)."""
     w, fw, v, fv = xb, fxb, xb, fxb
@@ -209,7 +209,7 @@ def _refine_u(ms, a, c, xb, fxb, mu, y, wt, start, exps, nexp, opts, x_last, W):
             e = (c - xb) if xb < m else (a - xb)
             d = _GOLD * e
         ut = xb + (d if abs(d) >= tol else (tol if d > 0 else -tol))
-        fu = _total(ms, math.exp(ut), mu, y, wt, start, exps, nexp, opts, x_last, W)
+        fu = _total(ms, math.exp(ut), D, E, M, x_last, WK, RK)
         if not math.isfinite(fu):
             fu = 1e300
         if fu <= fxb:
@@ -231,19 +231,19 @@ def _refine_u(ms, a, c, xb, fxb, mu, y, wt, start, exps, nexp, opts, x_last, W):
 
 
 @njit(cache=True, error_model="numpy")
-def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine):
+def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
     """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
     x_last = ms - mu_last
     if x_last < 1e-300:
         x_last = 1e-300
-    best = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
+    best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     best_u = 0.0
     G = logu.size
     f = np.empty(G)
     jb = -1
     fb = math.inf
     for g in range(G):
-        v = _total(ms, math.exp(logu[g]), mu, y, wt, start, exps, nexp, opts, x_last, W)
+        v = _total(ms, math.exp(logu[g]), D, E, M, x_last, WK, RK)
         f[g] = v if math.isfinite(v) else 1e300
         if f[g] < fb:
             fb = f[g]
@@ -256,7 +256,7 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine)
         return best, best_u
     a = logu[jb - 1] if jb > 0 else logu[0]
     c = logu[jb + 1] if jb < G - 1 else logu[G - 1]
-    xb, fxb = _refine_u(ms, a, c, logu[jb], fb, mu, y, wt, start, exps, nexp, opts, x_last, W)
+    xb, fxb = _refine_u(ms, a, c, logu[jb], fb, D, E, M, x_last, WK, RK)
     if fxb < best:
         best = fxb
         best_u = math.exp(xb)
@@ -264,47 +264,46 @@ def _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine)
 
 
 @njit(cache=True, error_model="numpy")
-def _work(mu, nexp):
+def _work(D, M):
+    """Work arrays ``(WK, RK)`` of :func:`_comp_nll` for the packed data."""
     k = 1
-    for c in range(nexp.size):
-        k = max(k, nexp[c])
-    n = mu.size
-    return np.empty((n, k)), np.empty((n, k)), np.empty(n), np.empty((k, k)), np.empty(k)
+    for c in range(M.shape[0]):
+        k = max(k, M[c, 2])
+    return np.empty((2 * k + 1, D.shape[1])), np.empty((k, k + 1))
 
 
 @njit(cache=True, error_model="numpy")
-def nll_rows(mu_star, mu, y, wt, start, exps, nexp, opts, mu_last, logu, refine=True):
+def nll_rows(mu_star, D, E, M, mu_last, logu, refine=True):
     """-2 log L at each ``mu_star`` (shape (G,)) and the fold parameter ``u`` profiled there
     (0 without conformal components or when the plain law is best); ``refine=False``: the
-    minimum over the ``logu`` grid only (an upper bound, for a coarse scan)."""
+    minimum over the ``logu`` grid only (an upper bound, for a coarse scan). ``D, E, M``: the
+    packed components (:func:`_comp_nll`)."""
     G = mu_star.size
     out = np.empty(G)
     ubest = np.zeros(G)
-    W = _work(mu, nexp)
+    WK, RK = _work(D, M)
     conformal = False
-    for c in range(opts.shape[0]):
-        if opts[c, 4] == 1:
+    for c in range(M.shape[0]):
+        if M[c, 7] == 1:
             conformal = True
     for g in range(G):
         ms = mu_star[g]
         if conformal:
-            out[g], ubest[g] = _profile_u(
-                ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine
-            )
+            out[g], ubest[g] = _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine)
         else:
             x_last = max(ms - mu_last, 1e-300)
-            out[g] = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
+            out[g] = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     return out, ubest
 
 
 @njit(cache=True, error_model="numpy")
-def nll_fixed_u(mu_star, u, mu, y, wt, start, exps, nexp, opts, mu_last):
+def nll_fixed_u(mu_star, u, D, E, M, mu_last):
     """-2 log L at each ``mu_star`` with the fold parameter fixed at ``u`` (0: plain laws)."""
     G = mu_star.size
     out = np.empty(G)
-    W = _work(mu, nexp)
+    WK, RK = _work(D, M)
     for g in range(G):
         ms = mu_star[g]
         x_last = max(ms - mu_last, 1e-300)
-        out[g] = _total(ms, u, mu, y, wt, start, exps, nexp, opts, x_last, W)
+        out[g] = _total(ms, u, D, E, M, x_last, WK, RK)
     return out

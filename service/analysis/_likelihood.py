@@ -65,33 +65,24 @@ def _clip(t: np.ndarray, scale: float) -> np.ndarray:
     return t[(t >= ls + _T_MIN) & (t <= ls + _T_HI)]
 
 
-def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple:
-    """The components as the kernels' plain arrays ``(mu, y, wt, start, exps, nexp, opts)``."""
+def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The components as the kernels' plain arrays ``(D, E, M)``: ``D`` (3, N) rows mu, y, wt of
+    every component one after the other; ``E`` (C, kmax) exponents; ``M`` (C, 8) integers
+    ``(offset, n, k, known, lead, lead_col, signed, conformal)``."""
     nc = len(comps)
     mus = [mu_w if c.mu is None else c.mu for c in comps]
-    start = np.zeros(nc + 1, dtype=np.int64)
-    nexp = np.empty(nc, dtype=np.int64)
-    opts = np.empty((nc, 5), dtype=np.int64)
+    N = sum(m.size for m in mus)
+    D = np.empty((3, N))
+    M = np.empty((nc, 8), dtype=np.int64)
+    E = np.zeros((nc, max(c.exps.size for c in comps)))
+    o = 0
     for i, (c, m) in enumerate(zip(comps, mus, strict=True)):
-        start[i + 1] = start[i] + m.size
-        nexp[i] = c.exps.size
-        opts[i] = (c.known, c.lead, c.lead_col, c.signed, c.conformal)
-    exps = np.zeros((nc, int(nexp.max())))
-    for i, c in enumerate(comps):
-        exps[i, : c.exps.size] = c.exps
-    if nc == 1:
-        c = comps[0]
-        return (np.asarray(mus[0], dtype=float), np.asarray(c.y, dtype=float),
-                np.asarray(c.wt, dtype=float), start, exps, nexp, opts)  # fmt: skip
-    return (
-        np.concatenate(mus).astype(float, copy=False),
-        np.concatenate([c.y for c in comps]).astype(float, copy=False),
-        np.concatenate([c.wt for c in comps]).astype(float, copy=False),
-        start,
-        exps,
-        nexp,
-        opts,
-    )
+        n = m.size
+        D[0, o : o + n], D[1, o : o + n], D[2, o : o + n] = m, c.y, c.wt
+        M[i] = (o, n, c.exps.size, c.known, c.lead, c.lead_col, c.signed, c.conformal)
+        E[i, : c.exps.size] = c.exps
+        o += n
+    return D, E, M
 
 
 def _nll_u(

@@ -9,7 +9,7 @@ a profile costs no Python call per evaluation. A slow reference (the same steps 
 ``minimize_scalar`` and ``brentq``) lives in the tests.
 
 Data are the packed component arrays of :func:`service.analysis._likelihood._pack` passed as one
-tuple ``P = (mu, y, wt, start, exps, nexp, opts)``.
+tuple ``P = (D, E, M)`` (see :func:`service.analysis._laws_kernels._comp_nll`).
 """
 
 from __future__ import annotations
@@ -31,14 +31,15 @@ BIG = 1e300  # value of a non-finite -2 log L inside the searches
 def _row(ms, P, mu_last, logu, W, cf, refine):
     """-2 log L at one mu* (fold parameter profiled for a conformal law: on its grid only
     without ``refine``); BIG if not finite."""
-    mu, y, wt, start, exps, nexp, opts = P
+    D, E, M = P
+    WK, RK = W
     if cf:
-        v, _ = _profile_u(ms, mu, y, wt, start, exps, nexp, opts, mu_last, logu, W, refine)
+        v, _ = _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine)
     else:
         x_last = ms - mu_last
         if x_last < 1e-300:
             x_last = 1e-300
-        v = _total(ms, 0.0, mu, y, wt, start, exps, nexp, opts, x_last, W)
+        v = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     return v if math.isfinite(v) else BIG
 
 
@@ -213,7 +214,7 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     t : ndarray, shape (G,)
         Increasing grid of ``log(mu* - mu_last)``.
     P : tuple
-        Packed components ``(mu, y, wt, start, exps, nexp, opts)``.
+        Packed components ``(D, E, M)``.
     mu_last : float
         Last measured control value.
     logu : ndarray
@@ -232,9 +233,7 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         NaN where the profile does not rise that far within the grid; ``i_grid`` the index of the
         grid's lowest point.
     """
-    mu = P[0]
-    nexp = P[5]
-    W = _work(mu, nexp)
+    W = _work(P[0], P[2])
     G = t.size
     f = np.empty(G)
     exact = np.zeros(G, dtype=np.bool_)
