@@ -11,7 +11,6 @@ variable, see the kernels) profiles the fold distance as well, inside the kernel
 from __future__ import annotations
 
 import contextvars
-import hashlib
 import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -137,7 +136,7 @@ def _profile(
     return hit
 
 
-_MEMO: contextvars.ContextVar[dict[bytes, _Profile] | None] = contextvars.ContextVar(
+_MEMO: contextvars.ContextVar[dict[tuple, _Profile] | None] = contextvars.ContextVar(
     "profile_memo", default=None
 )
 
@@ -156,19 +155,16 @@ def profile_memo() -> Iterator[None]:
         _MEMO.reset(token)
 
 
-def _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol) -> bytes:
-    h = hashlib.blake2b(digest_size=20)
-    for a in (np.asarray(mu_w, dtype=float), *packed):
-        h.update(np.ascontiguousarray(a).tobytes())
-        h.update(repr(a.shape).encode())
-    lead = comps[0].lead
-    h.update(
-        repr((scale, level, inflate, with_interval, xatol, lead, [c.exps.size for c in comps]))
-        .encode()
-    )
-    if lead:  # the seeds read comps[0].y and its exponents
-        h.update(np.ascontiguousarray(comps[0].y, dtype=float).tobytes())
-    return h.digest()
+def _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol) -> tuple:
+    """Exact key of a profile: the bytes of the window and of the packed components (which
+    hold every component's data, weights, exponents and options; the seeds read the first
+    component's y, in ``D``) and the options. Bytes compare exactly: no collision possible."""
+    D, E, M = packed
+    return (
+        np.ascontiguousarray(mu_w, dtype=float).tobytes(),
+        D.tobytes(), E.tobytes(), E.shape, M.tobytes(),
+        scale, level, inflate, with_interval, xatol,
+    )  # fmt: skip
 
 
 def _profile_uncached(
@@ -344,7 +340,7 @@ def _profile_screen(
     memo = _MEMO.get()
     key = None
     if memo is not None:  # the per-law refits of a prediction repeat the same screens
-        key = b"screen" + _memo_key(mu_w, comps, packed, scale, 0.0, 1.0, False, t0)
+        key = ("screen", *_memo_key(mu_w, comps, packed, scale, 0.0, 1.0, False, t0))
         hit = memo.get(key)
         if hit is not None:
             return hit  # type: ignore[return-value]
