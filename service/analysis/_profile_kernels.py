@@ -19,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._laws_kernels import _profile_u, _total, _work
+from service.analysis._laws_kernels import _profile_u, _profile_u_walk, _total, _work
 
 _GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08
@@ -148,18 +148,27 @@ def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf):
 
 @njit(cache=True, error_model="numpy")
 def _scan(t, P, mu_last, logu, W, cf, f, exact):
-    """Fill ``f`` with the profile on the grid ``t``: a conformal law's fold parameter on its
-    own grid only (an upper bound) except at the five lowest points, refined."""
+    """Fill ``f`` with the profile on the grid ``t``: a conformal law's fold parameter by a
+    descent on its own grid continued from the previous point (an upper bound) except at the
+    five lowest points, profiled over its whole grid and refined."""
     G = t.size
-    for j in range(G):
-        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, not cf)
-        exact[j] = not cf
-    if cf:
-        order = np.argsort(f)
-        for r in range(min(5, G)):
-            j = order[r]
-            f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True)
+    if not cf:
+        for j in range(G):
+            f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, False, True)
             exact[j] = True
+        return
+    D, E, M = P
+    WK, RK = W
+    jb = -1
+    for j in range(G):
+        v, jb = _profile_u_walk(mu_last + math.exp(t[j]), D, E, M, mu_last, logu, WK, RK, jb)
+        f[j] = v if math.isfinite(v) else BIG
+        exact[j] = False
+    order = np.argsort(f)
+    for r in range(min(5, G)):
+        j = order[r]
+        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, True, True)
+        exact[j] = True
 
 
 @njit(cache=True, error_model="numpy")
