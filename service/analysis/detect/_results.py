@@ -50,6 +50,14 @@ NOISE_FLOOR = 1e-7
 RSS_TOL = 64 * 2.220446049250313e-16
 #: The same as a noise-variance floor in the normalised units of the record (rms 1).
 S2_FLOOR = NOISE_FLOOR * NOISE_FLOOR
+#: Detection thresholds of a mode (the trade between weak modes kept and false modes; see
+#: ``bench/detector_weak.py`` and docs/charts.md for the measured trade). Candidate peaks of
+#: the periodograms are significant at this false-alarm probability per record (white noise),
+PEAK_FALSE_ALARM = 1e-3
+#: and a mode is kept when it lowers the residual sum of squares by more than this many
+#: ``ln N`` noise variances (MDL: ``(k / 2) ln N`` for its ``k = 4`` parameters, doubled
+#: because the RSS is compared in noise variances, ``2 x`` the log-likelihood).
+ORDER_PENALTY = 4.0
 
 
 def _num(x: float | None) -> float | None:

@@ -14,7 +14,7 @@ from scipy.signal import find_peaks
 from service.analysis.common import Flag
 from service.analysis.detect._kernels import hankel_gram, top_eigenpairs
 from service.analysis.detect._linalg import _pinv_psd
-from service.analysis.detect._results import S2_FLOOR, Mode
+from service.analysis.detect._results import PEAK_FALSE_ALARM, S2_FLOOR, Mode
 
 
 @dataclass
@@ -45,7 +45,7 @@ def _spectrum(y: np.ndarray, floor: float = S2_FLOOR) -> _Spectrum:
     body = H[2:] if H.size > 3 else H[1:]
     noise = float(np.median(body) / math.log(2.0)) if body.size else 0.0
     noise = max(noise, floor)
-    thr = math.log(max(body.size, 2) / 1e-3)  # 0.1 % false alarm per record (chi2_2 / 2)
+    thr = math.log(max(body.size, 2) / PEAK_FALSE_ALARM)  # per record (chi2_2 / 2)
     sig = H > noise * thr
     sig[0] = False
     k_hi = 0
@@ -302,8 +302,8 @@ def _head_peaks(
     ``L = N`` (``spec``, the record's own) and about ``N/2, N/4, ...`` (FFT-friendly lengths,
     down to 64 samples): a mode that decays within the record keeps
     its energy in a head, where a window matched to its decay sees it above the noise although
-    the whole-record periodogram spreads it over many bins. A peak is significant at a 0.1 %
-    false-alarm rate per record over all heads and bins (white noise of the variance
+    the whole-record periodogram spreads it over many bins. A peak is significant at a
+    :data:`PEAK_FALSE_ALARM` rate per record over all heads and bins (white noise of the variance
     ``spec.noise_var``); peaks within two bins of an existing candidate are left out. The initial
     damping is the head's resolution (``p = 2 / L``)."""
     N = r.shape[0]
@@ -328,7 +328,7 @@ def _head_peaks(
         nb = P.size
         if nb < 4:
             continue
-        thr = noise_var * math.log(nb * len(heads) / 1e-3)
+        thr = noise_var * math.log(nb * len(heads) / PEAK_FALSE_ALARM)
         mid = P[2:-1]
         peaks = np.flatnonzero((mid > thr) & (mid >= P[1:-2]) & (mid > P[3:])) + 2
         if peaks.size == 0:

@@ -13,7 +13,7 @@ import numpy as np
 
 from service.analysis.detect._kernels import model_gram, model_values
 from service.analysis.detect._linalg import _pinv_psd, _solve_gram
-from service.analysis.detect._results import RSS_TOL, S2_FLOOR
+from service.analysis.detect._results import ORDER_PENALTY, RSS_TOL, S2_FLOOR
 
 
 @dataclass
@@ -30,6 +30,12 @@ def _rss_tol(ev: _Eval) -> float:
     energy ``sum y^2`` (the cancellation in ``y.y - c.Phi^T y``); RSS differences below it are
     rounding, not signal."""
     return RSS_TOL * float(ev.G[-1, -1])
+
+
+def _order_threshold(n: int) -> float:
+    """RSS drop (in noise variances) a mode must bring to be kept in a record of ``n``
+    samples: :data:`ORDER_PENALTY` ``x ln n`` (MDL)."""
+    return ORDER_PENALTY * math.log(n)
 
 
 def _growth_ok(p: np.ndarray, q: np.ndarray, n: int) -> bool:
@@ -254,7 +260,7 @@ def _prune(
     Returns the kept ``p, q``, their energies over the noise variance, and the coefficients.
     """
     N = y.shape[0]
-    thr = 4.0 * math.log(N)
+    thr = _order_threshold(N)
     ev = None
     while p.size and G is None:
         ev = _evaluate(y, p, q)
@@ -296,7 +302,7 @@ def _merge_close_modes(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
     Guards against local minima where two modes share one spectral line or a spurious mode
     holds part of another."""
     N = y.shape[0]
-    thr = 4.0 * math.log(N)
+    thr = _order_threshold(N)
     for _ in range(4):
         p, q = fit.ev.p, fit.ev.q
         K = p.size
@@ -350,7 +356,7 @@ def _repair_real_poles(y: np.ndarray, fit: _Fit, max_iter: int) -> _Fit:
     refit if it costs less than the MDL penalty of the mode it saves (``4 ln N`` noise
     variances)."""
     N = y.shape[0]
-    thr = 4.0 * math.log(N)
+    thr = _order_threshold(N)
     for _ in range(3):
         p, q = fit.ev.p, fit.ev.q
         D = 0.25 * p * p - q
