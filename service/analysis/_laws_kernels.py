@@ -238,27 +238,57 @@ def _grid_u(ms, g, D, E, M, x_last, logu, WK, RK):
 
 
 @njit(cache=True, error_model="numpy")
-def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
-    """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
-    x_last = ms - mu_last
-    if x_last < 1e-300:
-        x_last = 1e-300
-    best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
-    best_u = 0.0
-    G = logu.size
+def _scan_u(ms, D, E, M, x_last, logu, WK, RK):
+    """(value, index) of the lowest point of the ``logu`` grid at one mu*."""
     jb = -1
     fb = math.inf
-    for g in range(G):
+    for g in range(logu.size):
         v = _grid_u(ms, g, D, E, M, x_last, logu, WK, RK)
         if v < fb:
             fb = v
             jb = g
+    return fb, jb
+
+
+@njit(cache=True, error_model="numpy")
+def _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0):
+    """(value, index) of the local minimum of the ``logu`` grid reached by descending from
+    index ``j0`` (left first, then right)."""
+    G = logu.size
+    jb = j0
+    fb = _grid_u(ms, j0, D, E, M, x_last, logu, WK, RK)
+    j = j0 - 1
+    while j >= 0:
+        v = _grid_u(ms, j, D, E, M, x_last, logu, WK, RK)
+        if not v < fb:
+            break
+        fb, jb = v, j
+        j -= 1
+    if jb == j0:
+        j = j0 + 1
+        while j < G:
+            v = _grid_u(ms, j, D, E, M, x_last, logu, WK, RK)
+            if not v < fb:
+                break
+            fb, jb = v, j
+            j += 1
+    return fb, jb
+
+
+@njit(cache=True, error_model="numpy")
+def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
+    """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
+    x_last = max(ms - mu_last, 1e-300)
+    best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
+    best_u = 0.0
+    fb, jb = _scan_u(ms, D, E, M, x_last, logu, WK, RK)
     if jb < 0:
         return best, best_u
     if not refine:
         if fb < best:
             return fb, math.exp(logu[jb])
         return best, best_u
+    G = logu.size
     a = logu[jb - 1] if jb > 0 else logu[0]
     c = logu[jb + 1] if jb < G - 1 else logu[G - 1]
     xb, fxb = _refine_u(ms, a, c, logu[jb], fb, D, E, M, x_last, WK, RK)
@@ -282,37 +312,12 @@ def _profile_u_walk(ms, D, E, M, mu_last, logu, WK, RK, j0):
     j : int
         Index of the best grid point (the next mu*'s start).
     """
-    x_last = ms - mu_last
-    if x_last < 1e-300:
-        x_last = 1e-300
+    x_last = max(ms - mu_last, 1e-300)
     best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
-    G = logu.size
-    if j0 < 0 or j0 >= G:
-        jb = 0
-        fb = math.inf
-        for g in range(G):
-            v = _grid_u(ms, g, D, E, M, x_last, logu, WK, RK)
-            if v < fb:
-                fb = v
-                jb = g
-        return min(best, fb), jb
-    jb = j0
-    fb = _grid_u(ms, j0, D, E, M, x_last, logu, WK, RK)
-    j = j0 - 1
-    while j >= 0:
-        v = _grid_u(ms, j, D, E, M, x_last, logu, WK, RK)
-        if not v < fb:
-            break
-        fb, jb = v, j
-        j -= 1
-    if jb == j0:
-        j = j0 + 1
-        while j < G:
-            v = _grid_u(ms, j, D, E, M, x_last, logu, WK, RK)
-            if not v < fb:
-                break
-            fb, jb = v, j
-            j += 1
+    if 0 <= j0 < logu.size:
+        fb, jb = _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0)
+    else:
+        fb, jb = _scan_u(ms, D, E, M, x_last, logu, WK, RK)
     return min(best, fb), jb
 
 

@@ -105,3 +105,34 @@ def test_fold_profile_reaches_the_brute_force_minimum() -> None:
     # the secondary fold is found: delta = (mu* - mu_last) / u ~ mu2* - mu* = 0.0119 at mu* = 2
     delta = (2.0 - mu[-1]) / u[1]
     assert 0.005 < delta < 0.03
+
+
+def test_fold_scan_walk_bounds_and_finds_the_same_lowest_point() -> None:
+    """The scan's walk over the fold parameter's grid (continued from the previous mu*) is
+    the whole grid's minimum from a cold start and never below it from any start; along a
+    scan of the symmetric beam it finds the whole grid's lowest mu* with the same value (far
+    from it the walk may stay in a worse basin of u: measured once in 40 points, 4.4e5
+    against 3.4e5 at a minimum of 168)."""
+    from service.analysis._laws_kernels import _profile_u, _profile_u_walk, _work
+    from sim.euler_beam import spectrum
+
+    mu = np.arange(1.5, 1.96, 0.05)
+    y = np.array([-spectrum("symmetric", m, "U_A", modes=1).sigma2[0] for m in mu])
+    comps = [_Comp(y, 1.0 / (1e-4 * y), np.array([1.0, 2.0, 3.0]), True, True, conformal=True)]
+    D, E, M = _pack(mu, comps)
+    WK, RK = _work(D, M)
+    last = float(mu[-1])
+    j = -1
+    whole, walk = [], []
+    for m in last + np.geomspace(1e-4, 1.0, 40):
+        v_whole, _ = _profile_u(m, D, E, M, last, _LOGU, WK, RK, False)
+        cold, _ = _profile_u_walk(m, D, E, M, last, _LOGU, WK, RK, -1)
+        assert cold == v_whole
+        for j0 in range(_LOGU.size):
+            assert _profile_u_walk(m, D, E, M, last, _LOGU, WK, RK, j0)[0] >= v_whole
+        v, j = _profile_u_walk(m, D, E, M, last, _LOGU, WK, RK, j)
+        whole.append(v_whole)
+        walk.append(v)
+    assert np.all(np.array(walk) >= np.array(whole))
+    assert int(np.argmin(walk)) == int(np.argmin(whole))
+    assert min(walk) == min(whole)
