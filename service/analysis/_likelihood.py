@@ -184,7 +184,7 @@ def _profile_uncached(
     t = _range_grid(scale, _GRID_CF if cf else _GRID)
     seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
     if seeds:
-        k1, k2 = (15, 9) if cf else (15, 9)
+        k1, k2 = (15, 9) if cf else (41, 41)
         offs = np.concatenate([_SEED[k1], _SEED_FINE[k2]])
         t = _clip(np.unique(np.concatenate([t, *[math.log(d0) + offs for d0 in seeds]])), scale)
     # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-5 for model selection
