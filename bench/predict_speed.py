@@ -1,7 +1,7 @@
 """Cost of one ``predict`` on 25 points against one ``detect`` of a 1e5-sample record, and the
 CPU of one ``warn`` sweep per actuation, all measured in this process.
 
-    python bench/predict_speed.py [--repeat N] [--no-warn]
+    python bench/predict_speed.py [--repeat N] [--no-warn] [--out bench/results/predict_speed.txt]
 
 ``predict``: 25 exact Euler-beam spectra of each actuation (geometric approach to mu*, 1e-4
 relative noise, ``sigma2_std`` and ``w_static`` given, the law not given: classification and
@@ -13,6 +13,7 @@ CPU per actuation (warm).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -61,24 +62,34 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-warn", action="store_true")
+    ap.add_argument("--out", type=Path, help="also write the lines (and the load) to this file")
     args = ap.parse_args(argv)
+    lines: list[str] = []
+
+    def say(line: str) -> None:
+        print(line, flush=True)
+        lines.append(line)
+
     w = record()
     t_det = cpu(lambda: detect(w, dt=1e-3), args.repeat)
-    print(f"detect, 1e5 samples:            {1e3 * t_det:8.1f} ms CPU")
+    say(f"detect, 1e5 samples:            {1e3 * t_det:8.1f} ms CPU")
     for act in ACTS:
         d = beam_sweep(act)
         t_pred = cpu(lambda d=d: predict(**d), args.repeat)
-        print(f"predict, 25 points, {act:13}: {1e3 * t_pred:8.1f} ms CPU  "
-              f"ratio {t_pred / t_det:6.1f} x detect (target <= 1.5)")  # fmt: skip
-    if args.no_warn:
-        return
-    for act in ACTS:
-        warn(act, seed=3, max_measurements=8)  # warm the simulator and the kernels
-        t0 = time.process_time()
-        r = warn(act, seed=3, max_measurements=30)
-        t = time.process_time() - t0
-        print(f"warn {act:13}: {t:6.2f} s CPU, {len(r.measurements)} measurements "
-              "(target <= 1.5 s)")
+        say(f"predict, 25 points, {act:13}: {1e3 * t_pred:8.1f} ms CPU  "
+            f"ratio {t_pred / t_det:6.1f} x detect (target <= 1.5)")  # fmt: skip
+    if not args.no_warn:
+        for act in ACTS:
+            warn(act, seed=3, max_measurements=8)  # warm the simulator and the kernels
+            t0 = time.process_time()
+            r = warn(act, seed=3, max_measurements=30)
+            t = time.process_time() - t0
+            say(f"warn {act:13}: {t:6.2f} s CPU, {len(r.measurements)} measurements "
+                "(target <= 1.5 s)")  # fmt: skip
+    if args.out is not None:
+        load = os.getloadavg()[0]
+        head = f"python bench/predict_speed.py --repeat {args.repeat}; load {load:.1f}\n"
+        args.out.write_text(head + "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
