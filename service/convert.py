@@ -1,9 +1,11 @@
 """The one seam between the numerics' results and the wire models.
 
-The numerics (``service.analysis``) return frozen dataclasses; the API, the CLI's ``--json`` and
-the SDK share the pydantic models of :mod:`service.schemas.analysis`. This module is the only
-place that knows both: every document of a scientific result is built here, so that
-``snapwarn sweep --json``, ``snapwarn warn --json`` and ``/v1/sweeps`` print one document.
+The numerics (``service.analysis``, ``sim``) return frozen dataclasses; the API, the CLI's
+``--json`` and the SDK share the pydantic models of :mod:`service.schemas.analysis`,
+:mod:`service.schemas.sim` and :mod:`service.schemas.snaps`. This module is the only place that
+knows both: every document of a scientific result is built here, so that ``snapwarn sweep
+--json``, ``snapwarn warn --json`` and ``/v1/sweeps`` print one document (and ``snapwarn snap
+--json`` and ``/v1/snaps`` another).
 
 Numbers that are missing or not finite become ``None`` (strict JSON). :data:`PARITY` lists, for
 each result dataclass, its wire model and the fields deliberately left out; a test checks that
@@ -19,10 +21,18 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from service.schemas import analysis as wire
+from service.schemas import sim as sim_wire
+from service.schemas import snaps as snap_wire
 
 __all__ = [
     "PARITY",
     "alarm",
+    "backend_choice",
+    "bifurcation",
+    "bifurcation_point",
+    "equilibria",
+    "equilibrium",
+    "error_estimate",
     "classification",
     "detection",
     "flag",
@@ -30,10 +40,15 @@ __all__ = [
     "live_update",
     "measurement",
     "mode",
+    "normal_form",
     "paper_rule",
     "parity_problems",
     "plain",
     "prediction",
+    "resolution",
+    "simulation",
+    "snap",
+    "spectrum",
     "sweep_document",
     "sweep_result",
 ]
@@ -55,12 +70,46 @@ PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] =
     "service.analysis.alarm:Alarm": (wire.Alarm, frozenset(), frozenset()),
     "service.analysis.predict:Prediction": (wire.Prediction, frozenset(), frozenset()),
     "service.analysis.pipeline:WarnResult": (wire.SweepResult, frozenset(), frozenset()),
+    # the simulator's results
+    "sim.results:Resolution": (sim_wire.Resolution, frozenset(), frozenset()),
+    "sim.results:BifurcationPoint": (sim_wire.BifurcationPoint, frozenset(), frozenset()),
+    # w_star (the shape at mu*, rod only) and info (diagnostics) stay in the numerics;
+    # mu_star_error and elements are the dataclass's properties (from its resolution)
+    "sim.results:Bifurcation": (
+        sim_wire.Bifurcation,
+        frozenset({"w_star", "info"}),
+        frozenset({"mu_star_error", "elements"}),
+    ),
+    # the scene (model, actuation, mu) and the resolution are the Equilibria document's
+    "sim.results:EquilibriumSummary": (
+        sim_wire.Equilibrium,
+        frozenset({"model", "actuation", "mu", "resolution"}),
+        frozenset(),
+    ),
+    "sim.results:SpectrumSummary": (sim_wire.Spectrum, frozenset(), frozenset({"omega"})),
+    "sim.results:ErrorEstimate": (sim_wire.ErrorEstimate, frozenset(), frozenset({"total"})),
+    "sim.select:Choice": (
+        sim_wire.BackendChoice,
+        frozenset({"estimate"}),
+        frozenset({"error"}),
+    ),
+    # phi0: the critical mode on the quadrature grid (an internal of the amplitude equation)
+    "sim.normal_form:NormalForm": (sim_wire.NormalForm, frozenset({"phi0"}), frozenset()),
+    "sim.snap:SnapResult": (
+        snap_wire.SnapResult,
+        frozenset({"info"}),
+        frozenset({"samples", "duration"}),
+    ),
 }
 
 
 def plain(value: Any) -> Any:
-    """A result as plain JSON data: dataclasses as dicts, non-finite floats as ``None``."""
+    """A result as plain JSON data: dataclasses as dicts (the simulator's typed results in a
+    signal's ``info`` as their wire documents), non-finite floats as ``None``."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        typed = _TYPED.get(f"{type(value).__module__}:{type(value).__qualname__}")
+        if typed is not None:
+            return typed(value).model_dump(mode="json")
         return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
     if isinstance(value, bool) or value is None or isinstance(value, str):
         return value
@@ -298,6 +347,120 @@ def live_update(
         finished=finished,
         created_at=created_at,
     )
+
+
+# ------------------------------------------------------------------------------ simulator
+def resolution(r: Any) -> sim_wire.Resolution:
+    """The discretisation of a result (``sim.results.Resolution``)."""
+    return sim_wire.Resolution.model_validate(_fields(r))
+
+
+def _resolution_or_none(r: Any) -> sim_wire.Resolution | None:
+    return None if r is None else resolution(r)
+
+
+def bifurcation_point(p: Any) -> sim_wire.BifurcationPoint:
+    """A secondary bifurcation (``sim.results.BifurcationPoint``)."""
+    return sim_wire.BifurcationPoint.model_validate(_fields(p))
+
+
+def bifurcation(b: Any) -> sim_wire.Bifurcation:
+    """The transition of U_A (``sim.results.Bifurcation``); the strip's fields are null for
+    the backends without one (all but the Cosserat rod)."""
+    doc = _fields(b, skip=("secondary", "resolution", "w_star", "info", "end_shortening",
+                           "slenderness"))  # fmt: skip
+    rod = b.model == "cosserat"
+    return sim_wire.Bifurcation(
+        **doc,
+        secondary=[bifurcation_point(s) for s in b.secondary],
+        mu_star_error=plain(b.mu_star_error),
+        resolution=_resolution_or_none(b.resolution),
+        elements=b.elements,
+        end_shortening=plain(b.end_shortening) if rod else None,
+        slenderness=plain(b.slenderness) if rod else None,
+    )
+
+
+def equilibrium(e: Any) -> sim_wire.Equilibrium:
+    """One equilibrium (``sim.results.EquilibriumSummary``)."""
+    return sim_wire.Equilibrium.model_validate(
+        _fields(e, skip=("model", "actuation", "mu", "resolution"))
+    )
+
+
+def equilibria(eqs: Iterable[Any], *, actuation: str, mu: float, model: str) -> sim_wire.Equilibria:
+    """Every equilibrium of a scene; the resolution is the first one's (one scene, one
+    resolution)."""
+    items = list(eqs)
+    res = items[0].resolution if items else None
+    return sim_wire.Equilibria(actuation=actuation, mu=plain(mu), model=model,
+                               equilibria=[equilibrium(e) for e in items],
+                               resolution=_resolution_or_none(res))  # fmt: skip
+
+
+def spectrum(s: Any) -> sim_wire.Spectrum:
+    """A linear spectrum (``sim.results.SpectrumSummary``) with omega = sqrt|sigma^2|."""
+    doc = _fields(s, skip=("resolution",))
+    res = _resolution_or_none(s.resolution)
+    return sim_wire.Spectrum(**doc, omega=plain(s.omega), resolution=res)
+
+
+def error_estimate(e: Any) -> sim_wire.ErrorEstimate:
+    """A backend's estimated relative error (``sim.results.ErrorEstimate``) and its total."""
+    return sim_wire.ErrorEstimate(**_fields(e), total=plain(e.total))
+
+
+def backend_choice(c: Any) -> sim_wire.BackendChoice:
+    """What ``model="auto"`` picked (``sim.select.Choice``)."""
+    doc = _fields(c, skip=("estimate",))
+    return sim_wire.BackendChoice(**doc, error=error_estimate(c.estimate))
+
+
+def normal_form(nf: Any) -> sim_wire.NormalForm:
+    """The amplitude equation's coefficients (``sim.normal_form.NormalForm``)."""
+    return sim_wire.NormalForm.model_validate(_fields(nf, skip=("phi0",)))
+
+
+def simulation(sig: Any, *, path: str) -> sim_wire.Simulation:
+    """A simulated signal (``sim.scene.Signal``) written to ``path``: its scene, sampling and
+    the resolution, error estimate and (``model="auto"``) choice in its ``info``."""
+    info, scene = sig.info, sig.scene
+
+    def typed(key: str, convert: Any) -> Any:
+        v = info.get(key)
+        return None if v is None else convert(v) if not isinstance(v, Mapping) else v
+
+    return sim_wire.Simulation(
+        path=path, samples=int(sig.t.size), model=sig.model, actuation=scene.actuation,
+        mu=plain(scene.mu), branch=scene.branch, dt=plain(sig.dt),
+        duration=plain(sig.t[-1]) if sig.t.size else None, w_static=plain(sig.w_static),
+        sigma2=plain((info.get("sigma2") or [None])[0]),
+        resolution=typed("resolution", resolution), error=typed("error", error_estimate),
+        auto=typed("auto", backend_choice),
+    )  # fmt: skip
+
+
+def snap(r: Any, *, path: str | None = None) -> snap_wire.SnapResult:
+    """A snap-through (``sim.snap.SnapResult``) with its record; with ``path`` (the CSV
+    written) the CLI's :class:`~service.schemas.snaps.SnapReport`."""
+    doc = _fields(r, skip=("t", "amplitude", "resolution", "info"))
+    doc.update(
+        samples=int(r.t.size),
+        duration=float(r.t[-1]) if r.t.size else 0.0,
+        t=plain(r.t),
+        amplitude=plain(r.amplitude),
+        resolution=_resolution_or_none(r.resolution),
+    )
+    if path is not None:
+        return snap_wire.SnapReport(**doc, path=path)
+    return snap_wire.SnapResult(**doc)
+
+
+_TYPED: dict[str, Any] = {
+    "sim.results:Resolution": resolution,
+    "sim.results:ErrorEstimate": error_estimate,
+    "sim.select:Choice": backend_choice,
+}
 
 
 def parity_problems() -> list[str]:

@@ -24,15 +24,17 @@ def simulate(scene: Scene, model: str = "euler-beam", **options) -> Signal:
     scene : Scene
     model : {"normal-form", "euler-beam", "cosserat", "auto"}
         "auto" picks the cheapest backend whose estimated error meets ``scene.rtol``
-        (``sim.select``); ``info["auto"]`` names it, its estimate and the reason.
+        (``sim.select``); ``info["auto"]`` (a ``sim.select.Choice``) names it, its estimate
+        and the reason.
     **options
         Backend options (e.g. ``method="nonlinear"`` for the Euler beam).
 
     Returns
     -------
     Signal
-        ``info["resolution"]`` (discretisation used, its mu* error) and ``info["error"]``
-        (estimated relative error: model + discretisation).
+        ``info["resolution"]`` (a ``Resolution``: discretisation used, its mu* error) and
+        ``info["error"]`` (an ``ErrorEstimate``: relative error, model + discretisation);
+        ``service.convert`` gives their wire documents.
     """
     from sim.backends import BACKENDS
 
@@ -45,6 +47,6 @@ def simulate(scene: Scene, model: str = "euler-beam", **options) -> Signal:
         extra = {"method": choice.method} if choice.model == "euler-beam" else {}
         sig = BACKENDS[choice.model].simulate(scene, **extra)
         info = dict(sig.info)
-        info["auto"] = choice.to_dict()
+        info["auto"] = choice
         return Signal(sig.t, sig.w, sig.w_static, sig.model, sig.scene, info)
     return BACKENDS[model].simulate(scene, **options)

@@ -3,7 +3,8 @@
 ``sim.simulate``, ``sim.select`` (model="auto"), the CLI's choices and the warn pipeline's
 truth all read ``BACKENDS``. A backend answers, for one ``Scene``:
 
-* ``simulate(scene, **options) -> Signal`` (``info["resolution"]``, ``info["error"]``);
+* ``simulate(scene, **options) -> Signal`` (``info["resolution"]``: a ``Resolution``,
+  ``info["error"]``: an ``ErrorEstimate``);
 * ``bifurcation(scene) -> Bifurcation`` of exactly the model and resolution ``simulate`` uses;
 * ``equilibria(scene) -> list[EquilibriumSummary]`` and ``spectrum(scene, modes)``;
 * ``resolution(scene) -> Resolution`` and ``error_estimate(scene, **options) -> ErrorEstimate``
@@ -112,8 +113,8 @@ def _beam_simulate(scene: Scene, *, method: str = "modal", **options) -> Signal:
     sig = _guard(lambda: impulse_response(scene, method=method, **options), scene,
                  _beam_bifurcation)  # fmt: skip
     info = dict(sig.info)
-    info["resolution"] = _beam_resolution(scene).to_dict()
-    info["error"] = _beam_error(scene, method=method).to_dict()
+    info["resolution"] = _beam_resolution(scene)
+    info["error"] = _beam_error(scene, method=method)
     return replace(sig, info=info)
 
 
@@ -163,8 +164,8 @@ def _nf_simulate(scene: Scene, **options) -> Signal:
 
     sig = _guard(lambda: impulse_response(scene, **options), scene, _beam_bifurcation)
     info = dict(sig.info)
-    info["resolution"] = _nf_resolution(scene).to_dict()
-    info["error"] = _nf_error(scene).to_dict()
+    info["resolution"] = _nf_resolution(scene)
+    info["error"] = _nf_error(scene)
     return replace(sig, info=info)
 
 
@@ -251,7 +252,7 @@ def _rod_simulate(scene: Scene, **options) -> Signal:
 
     sig = _guard(lambda: simulate(scene, **options), scene, _rod_bifurcation)
     info = dict(sig.info)
-    info["error"] = _rod_error(scene, time_error=info.get("time_error")).to_dict()
+    info["error"] = _rod_error(scene, time_error=info.get("time_error"))
     return replace(sig, info=info)
 
 

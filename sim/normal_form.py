@@ -149,17 +149,6 @@ class NormalForm:
         out[: sol.y.shape[1]] = sol.y[0]
         return out
 
-    def to_dict(self) -> dict:
-        return {
-            "actuation": self.actuation,
-            "transition": self.transition,
-            "mu_star": self.mu_star,
-            "lambda_star": self.lambda_star,
-            "coefficients": dict(self.coefficients),
-            "I1": self.I1,
-            "I2": self.I2,
-        }
-
 
 def _pitchfork_phi0(actuation: str, L: float) -> tuple[np.ndarray, np.ndarray]:
     X = _XQ

@@ -1,14 +1,12 @@
 """Result types shared by every backend: the bifurcation and the resolution that produced it.
 
-Frozen dataclasses of plain values (numpy arrays where a shape is returned); ``to_dict`` gives
-the JSON-ready form the CLI and the service convert from.
+Frozen dataclasses of plain values (numpy arrays where a shape is returned); their wire
+documents are built in one place, ``service.convert`` (the numerics know nothing of JSON).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -37,10 +35,6 @@ class Resolution:
     mu_star_error: float
     method: str
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"model": self.model, "size": int(self.size), "rtol": self.rtol,
-                "mu_star_error": float(self.mu_star_error), "method": self.method}  # fmt: skip
-
 
 @dataclass(frozen=True)
 class BifurcationPoint:
@@ -50,12 +44,6 @@ class BifurcationPoint:
     lambda_star: float
     transition: str
     branches: tuple[str, ...]
-
-    def to_dict(self) -> dict[str, Any]:
-        lam = self.lambda_star
-        return {"mu_star": float(self.mu_star),
-                "lambda_star": float(lam) if math.isfinite(lam) else None,
-                "transition": self.transition, "branches": list(self.branches)}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -110,24 +98,6 @@ class Bifurcation:
         """Estimated discretisation error of mu* (absolute)."""
         return None if self.resolution is None else self.resolution.mu_star_error
 
-    def to_dict(self) -> dict[str, Any]:
-        lam = self.lambda_star
-        doc: dict[str, Any] = {
-            "actuation": self.actuation,
-            "model": self.model,
-            "mu_star": float(self.mu_star),
-            "lambda_star": float(lam) if math.isfinite(lam) else None,
-            "transition": self.transition,
-            "branches": list(self.branches),
-            "secondary": [s.to_dict() for s in self.secondary],
-            "mu_star_error": self.mu_star_error,
-            "resolution": None if self.resolution is None else self.resolution.to_dict(),
-        }
-        if self.model == "cosserat":
-            doc.update(elements=self.elements, end_shortening=self.end_shortening,
-                       slenderness=self.slenderness)  # fmt: skip
-        return doc
-
 
 @dataclass(frozen=True)
 class EquilibriumSummary:
@@ -148,11 +118,6 @@ class EquilibriumSummary:
     energy: float | None = None
     resolution: Resolution | None = None
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"branch": self.branch, "lambda": float(self.lambda_),
-                "w_half": float(self.w_half), "w_quarter": float(self.w_quarter),
-                "energy": self.energy, "stable": bool(self.stable)}  # fmt: skip
-
 
 @dataclass(frozen=True)
 class SpectrumSummary:
@@ -171,15 +136,6 @@ class SpectrumSummary:
     def omega(self) -> np.ndarray:
         return np.sqrt(np.abs(self.sigma2))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"actuation": self.actuation, "model": self.model, "mu": float(self.mu),
-                "branch": self.branch,
-                "lambda": None if self.lambda_ is None else float(self.lambda_),
-                "sigma2": [float(x) for x in self.sigma2],
-                "omega": [float(x) for x in self.omega],
-                "sigma2_error": self.sigma2_error,
-                "resolution": None if self.resolution is None else self.resolution.to_dict()}
-
 
 @dataclass(frozen=True)
 class ErrorEstimate:
@@ -196,7 +152,3 @@ class ErrorEstimate:
     @property
     def total(self) -> float:
         return self.model + self.discretisation
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"model": self.model, "discretisation": self.discretisation,
-                "total": self.total, "details": dict(self.details)}  # fmt: skip

@@ -53,11 +53,6 @@ class Choice:
     rtol: float = 0.0
     met: bool = True
 
-    def to_dict(self) -> dict:
-        return {"model": self.model, "method": self.method, "reason": self.reason,
-                "error": self.estimate.to_dict(), "estimates": dict(self.estimates),
-                "rtol": self.rtol, "met": self.met}  # fmt: skip
-
 
 def estimate_errors(scene: Scene) -> dict[str, ErrorEstimate]:
     """Every candidate's estimated relative error on this scene (keys of ``LADDER``)."""

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -64,20 +63,6 @@ class SnapResult:
     probe: float
     resolution: Resolution | None = None
     info: dict = field(default_factory=dict)
-
-    def to_dict(self, samples: bool = True) -> dict[str, Any]:
-        doc: dict[str, Any] = {
-            "actuation": self.actuation, "model": self.model, "dmu": self.dmu, "mu": self.mu,
-            "mu_star": self.mu_star, "from_branch": self.from_branch,
-            "to_branch": self.to_branch, "snap_time": self.snap_time, "probe": self.probe,
-            "samples": int(self.t.size),
-            "duration": float(self.t[-1]) if self.t.size else 0.0,
-            "resolution": None if self.resolution is None else self.resolution.to_dict(),
-        }
-        if samples:
-            doc["t"] = [float(x) for x in self.t]
-            doc["amplitude"] = [float(x) if math.isfinite(x) else None for x in self.amplitude]
-        return doc
 
 
 def _protocol(actuation: str) -> tuple[float, str, str, float]:

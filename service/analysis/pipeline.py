@@ -348,7 +348,7 @@ def warn(
         b = BACKENDS[simulated].bifurcation(base)
         truth = {"mu_star": b.mu_star, "transition": b.transition, "model": b.model,
                  "mu_star_error": b.mu_star_error,
-                 "resolution": None if b.resolution is None else b.resolution.to_dict()}
+                 "resolution": b.resolution}
     except Exception:  # noqa: BLE001 - the truth is a comparison, never a failure
         truth = None
     if truth is not None and pred is not None:

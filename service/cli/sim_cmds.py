@@ -57,8 +57,10 @@ def _resolution_text(res: dict | None) -> str:
 
 
 def _bifurcation(args: argparse.Namespace) -> int:
+    from service import convert
+
     scene = _scene(args)
-    doc = _backend(args.model).bifurcation(scene).to_dict()
+    doc = convert.bifurcation(_backend(args.model).bifurcation(scene)).model_dump(mode="json")
     lines = [f"{doc['actuation']}: {doc['transition']} at mu* = {doc['mu_star']:.12f} "
              f"({doc['model']})"]
     lines += [
@@ -70,11 +72,13 @@ def _bifurcation(args: argparse.Namespace) -> int:
 
 
 def _equilibria(args: argparse.Namespace) -> int:
+    from service import convert
+
     scene = _scene(args, mu=args.mu)
     eqs = _backend(args.model).equilibria(scene)
-    res = eqs[0].resolution.to_dict() if eqs and eqs[0].resolution is not None else None
-    doc = {"actuation": args.actuation, "mu": args.mu, "model": args.model,
-           "equilibria": [e.to_dict() for e in eqs], "resolution": res}  # fmt: skip
+    doc = convert.equilibria(eqs, actuation=args.actuation, mu=args.mu,
+                             model=args.model).model_dump(mode="json")  # fmt: skip
+    res = doc["resolution"]
     rows = [f"{'branch':6} {'Lambda':>10} {'W(1/2)':>10} {'W(1/4)':>10} {'energy':>10} stable"]
     rows += [
         f"{e['branch']:6} {e['lambda']:10.6f} {e['w_half']:10.6f} {e['w_quarter']:10.6f} "
@@ -91,8 +95,10 @@ def _equilibria(args: argparse.Namespace) -> int:
 def _spectrum(args: argparse.Namespace) -> int:
     if not 1 <= args.modes <= 30:
         raise bad("--modes", args.modes, "must be between 1 and 30")
+    from service import convert
+
     scene = _scene(args, mu=args.mu, branch=args.branch)
-    doc = _backend(args.model).spectrum(scene, args.modes).to_dict()
+    doc = convert.spectrum(_backend(args.model).spectrum(scene, args.modes)).model_dump(mode="json")
     rows = [f"{args.branch} at mu = {args.mu} ({doc['model']}): sigma^2 (omega)"]
     rows += [f"  {s:16.6f}  ({w:.6f})" for s, w in zip(doc["sigma2"], doc["omega"])]
     rows.append(_resolution_text(doc["resolution"]))
@@ -103,9 +109,10 @@ def _spectrum(args: argparse.Namespace) -> int:
 
 
 def _normal_form(args: argparse.Namespace) -> int:
+    from service import convert
     from sim.normal_form import normal_form
 
-    doc = normal_form(args.actuation).to_dict()
+    doc = convert.normal_form(normal_form(args.actuation)).model_dump(mode="json")
     emit(doc, json_mode=args.json, text=f"{doc['transition']}: {doc['coefficients']}")
     return 0
 
@@ -125,29 +132,16 @@ def _write_csv(path: str, columns: dict) -> Path:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    from service import convert
     from sim import simulate
 
     scene = _scene(args, mu=args.mu, branch=args.branch, damping=args.damping, kick=args.kick,
                    duration=args.duration, dt=args.dt, snr_db=args.snr, seed=args.seed)
     sig = simulate(scene, args.model)
     out = _write_csv(args.out, {"t": sig.t, "w": sig.w})
-    doc = {
-        "path": str(out),
-        "samples": int(sig.t.size),
-        "model": sig.model,
-        "actuation": scene.actuation,
-        "mu": scene.mu,
-        "branch": scene.branch,
-        "dt": sig.dt,
-        "duration": float(sig.t[-1]),
-        "w_static": sig.w_static,
-        "sigma2": sig.info.get("sigma2", [None])[0],
-        "resolution": sig.info.get("resolution"),
-        "error": sig.info.get("error"),
-    }
+    doc = convert.simulation(sig, path=str(out)).model_dump(mode="json")
     text = f"wrote {doc['samples']} samples to {out} ({sig.model})"
-    if "auto" in sig.info:
-        doc["auto"] = sig.info["auto"]
+    if doc["auto"] is not None:
         text += f"\n  auto: {doc['auto']['reason']}"
     elif doc["error"]:
         text += f"\n  estimated relative error {doc['error']['total']:.1e}"
@@ -157,14 +151,15 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _snap(args: argparse.Namespace) -> int:
+    from service import convert
     from sim.snap import snap
 
     scene = _scene(args, damping=args.damping)
     r = snap(scene, args.model, args.dmu, duration=args.duration)
-    doc = r.to_dict()
+    path = None
     if args.out:
-        cols = {"t": r.t, "amplitude": r.amplitude}
-        doc["path"] = str(_write_csv(args.out, cols))
+        path = str(_write_csv(args.out, {"t": r.t, "amplitude": r.amplitude}))
+    doc = convert.snap(r, path=path).model_dump(mode="json")
     text = (f"{r.actuation} ({r.model}): from {r.from_branch} at mu = {r.mu:.8g} "
             f"(mu* {'+' if r.mu > r.mu_star else '-'} {r.dmu:.3g}) to {r.to_branch}: snap time "
             + (f"{r.snap_time:.6g}" if r.snap_time is not None else "not reached"))
@@ -241,13 +236,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def beam_summary() -> dict:
     """The simulator part of the demo: transitions, U_A spectrum along mu, one response."""
+    from service import convert
     from sim import simulate
     from sim.euler_beam import bifurcation, spectrum
     from sim.scene import Scene
 
     doc: dict = {"transitions": [], "spectrum_U_A": [], "impulse_response": {}}
     for act in ("asymmetric", "symmetric", "antisymmetric"):
-        doc["transitions"].append(bifurcation(act).to_dict())
+        doc["transitions"].append(convert.bifurcation(bifurcation(act)).model_dump(mode="json"))
     for act in ("asymmetric", "symmetric", "antisymmetric"):
         mu_star = bifurcation(act).mu_star
         for frac in (0.0, 0.5, 0.9, 0.99, 0.999):

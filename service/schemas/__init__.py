@@ -24,6 +24,18 @@ from service.schemas.common import (
 from service.schemas.detections import Detection, DetectionFlag, DetectionRequest
 from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobPage, JobStatus, Progress
 from service.schemas.signals import SignalData, SignalIn, SignalMeta, SignalPage
+from service.schemas.sim import (
+    BackendChoice,
+    Bifurcation,
+    BifurcationPoint,
+    Equilibria,
+    Equilibrium,
+    ErrorEstimate,
+    NormalForm,
+    Resolution,
+    Simulation,
+    Spectrum,
+)
 from service.schemas.simulations import SimulationRequest, SimulationResult
 from service.schemas.sweeps import (
     SimulatedSweep,
@@ -64,6 +76,16 @@ __all__ = [
     "SignalIn",
     "SignalMeta",
     "SignalPage",
+    "BackendChoice",
+    "Bifurcation",
+    "BifurcationPoint",
+    "Equilibria",
+    "Equilibrium",
+    "ErrorEstimate",
+    "NormalForm",
+    "Resolution",
+    "Simulation",
+    "Spectrum",
     "SimulatedSweep",
     "SimulationRequest",
     "SimulationResult",

@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.jobs import Job
+from service.schemas.sim import Resolution
 from service.schemas.simulations import Actuation
 
 SnapModel = Literal["normal-form", "euler-beam", "cosserat"]
@@ -31,26 +32,39 @@ class SnapRequest(BaseModel):
 
 
 class SnapResult(BaseModel):
-    """A snap-through: where it starts and ends, its snap time and the record A(t)."""
+    """A snap-through: where it starts and ends, its snap time and the record A(t).
+
+    Non-dimensional units: mu = alpha sqrt(L / dL), time T in units of sqrt(rho b h L^4 / B),
+    amplitudes in units of sqrt(L dL); a number that is not finite is null.
+    """
 
     model_config = ConfigDict(extra="ignore")
 
-    actuation: str
-    model: str
-    dmu: float
-    mu: float
-    mu_star: float
-    from_branch: str
-    to_branch: str
+    actuation: str = Field(description="'asymmetric', 'symmetric' or 'antisymmetric'.")
+    model: str = Field(description="Backend that integrated it.")
+    dmu: float = Field(description="Distance from mu* (> 0; to the left of mu* for the "
+                       "antisymmetric actuation), units of mu.")
+    mu: float = Field(description="The control set, units of mu.")
+    mu_star: float = Field(description="The backend's own mu*, units of mu.")
+    from_branch: str = Field(description="Branch the strip starts on.")
+    to_branch: str = Field(description="Branch it snaps to.")
     snap_time: float | None = Field(description="First time |A| reaches half the distance to "
-                                    "to_branch (null: not within the record).")
-    probe: float
-    samples: int
-    duration: float
-    t: list[float]
-    amplitude: list[float | None] = Field(description="W(probe, t) - W*(probe), units of "
-                                          "sqrt(L dL).")
-    resolution: dict | None = None
+                                    "to_branch, T (null: not within the record).")
+    probe: float = Field(description="Probe position X_p in [0, 1] where A is read.")
+    samples: int = Field(description="Samples of the record.")
+    duration: float = Field(description="Time of the last sample, T (0 without samples).")
+    t: list[float] = Field(description="Sample times, T.")
+    amplitude: list[float | None] = Field(description="A(t) = W(probe, t) - W*(probe), units "
+                                          "of sqrt(L dL) (null after a blow-up).")
+    resolution: Resolution | None = Field(default=None, description="Discretisation used and "
+                                          "its estimated error of mu* (null: normal form).")
+
+
+class SnapReport(SnapResult):
+    """``snapwarn snap --json``: the snap and the CSV file written (``--out``)."""
+
+    path: str | None = Field(default=None, description="CSV file (t, amplitude) written "
+                             "(null: none asked for).")
 
 
 class SnapAnswer(BaseModel):

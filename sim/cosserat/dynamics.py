@@ -273,7 +273,7 @@ def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: floa
         "clamp": clamp,
         "rho_inf": rho_inf,
         "elements": rod.n,
-        "resolution": res.to_dict(),
+        "resolution": res,
         "sigma2_error": s2_err,
         "time_error": (2.0 * math.pi / steps_per_period) ** 2 / 12.0,
     }

@@ -67,17 +67,6 @@ class Spectrum:
         """Mode shape k (or its derivative) at points X."""
         return galerkin.basis(self.n).eval(X, derivative) @ self.coeffs[:, k]
 
-    def to_dict(self) -> dict:
-        e = self.equilibrium
-        return {
-            "actuation": e.actuation,
-            "mu": e.mu,
-            "branch": e.branch,
-            "lambda": e.lam,
-            "sigma2": self.sigma2.tolist(),
-            "omega": self.omega.tolist(),
-        }
-
 
 def _constraint_vector(eq: Equilibrium, B: galerkin.Basis) -> np.ndarray:
     return B.dphi.T @ (B.w * eq.shape(B.X, 1))

@@ -241,19 +241,6 @@ class Equilibrium:
         """integral W'^2 dX (= 2 on every equilibrium)."""
         return float(np.sum(_WQ * self.shape(_XQ, 1) ** 2))
 
-    def to_dict(self, stable: bool | None = None) -> dict:
-        """JSON-ready summary; ``stable`` comes from the caller (``stability.is_stable``)."""
-        return {
-            "branch": self.branch,
-            "lambda": self.lam,
-            "lambda2": self.lambda2,
-            "w_half": self.w_half,
-            "w_quarter": self.w_quarter,
-            "energy": self.energy,
-            "stable": stable,
-            "kind": self.kind,
-        }
-
 
 @dataclass(frozen=True)
 class _Interval:

@@ -111,15 +111,13 @@ def test_fundamental_matches_the_beam_in_the_thin_small_shortening_limit():
 def test_mu_star_converges_to_the_elastica(actuation):
     b = bifurcation(actuation, slenderness=1e-4, elements=200)
     assert abs(b.mu_star - ELASTICA_MU_STAR[actuation]) < 1e-3
-    d = b.to_dict()
-    assert set(d) >= {"actuation", "model", "mu_star", "lambda_star", "transition",
-                      "secondary", "elements", "end_shortening", "slenderness"}
-    assert d["model"] == "cosserat" and d["elements"] == 200
-    assert d["transition"] == {"asymmetric": "saddle-node",
-                               "symmetric": "subcritical-pitchfork",
-                               "antisymmetric": "supercritical-pitchfork"}[actuation]
+    assert b.model == "cosserat" and b.elements == 200
+    assert b.end_shortening is not None and b.slenderness == 1e-4
+    assert b.transition == {"asymmetric": "saddle-node",
+                            "symmetric": "subcritical-pitchfork",
+                            "antisymmetric": "supercritical-pitchfork"}[actuation]
     if actuation == "symmetric":  # the secondary fold U_A / W_B (beam: ~2.012)
-        assert 2.005 < d["secondary"][0]["mu_star"] < 2.02
+        assert 2.005 < b.secondary[0].mu_star < 2.02
 
 
 def test_transition_types_are_what_the_branches_do():

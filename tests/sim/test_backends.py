@@ -49,11 +49,11 @@ def test_every_command_of_a_scene_uses_one_resolution() -> None:
     sp = BACKENDS["cosserat"].spectrum(scene, 2)
     n = sig.info["elements"]
     assert bif.resolution.size == n == sp.resolution.size
-    assert sig.info["resolution"]["size"] == n and sig.info["resolution"]["rtol"] == 2e-3
+    assert sig.info["resolution"].size == n and sig.info["resolution"].rtol == 2e-3
     err = bif.resolution.mu_star_error
     assert 0 < err <= 0.5 * 2e-3 * bif.mu_star  # the policy's target
     assert sig.info["sigma2"][0] == pytest.approx(sp.sigma2[0], rel=1e-9)
-    assert 0 < sig.info["sigma2_error"] < 1e-2 and sig.info["error"]["total"] > 0
+    assert 0 < sig.info["sigma2_error"] < 1e-2 and sig.info["error"].total > 0
 
 
 @pytest.mark.slow
@@ -135,8 +135,8 @@ def test_auto_picks_the_cheapest_accurate_backend(scene, rtol, expected) -> None
 def test_auto_simulation_names_its_backend_and_estimate() -> None:
     sig = simulate(AUTO_TABLE[1][0].with_(rtol=1e-2), "auto")
     auto = sig.info["auto"]
-    assert sig.model == auto["model"] == "euler-beam" and auto["error"]["total"] > 0
-    assert "euler-beam" in auto["reason"]
+    assert sig.model == auto.model == "euler-beam" and auto.estimate.total > 0
+    assert "euler-beam" in auto.reason
 
 
 @pytest.mark.slow

@@ -29,7 +29,9 @@ MIN_DMU_NONLINEAR = 1e-4
 
 
 def run_snap(params: dict[str, Any]) -> dict[str, Any]:
-    """Run ``sim.snap.snap`` for a validated request's fields (the snap document)."""
+    """Run ``sim.snap.snap`` for a validated request's fields (the snap document, a
+    :class:`~service.schemas.snaps.SnapResult` dumped)."""
+    from service import convert
     from sim.errors import ParameterError
     from sim.scene import Scene
     from sim.snap import snap
@@ -41,7 +43,8 @@ def run_snap(params: dict[str, Any]) -> dict[str, Any]:
                                  f"model={model!r} over the API, got {dmu!r}")
         scene = {k: v for k, v in params.items()
                  if k not in ("model", "dmu", "duration") and v is not None}  # fmt: skip
-        return snap(Scene(**scene), model, dmu, duration=params.get("duration")).to_dict()
+        r = snap(Scene(**scene), model, dmu, duration=params.get("duration"))
+    return convert.snap(r).model_dump(mode="json")
 
 
 @router.post("", response_model=SnapAnswer, summary="Snap-through past the transition",
