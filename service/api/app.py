@@ -20,7 +20,7 @@ from fastapi.openapi.utils import get_openapi
 from service.api import pages
 from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
-from service.api.executor import make_pool, warm_pool
+from service.api.executor import make_analysis_pool, make_pool, warm_pool
 from service.api.idempotency import IdempotencyMiddleware
 from service.api.jobs import JobRunner
 from service.api.routers import detections, health, jobs, live, signals, simulations, sweeps
@@ -46,13 +46,14 @@ names the field and the value.
 def _lifespan(settings: Settings) -> Any:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        # The event loop shares the GIL with the pool's feeder and result threads; at the
-        # default 5 ms switch interval each hand-off to them waits up to 5 ms (measured: the
-        # cores stay half idle under load). 0.5 ms keeps them moving.
+        # The event loop shares the GIL with the threads of this process (the job runner's,
+        # the storage's to_thread, a thread executor); at the default 5 ms switch interval
+        # each hand-off to them waits up to 5 ms. 0.5 ms keeps them moving. (The analysis
+        # pool, a LightPool, is fed by the event loop itself: no thread per call.)
         sys.setswitchinterval(settings.gil_switch_interval_s)
         store = Store(settings.db_url)
         await to_thread.run_sync(store.create_all)
-        pool = make_pool(settings.executor, settings.analysis_workers, "snapwarn-analysis")
+        pool = make_analysis_pool(settings.executor, settings.analysis_workers)
         state = AppState(settings=settings, store=store, pool=pool)
         if settings.warm_pool:
 

@@ -14,7 +14,7 @@ from typing import Annotated, Any, TypeVar
 
 from fastapi import Depends, Request
 
-from service.api.executor import make_pool, run_in_pool
+from service.api.executor import LightPool, TimeLimitExceeded, make_analysis_pool, run_in_pool
 from service.api.jobs import JobRunner
 from service.api.problems import ApiProblem
 from service.api.settings import Settings
@@ -36,15 +36,18 @@ class AppState:
     async def run(self, fn: Callable[..., T], *args: Any) -> T:
         """Await ``fn(*args)`` in the analysis pool, within ``request_time_limit_s``.
 
-        A broken pool is replaced once. Work past the time limit is stopped (the pool's
-        processes are ended and the pool replaced) and answered 422: send the work as a job.
+        A call whose worker died is run once more (a broken thread or process pool is
+        replaced; a :class:`LightPool` replaces its dead worker itself). Work past the time
+        limit is stopped (its worker killed; a process pool of another kind is replaced whole)
+        and answered 422: send the work as a job.
         Arithmetic errors of the numerics (overflow, division by zero) are the input's doing:
         422 too, with a correlation id in the log.
         """
         try:
             return await self._run_limited(fn, *args)
         except BrokenProcessPool:
-            self._replace_pool()
+            if not isinstance(self.pool, LightPool):
+                self._replace_pool()
             return await self._run_limited(fn, *args)
         except ArithmeticError as exc:
             cid = uuid.uuid4().hex[:12]
@@ -60,28 +63,33 @@ class AppState:
 
     async def _run_limited(self, fn: Callable[..., T], *args: Any) -> T:
         limit = self.settings.request_time_limit_s
-        fut = run_in_pool(self.pool, fn, *args)
+        if isinstance(self.pool, LightPool):  # it kills the worker of a call past its limit
+            try:
+                return await self.pool.run(fn, *args, timeout=limit)
+            except TimeLimitExceeded:
+                raise self._time_limit(fn, limit) from None
         try:
-            return await asyncio.wait_for(fut, timeout=limit)
+            return await asyncio.wait_for(run_in_pool(self.pool, fn, *args), timeout=limit)
         except TimeoutError:
-            log.warning("%s passed the request time limit of %g s: its pool is replaced",
-                        getattr(fn, "__name__", fn), limit)
             self._replace_pool(kill=True)
-            raise ApiProblem(
-                422,
-                f"the computation passed the request time limit of {limit:g} s (setting "
-                "SNAPWARN_REQUEST_TIME_LIMIT_S) and was stopped; run it as a job "
-                "(e.g. \"background\": true) or ask for less",
-                slug="time-limit",
-                field="body",
-                value=None,
-            ) from None
+            raise self._time_limit(fn, limit) from None
+
+    @staticmethod
+    def _time_limit(fn: Callable[..., Any], limit: float) -> ApiProblem:
+        log.warning("%s passed the request time limit of %g s", getattr(fn, "__name__", fn), limit)
+        return ApiProblem(
+            422,
+            f"the computation passed the request time limit of {limit:g} s (setting "
+            "SNAPWARN_REQUEST_TIME_LIMIT_S) and was stopped; run it as a job "
+            '(e.g. "background": true) or ask for less',
+            slug="time-limit",
+            field="body",
+            value=None,
+        )
 
     def _replace_pool(self, kill: bool = False) -> None:
         old = self.pool
-        self.pool = make_pool(
-            self.settings.executor, self.settings.analysis_workers, "snapwarn-analysis"
-        )
+        self.pool = make_analysis_pool(self.settings.executor, self.settings.analysis_workers)
         if kill:
             for p in list((getattr(old, "_processes", None) or {}).values()):
                 try:
