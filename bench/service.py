@@ -5,6 +5,7 @@ against the core-bound throughput of the same work measured in-process, in one r
     python bench/service.py --seconds 3     # quicker
     python bench/service.py --clients 1 4   # other levels
     python bench/service.py --http-workers 2
+    python bench/service.py --client httpx  # the previous load generator (~8x its CPU)
 
 Core-bound throughput: the request's whole work without HTTP -- parse and validate the same
 body, detect, serialise the answer (``inline_detection``, exactly what a server's analysis
@@ -13,8 +14,13 @@ before and after the service levels (the load may change in between: both are pr
 mean is the reference).
 
 The service: a real server (`snapwarn serve`, uvicorn, SQLite file in a temporary folder) on
-127.0.0.1, warmed up; for each level of concurrency that many client tasks
-(httpx2.AsyncClient, keep-alive) run back to back for a bounded time. Reported per level:
+127.0.0.1, warmed up; for each level of concurrency that many client tasks, one keep-alive
+connection each, run back to back for a bounded time. The load generator runs in this process
+on the same cores, so its CPU is the test's own cost: ``--client raw`` (default) is a small
+asyncio HTTP/1.1 client (a prepared request; the status and the whole body of every response
+checked byte for byte against the reference answer, itself validated as a ``Detection``),
+about 0.15 ms CPU per request; ``--client httpx`` (httpx2.AsyncClient) costs ~1.2 ms.
+Reported per level:
 
 - latency p50 / p95 / p99 / max (ms), throughput (requests per second), errors (any non-200
   answer or transport error), the slowest and fastest client's request counts (starvation);
@@ -122,7 +128,124 @@ def start_server(
     raise SystemExit("server did not start")
 
 
-async def _level(url: str, body: bytes, clients: int, seconds: float) -> dict:
+class _Http1(asyncio.Protocol):
+    """One keep-alive HTTP/1.1 connection of the raw load generator: it writes a prepared
+    request and reads one whole response (status line, headers, ``Content-Length`` body)."""
+
+    def __init__(self) -> None:
+        self.transport: asyncio.Transport | None = None
+        self.buf = bytearray()
+        self.head: bytes | None = None
+        self.need = -1
+        self.waiter: asyncio.Future[None] | None = None
+        self.closed: BaseException | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+
+    def data_received(self, data: bytes) -> None:
+        self.buf += data
+        if self.head is None:
+            end = self.buf.find(b"\r\n\r\n")
+            if end < 0:
+                return
+            self.head = bytes(self.buf[:end])
+            del self.buf[: end + 4]
+            for line in self.head.split(b"\r\n")[1:]:
+                name, _, value = line.partition(b":")
+                if name.strip().lower() == b"content-length":
+                    self.need = int(value)
+            if self.need < 0:  # chunked or unframed: not what this server sends
+                self._done(ConnectionError(f"no content-length: {self.head[:200]!r}"))
+                return
+        if len(self.buf) >= self.need:
+            self._done(None)
+
+    def _done(self, exc: BaseException | None) -> None:
+        if self.waiter is not None and not self.waiter.done():
+            if exc is None:
+                self.waiter.set_result(None)
+            else:
+                self.waiter.set_exception(exc)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.closed = exc or ConnectionError("connection closed by the server")
+        self._done(self.closed)
+
+    async def request(self, raw: bytes) -> tuple[bytes, bytes]:
+        """Send ``raw`` (a whole request); the response's head and body."""
+        if self.closed is not None or self.transport is None:
+            raise ConnectionError("connection closed")
+        self.waiter = asyncio.get_running_loop().create_future()
+        self.head, self.need = None, -1
+        self.buf.clear()
+        self.transport.write(raw)
+        await self.waiter
+        assert self.head is not None
+        return self.head, bytes(self.buf[: self.need])
+
+
+async def _raw_level(url: str, body: bytes, clients: int, seconds: float) -> dict:
+    """A level of ``clients`` keep-alive connections driven by :class:`_Http1` (a small client:
+    about a tenth of httpx's CPU per request). Every response is checked: status 200 and a
+    body byte-identical to the reference answer (fetched first with httpx and validated as a
+    ``Detection`` document; the service is deterministic, so any other body is an error)."""
+    from service.schemas import Detection
+
+    ref = httpx2.post(url + "/v1/detections", content=body, timeout=60,
+                      headers={"content-type": "application/json"})  # fmt: skip
+    if ref.status_code != 200:
+        raise SystemExit(f"reference request: {ref.status_code} {ref.text[:300]}")
+    Detection.model_validate_json(ref.content)
+    expected = ref.content
+    host, port = url.split("//", 1)[1].rsplit(":", 1)
+    raw = (
+        f"POST /v1/detections HTTP/1.1\r\nhost: {host}:{port}\r\n"
+        f"content-type: application/json\r\ncontent-length: {len(body)}\r\n\r\n"
+    ).encode() + body
+    loop = asyncio.get_running_loop()
+    lat: list[float] = []
+    per_client = [0] * clients
+    errors: list[str] = []
+
+    async def connect() -> _Http1:
+        return (await loop.create_connection(_Http1, host, int(port)))[1]
+
+    conns = [await connect() for _ in range(clients)]
+    stop_at = time.perf_counter() + seconds
+
+    async def one(k: int) -> None:
+        conn = conns[k]
+        while time.perf_counter() < stop_at:
+            t0 = time.perf_counter()
+            try:
+                head, got = await conn.request(raw)
+            except (OSError, ConnectionError) as exc:
+                errors.append(repr(exc))
+                conn = conns[k] = await connect()
+                continue
+            if not head.startswith(b"HTTP/1.1 200 ") or got != expected:
+                errors.append(f"{head[:60]!r}: {got[:200]!r}")
+            else:
+                lat.append(time.perf_counter() - t0)
+                per_client[k] += 1
+            if b"connection: close" in head.lower():
+                conn.transport.close()  # type: ignore[union-attr]
+                conn = conns[k] = await connect()
+
+    t0 = time.perf_counter()
+    await asyncio.gather(*(one(k) for k in range(clients)))
+    wall = time.perf_counter() - t0
+    for c in conns:
+        if c.transport is not None:
+            c.transport.close()
+    return _summary(clients, lat, per_client, errors, wall)
+
+
+async def _level(url: str, body: bytes, clients: int, seconds: float, client: str = "raw") -> dict:
+    """One level of concurrency: ``client`` "raw" (:func:`_raw_level`) or "httpx"."""
+    if client == "raw":
+        return await _raw_level(url, body, clients, seconds)
     lat: list[float] = []
     per_client = [0] * clients
     errors: list[str] = []
@@ -150,6 +273,12 @@ async def _level(url: str, body: bytes, clients: int, seconds: float) -> dict:
         t0 = time.perf_counter()
         await asyncio.gather(*(one(k) for k in range(clients)))
         wall = time.perf_counter() - t0
+    return _summary(clients, lat, per_client, errors, wall)
+
+
+def _summary(
+    clients: int, lat: list[float], per_client: list[int], errors: list[str], wall: float
+) -> dict:
     a = np.array(lat) * 1e3
     return {
         "clients": clients,
@@ -259,13 +388,14 @@ def _measure(
     seconds: float,
     cores: int,
     http_workers: int = 1,
+    client: str = "raw",
 ) -> dict:
     """One level of concurrency, with the CPU of the server (event loops, pools), the client."""
     loops = _loop_processes(proc.pid, http_workers)
     tree0, me0 = _tree_cpu(proc.pid), time.process_time()
     main0 = sum(_proc_cpu(p) for p in loops)
     load0 = os.getloadavg()[0]
-    res = asyncio.run(_level(url, body, clients, seconds))
+    res = asyncio.run(_level(url, body, clients, seconds, client))
     tree = _tree_cpu(proc.pid) - tree0
     main = sum(_proc_cpu(p) for p in loops) - main0
     me = time.process_time() - me0
@@ -276,6 +406,7 @@ def _measure(
     res["client_cpu_ms_per_request"] = 1e3 * me / n
     res["client_cpu_share"] = me / (wall * cores)
     res["http_workers"] = http_workers
+    res["client"] = client
     res["server_cpu_share"] = tree / (wall * cores)
     res["server_and_client_cpu_share"] = (tree + me) / (wall * cores)
     res["loadavg_1min_before"] = load0
@@ -343,6 +474,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--http-workers", type=int, default=1)
     ap.add_argument(
+        "--client",
+        choices=("raw", "httpx"),
+        default="raw",
+        help="load generator: raw (asyncio protocol, ~0.15 ms CPU/request) or httpx (~1.2 ms)",
+    )
+    ap.add_argument(
         "--analysis-workers", type=int, default=None, help="default: the server's (min(4, cores))"
     )
     ap.add_argument("--samples", type=int, default=10_000)
@@ -357,6 +494,12 @@ def main(argv: list[str] | None = None) -> int:
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     body = json.dumps(_signal(args.samples)).encode()
+    print(
+        f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())} (uptime), {cores} cores; server: "
+        f"{args.http_workers} HTTP worker(s), analysis workers "
+        f"{args.analysis_workers or 'default'}; client: {args.client}",
+        flush=True,
+    )
     before = core_bound(body, cores, args.core_seconds)
     _print_core("before", before)
     rows = []
@@ -366,9 +509,13 @@ def main(argv: list[str] | None = None) -> int:
         )
         try:
             health = httpx2.get(url + "/healthz").json()
-            asyncio.run(_level(url, body, max(args.clients), args.warmup))  # warm every worker
+            warm = _level(url, body, max(args.clients), args.warmup, args.client)
+            asyncio.run(warm)  # warm every worker
             for c in args.clients:
-                rows.append(_measure(proc, url, body, c, args.seconds, cores, args.http_workers))
+                row = _measure(
+                    proc, url, body, c, args.seconds, cores, args.http_workers, args.client
+                )
+                rows.append(row)
         finally:
             proc.send_signal(signal.SIGTERM)
             try:
@@ -405,6 +552,7 @@ def main(argv: list[str] | None = None) -> int:
         "samples": args.samples,
         "seconds_per_level": args.seconds,
         "http_workers": args.http_workers,
+        "client": args.client,
         "uvicorn": {
             "http": args.http,
             "loop": args.loop,
