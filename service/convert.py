@@ -21,12 +21,16 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from service.schemas import analysis as wire
+from service.schemas import atlases as atlas_wire
 from service.schemas import sim as sim_wire
 from service.schemas import snaps as snap_wire
 
 __all__ = [
     "PARITY",
     "alarm",
+    "atlas_cell",
+    "atlas_report",
+    "atlas_summary",
     "backend_choice",
     "bifurcation",
     "bifurcation_point",
@@ -92,6 +96,14 @@ PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] =
         sim_wire.BackendChoice,
         frozenset({"estimate"}),
         frozenset({"error"}),
+    ),
+    # the atlas (the service's grid of cells)
+    "service.atlas.cells:CellResult": (atlas_wire.AtlasCell, frozenset(), frozenset()),
+    "service.atlas.results:AtlasSummary": (atlas_wire.AtlasSummary, frozenset(), frozenset()),
+    "service.atlas.results:AtlasResult": (
+        atlas_wire.AtlasReport,
+        frozenset({"rows"}),
+        frozenset({"cells"}),
     ),
     # phi0: the critical mode on the quadrature grid (an internal of the amplitude equation)
     "sim.normal_form:NormalForm": (sim_wire.NormalForm, frozenset({"phi0"}), frozenset()),
@@ -282,7 +294,8 @@ def sweep_result(
 
 def sweep_document(doc: Mapping[str, Any]) -> wire.SweepResult:
     """A stored sweep document as the typed result: the current form, or the older flat one
-    (``WarnResult.to_dict()``: mu* at the top level, alarms without a level)."""
+    (written by the former ``WarnResult.to_dict()``: mu* at the top level, alarms without a
+    level)."""
     d = dict(doc)
     d["alarm"] = [
         wire.Alarm.model_validate(a) if isinstance(a, Mapping) and "level" in a else alarm(a)
@@ -454,6 +467,26 @@ def snap(r: Any, *, path: str | None = None) -> snap_wire.SnapResult:
     if path is not None:
         return snap_wire.SnapReport(**doc, path=path)
     return snap_wire.SnapResult(**doc)
+
+
+# ---------------------------------------------------------------------------------- atlas
+def atlas_cell(row: Any) -> atlas_wire.AtlasCell:
+    """One finished cell of an atlas (``service.atlas.CellResult``): the row the CLI prints,
+    ``cells.jsonl`` holds and ``/v1/atlases/{id}/cells`` pages."""
+    return atlas_wire.AtlasCell.model_validate(_fields(row))
+
+
+def atlas_summary(s: Any) -> atlas_wire.AtlasSummary:
+    """An atlas's counts, cost and headline numbers (``service.atlas.AtlasSummary``)."""
+    return atlas_wire.AtlasSummary.model_validate(_fields(s))
+
+
+def atlas_report(r: Any) -> atlas_wire.AtlasReport:
+    """An atlas run (``service.atlas.AtlasResult``): ``snapwarn atlas --json``."""
+    return atlas_wire.AtlasReport(
+        name=r.name, kind=r.kind, varied=list(r.varied), summary=atlas_summary(r.summary),
+        cells=[atlas_cell(row) for row in r.rows], missing=list(r.missing),
+    )  # fmt: skip
 
 
 _TYPED: dict[str, Any] = {

@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -48,10 +47,6 @@ __all__ = [
 ALARM_LEVELS = ("none", "watch", "warning", "critical")
 WATCH_RATIO = 3.0
 WARNING_RATIO = 10.0  # the paper's T > 10 T0
-
-
-def _finite_or_none(v: float) -> float | None:
-    return float(v) if math.isfinite(v) else None
 
 
 @dataclass(frozen=True)
@@ -84,21 +79,6 @@ class Alarm:
     mu_star: float = math.nan
     mu_star_interval: tuple[float, float] = (math.nan, math.nan)
     distance: float = math.nan
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (non-finite numbers become ``None``); keeps the historic keys
-        ``distance_in_half_widths`` (pipeline) and ``distance`` (predictor)."""
-        lo, hi = self.mu_star_interval
-        return {
-            "level": self.level,
-            "reason": self.reason,
-            "mu": _finite_or_none(self.mu),
-            "t_ratio": _finite_or_none(self.t_ratio),
-            "mu_star": _finite_or_none(self.mu_star),
-            "mu_star_interval": [_finite_or_none(lo), _finite_or_none(hi)],
-            "distance": _finite_or_none(self.distance),
-            "distance_in_half_widths": _finite_or_none(self.distance),
-        }
 
 
 def alarm_for(

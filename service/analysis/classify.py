@@ -140,23 +140,6 @@ class Classification:
     damping: float = math.nan
     fits: tuple[ModelFit, ...] = field(default=(), repr=False, compare=False)
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (non-finite numbers become ``None``; flags become dicts)."""
-        return {
-            "transition": self.transition,
-            "a": clean(self.a),
-            "a_std": clean(self.a_std),
-            "b": clean(self.b),
-            "b_std": clean(self.b_std),
-            "mu_star": clean(self.mu_star),
-            "mu_star_std": clean(self.mu_star_std),
-            "probabilities": clean(dict(self.probabilities)),
-            "regime": self.regime,
-            "window": self.window,
-            "damping": clean(self.damping),
-            "flags": [f.to_dict() for f in self.flags],
-        }
-
 
 def classify(
     mu: Sequence[float] | np.ndarray | Sweep,

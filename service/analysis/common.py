@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 
 class SnapwarnWarning(UserWarning):
@@ -23,6 +23,3 @@ class Flag:
 
     code: str
     message: str
-
-    def to_dict(self) -> dict[str, str]:
-        return asdict(self)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -515,7 +515,8 @@ def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
 
 
 def measurement_from_dict(d: dict[str, Any] | None) -> Measurement | None:
-    """Inverse of :meth:`Measurement.to_dict` (None and missing numbers become NaN)."""
+    """Inverse of the stored measurement of :func:`record_to_dict` (None and missing numbers
+    become NaN)."""
     if d is None:
         return None
 
@@ -547,13 +548,22 @@ def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
     return out
 
 
+def _measurement_dict(m: Measurement | None) -> dict[str, Any] | None:
+    """A measurement's fields as stored (its flags as ``{code, message}``; NaN kept)."""
+    if m is None:
+        return None
+    d = asdict(m)
+    d["flags"] = list(d["flags"])
+    return d
+
+
 def record_to_dict(r: LiveRecord) -> dict[str, Any]:
     """The stored form of a :class:`LiveRecord` (plain JSON types; NaN kept as float)."""
     return {
         "seq": r.seq,
         "control": r.control,
-        "measurement": r.measurement.to_dict() if r.measurement is not None else None,
-        "flags": [f.to_dict() for f in r.flags],
+        "measurement": _measurement_dict(r.measurement),
+        "flags": [asdict(f) for f in r.flags],
         "interval": list(r.interval) if r.interval is not None else None,
         "next_control": r.next_control,
     }

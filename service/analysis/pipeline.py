@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_measurement
+from service.analysis.classify import clean
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
@@ -78,20 +79,6 @@ class Measurement:
     dt: float
     flags: tuple[Flag, ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "mu": self.mu,
-            "omega": self.omega,
-            "sigma2": self.sigma2,
-            "sigma2_std": self.sigma2_std,
-            "w_static": self.w_static,
-            "w_static_std": self.w_static_std,
-            "regime": self.regime,
-            "duration": self.duration,
-            "dt": self.dt,
-            "flags": [f.to_dict() for f in self.flags],
-        }
-
 
 def measurement_from_detection(
     mu: float, det: Detection, duration: float, dt: float
@@ -132,8 +119,11 @@ class WarnResult:
         "converged" (interval narrow enough), "budget" (max measurements), "no-safe-step",
         or "snapped" (a measurement found no equilibrium: the sweep crossed mu*).
     truth : dict or None
-        For simulated sweeps: the model's own mu* and transition, and the errors.
+        For simulated sweeps: the model's own mu* and transition (and the ``Resolution`` it
+        was computed at), and the errors.
     flags : tuple of Flag
+    detections : tuple of (Detection, float, str or None)
+        Recorded sweeps: each record's detection, its control value and its name.
     """
 
     actuation: str | None
@@ -144,11 +134,18 @@ class WarnResult:
     stopped: str
     truth: dict | None = None
     flags: tuple[Flag, ...] = ()
-    detections: tuple[dict, ...] = field(default=(), repr=False)
+    detections: tuple[tuple[Detection, float, str | None], ...] = field(default=(), repr=False)
 
     def to_dict(self) -> dict[str, Any]:
+        """A flat summary for scripts (``bench/warn.py``): mu*, its interval, the transition
+        and the stop reason (non-finite numbers as None), and the truth as computed. Not the
+        sweep's document: that is ``service.convert.sweep_result`` (``snapwarn warn --json``,
+        ``/v1/sweeps``)."""
         p = self.prediction
-        doc: dict[str, Any] = {
+        truth = None
+        if self.truth is not None:
+            truth = {k: v for k, v in self.truth.items() if k != "resolution"}
+        return {**clean({
             "actuation": self.actuation,
             "model": self.model,
             "transition": p.transition if p else "undetermined",
@@ -156,24 +153,9 @@ class WarnResult:
             "mu_star": p.mu_star if p else None,
             "mu_star_interval": list(p.mu_star_interval) if p else None,
             "mu_star_std": p.mu_star_std if p else None,
-            "probabilities": dict(p.probabilities) if p else {},
             "n_measurements": len(self.measurements),
             "stopped": self.stopped,
-            "measurements": [m.to_dict() for m in self.measurements],
-            "alarm": [a.to_dict() for a in self.alarm],
-            "baseline": p.baseline.to_dict() if p and p.baseline else None,
-            "flags": [f.to_dict() for f in self.flags]
-            + ([f.to_dict() for f in p.flags] if p else []),
-        }
-        if p is not None and p.classification is not None:
-            c = p.classification
-            doc["classification"] = {"transition": c.transition, "a": c.a, "a_std": c.a_std,
-                                     "b": c.b, "b_std": c.b_std, "regime": c.regime}  # fmt: skip
-        if self.truth is not None:
-            doc["truth"] = self.truth
-        if self.detections:
-            doc["detections"] = list(self.detections)
-        return doc
+        }), "truth": truth}
 
 
 def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | None:
@@ -388,17 +370,13 @@ def sweep_from_signals(
         )
     order = np.argsort([float(r[2]) for r in records], kind="stable")
     ms: list[Measurement] = []
-    dets: list[dict] = []
+    dets: list[tuple[Detection, float, str | None]] = []
     flags: list[Flag] = []
     for i, j in enumerate(order):
         w, dt, control = records[j]
         w = np.asarray(w, dtype=float)
         det = detect(w, dt=float(dt), method=method)
-        d = det.to_dict()
-        d["control"] = float(control)
-        if names is not None:
-            d["name"] = names[j]
-        dets.append(d)
+        dets.append((det, float(control), names[j] if names is not None else None))
         try:
             ms.append(measurement_from_detection(float(control), det, (w.size - 1) * dt, dt))
         except ValueError as exc:

@@ -32,7 +32,6 @@ from service.analysis._likelihood import profile_memo
 from service.analysis._sweep import Sweep, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
-from service.analysis.classify import clean as _clean
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
 
@@ -70,16 +69,6 @@ class PaperRule:
     t_ratio: float
     a: float
     flags: tuple[Flag, ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict."""
-        return {
-            "mu_star": _clean(self.mu_star),
-            "stop_index": self.stop_index,
-            "t_ratio": _clean(self.t_ratio),
-            "a": self.a,
-            "flags": [f.to_dict() for f in self.flags],
-        }
 
 
 def _check_a(a: Any) -> float:
@@ -212,33 +201,6 @@ class Prediction:
     n_terms: int = 0
     baseline: PaperRule | None = None
     classification: Classification | None = field(default=None, repr=False, compare=False)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (non-finite numbers become ``None``)."""
-        c = self.classification
-        return {
-            "mu_star": _clean(self.mu_star),
-            "mu_star_interval": _clean(list(self.mu_star_interval)),
-            "mu_star_std": _clean(self.mu_star_std),
-            "a": _clean(self.a),
-            # the classification's free estimates (None when the law was given)
-            "a_std": _clean(c.a_std) if c is not None else None,
-            "b": _clean(c.b) if c is not None else None,
-            "b_std": _clean(c.b_std) if c is not None else None,
-            "regime": c.regime if c is not None else None,
-            "method": self.method,
-            "alarm": self.alarm.to_dict(),
-            "next_safe_mu": _clean(self.next_safe_mu),
-            "transition": self.transition,
-            "probabilities": _clean(dict(self.probabilities)),
-            "window": self.window,
-            "n_terms": self.n_terms,
-            "baseline": self.baseline.to_dict() if self.baseline is not None else None,
-            "classification": (
-                self.classification.to_dict() if self.classification is not None else None
-            ),
-            "flags": [f.to_dict() for f in self.flags],
-        }
 
 
 def _mixture(

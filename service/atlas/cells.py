@@ -119,14 +119,6 @@ class CellResult:
     cpu_seconds: float = 0.0
     worker: str = ""
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "key": self.key, "index": self.index, "inputs": dict(self.inputs),
-            "status": self.status, "results": dict(self.results),
-            "flags": [dict(f) for f in self.flags], "error": self.error,
-            "seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "worker": self.worker,
-        }  # fmt: skip
-
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> CellResult:
         return cls(key=d["key"], index=int(d["index"]), inputs=dict(d["inputs"]),
@@ -243,6 +235,7 @@ WARN_PARAMS = {
 
 
 def _run_warn(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    from service import convert
     from service.analysis.pipeline import warn
 
     opts = None
@@ -252,8 +245,26 @@ def _run_warn(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]
     res = warn(inp["actuation"], model=inp["model"], damping=inp["damping"],
                snr_db=inp["snr_db"], seed=inp["seed"], max_measurements=inp["max_measurements"],
                kick=inp["kick"], scene_options=opts)  # fmt: skip
-    doc = res.to_dict()
-    return _prediction_results(doc, doc.get("truth") or {}), list(doc.get("flags") or [])
+    doc, flags = _sweep_outline(res)
+    doc.setdefault("transition", "undetermined")
+    truth = convert.plain(res.truth) or {}
+    return _prediction_results(doc, truth), flags
+
+
+def _sweep_outline(res: Any) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    """What a cell keeps of a sweep (``WarnResult``), read from its wire document, and the
+    sweep's and the prediction's flags in order."""
+    from service import convert
+
+    sweep = convert.sweep_result(res)
+    p = sweep.prediction
+    doc: dict[str, Any] = {"n_measurements": len(sweep.measurements), "stopped": sweep.stopped}
+    if p is not None:
+        doc.update(mu_star=p.mu_star, mu_star_interval=p.mu_star_interval, a=p.a,
+                   transition=p.transition,
+                   baseline=p.baseline.model_dump() if p.baseline is not None else None)
+    pflags = res.prediction.flags if res.prediction is not None else ()
+    return doc, [convert.flag(f).model_dump() for f in (*res.flags, *pflags)]
 
 
 def _prediction_results(doc: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
@@ -341,14 +352,7 @@ def _run_sweep(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]
 
     records, names = _read_manifest(inp["manifest"])
     res = sweep_from_signals(records, names=names, method=inp["method"])
-    p = res.prediction
-    doc: dict[str, Any] = {"n_measurements": len(res.measurements), "stopped": res.stopped}
-    flags = [f.to_dict() for f in res.flags]
-    if p is not None:
-        pd = p.to_dict()
-        doc.update({k: pd.get(k) for k in ("mu_star", "mu_star_interval", "transition", "a")})
-        doc["baseline"] = pd.get("baseline")
-        flags += list(pd.get("flags") or [])
+    doc, flags = _sweep_outline(res)
     truth = {"mu_star": inp["mu_star_true"], "transition": inp["transition_true"]}
     return _prediction_results(doc, truth), flags
 

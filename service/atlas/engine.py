@@ -114,7 +114,10 @@ class JsonlSink:
     def put(self, row: CellResult) -> bool:
         if row.key in self._keys:
             return False
-        line = json.dumps(clean_json(row.to_dict()), allow_nan=False, sort_keys=True)
+        from service import convert
+
+        line = json.dumps(convert.atlas_cell(row).model_dump(mode="json"), allow_nan=False,
+                          sort_keys=True)  # fmt: skip
         with self.path.open("a+b") as fh:
             fh.seek(0, os.SEEK_END)
             if fh.tell() > 0:

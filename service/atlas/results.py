@@ -58,15 +58,6 @@ class AtlasSummary:
     engine: str
     metrics: dict[str, Any] = field(default_factory=dict)
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "name": self.name, "kind": self.kind, "cells": self.cells, "ok": self.ok,
-            "failed": self.failed, "missing": self.missing, "resumed": self.resumed,
-            "wall_s": self.wall_s, "cell_seconds": self.cell_seconds,
-            "cpu_seconds": self.cpu_seconds, "cell_seconds_median": self.cell_seconds_median,
-            "workers": list(self.workers), "engine": self.engine, "metrics": dict(self.metrics),
-        }  # fmt: skip
-
 
 @dataclass(frozen=True)
 class AtlasResult:
@@ -78,11 +69,6 @@ class AtlasResult:
     rows: tuple[CellResult, ...]
     summary: AtlasSummary
     missing: tuple[str, ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "kind": self.kind, "varied": list(self.varied),
-                "summary": self.summary.to_dict(), "cells": [r.to_dict() for r in self.rows],
-                "missing": list(self.missing)}  # fmt: skip
 
 
 def _median(xs: Sequence[float]) -> float | None:

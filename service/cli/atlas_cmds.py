@@ -63,9 +63,9 @@ def _text(doc: dict[str, Any]) -> str:
 
 
 def _atlas(args: argparse.Namespace) -> int:
+    from service import convert
     from service.atlas import EngineError, JsonlSink, SpecError, load_spec, run_atlas
     from service.atlas.charts import write_heatmaps
-    from service.schemas.atlases import AtlasReport
 
     try:
         spec = load_spec(args.spec)
@@ -97,7 +97,7 @@ def _atlas(args: argparse.Namespace) -> int:
     finally:
         if cb is not None:
             cb.close()
-    doc = AtlasReport.model_validate(result.to_dict()).model_dump(mode="json")
+    doc = convert.atlas_report(result).model_dump(mode="json")
     if out is not None:
         (out / "summary.json").write_text(json.dumps(doc["summary"], indent=2) + "\n")
         if chart is not None and result.rows:

@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pytest
 
+from service import convert
 from service.analysis.classify import Classification, classify
 from service.analysis.common import Flag
 
@@ -172,10 +173,11 @@ def test_three_points_work_and_flag_assumed_noise() -> None:
     assert {"noise_assumed", "few_points_near"} <= codes
 
 
-def test_to_dict_is_strict_json() -> None:
+def test_wire_document_is_strict_json() -> None:
     d = sweep("saddle-node", seed=5)
     c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
-    doc = json.loads(json.dumps(c.to_dict(), allow_nan=False))
+    doc = json.loads(json.dumps(convert.classification(c).model_dump(mode="json"),
+                                allow_nan=False))  # fmt: skip
     assert doc["transition"] == "saddle-node"
     assert doc["b"] is None  # NaN (no static data) becomes null, with its flag
     assert any(f["code"] == "no_static_data" for f in doc["flags"])

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from service import convert
 from service.analysis.common import Flag
 from service.analysis.crb import Overdamped, Underdamped, crb
 from service.analysis.detect import METHODS, Detection, Fundamental, Mode, detect
@@ -262,14 +263,14 @@ def test_noise_only_record_has_no_mode() -> None:
         assert det.modes == () and det.fundamental is None
         assert "no_mode" in det.flag_codes
         assert det.static_level == pytest.approx(STATIC, abs=1e-4)
-        json.dumps(det.to_dict(), allow_nan=False)
+        json.dumps(convert.detection(det).model_dump(mode="json"), allow_nan=False)
 
 
 def test_constant_record_has_no_mode() -> None:
     det = detect(np.full(100, 0.25), dt=0.1)
     assert det.fundamental is None and det.flag_codes == ("no_mode",)
     assert det.static_level == 0.25 and det.static_level_std == 0.0
-    assert det.to_dict()["snr_db"] is None
+    assert math.isnan(det.snr_db) and convert.detection(det).snr_db is None
 
 
 def test_few_periods_flag() -> None:
@@ -353,18 +354,18 @@ def test_ambient_record_through_its_autocorrelation() -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# Contract: dataclasses, to_dict, validation
+# Contract: dataclasses, the wire document, validation
 # --------------------------------------------------------------------------------------------
 
 
-def test_results_are_frozen_and_to_dict_is_the_cli_document() -> None:
+def test_results_are_frozen_and_the_wire_document_is_strict_json() -> None:
     det = detect(record(N, DT, BEAM, noise=1e-5), dt=DT)
     assert isinstance(det, Detection) and isinstance(det.modes[0], Mode)
     with pytest.raises(AttributeError):
         det.method = "x"  # type: ignore[misc]
     with pytest.raises(AttributeError):
         det.modes[0].omega = 1.0  # type: ignore[misc]
-    doc = det.to_dict()
+    doc = convert.detection(det).model_dump(mode="json")
     json.dumps(doc, allow_nan=False)
     assert {"modes", "fundamental", "flags", "static_level", "method"} <= doc.keys()
     assert {"omega", "frequency", "damping", "sigma2", "amplitude", "omega_std"} <= doc["modes"][

@@ -10,6 +10,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from service import convert
 from service.analysis.detect import Detection, detect
 
 
@@ -33,7 +34,7 @@ def _check(det: Detection) -> None:
     if not all(math.isfinite(v) for v in values):
         assert det.flags, f"non-finite value without a flag: {det}"
     # the document is always strict JSON (non-finite -> None)
-    json.dumps(det.to_dict(), allow_nan=False)
+    json.dumps(convert.detection(det).model_dump(mode="json"), allow_nan=False)
     assert math.isfinite(det.static_level)
     for m in det.modes:
         assert math.isfinite(m.omega) and math.isfinite(m.sigma2)

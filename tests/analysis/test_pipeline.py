@@ -35,18 +35,17 @@ def test_sigma4_bound_is_conservative_on_the_beam() -> None:
 
 def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
     res = warn("asymmetric", seed=11, max_measurements=18)
-    doc = res.to_dict()
-    truth = doc["truth"]
-    assert doc["stopped"] in ("converged", "budget")
+    truth = res.truth
+    assert res.stopped in ("converged", "budget")
     assert truth["max_mu_measured"] < truth["mu_star"]
-    assert doc["transition"] == "saddle-node"
+    assert res.prediction.transition == "saddle-node"
     assert abs(truth["error"]) < 1e-4
-    assert len(doc["measurements"]) == doc["n_measurements"] <= 18
+    assert len(res.measurements) <= 18
     for key in ("mu", "omega", "sigma2", "sigma2_std", "w_static"):
-        assert all(math.isfinite(m[key]) for m in doc["measurements"])
-    assert doc["baseline"]["mu_star"] is not None
+        assert all(math.isfinite(getattr(m, key)) for m in res.measurements)
+    assert math.isfinite(res.prediction.baseline.mu_star)
     # the alarm rises as the strip slows down
-    ratios = [a["t_ratio"] for a in doc["alarm"]]
+    ratios = [a.t_ratio for a in res.alarm]
     assert ratios[-1] > 5 and ratios[-1] == max(ratios)
     assert res.alarm[-1].level == "watch"  # T/T0 = 6.5: between 3 and 10
     assert res.alarm[-1] == res.prediction.alarm  # one alarm rule for the pipeline and predict
@@ -57,7 +56,7 @@ def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
 def test_warn_meets_the_accuracy_target(actuation: str) -> None:
     """Issue target: |mu* error| <= 1e-5 from at most 30 impulse responses at 40 dB."""
     res = warn(actuation, seed=3, max_measurements=30)
-    t = res.to_dict()["truth"]
+    t = res.truth
     assert abs(t["error"]) <= 1e-5
     assert t["transition_correct"]
     assert t["max_mu_measured"] < t["mu_star"]
@@ -73,7 +72,7 @@ def test_warn_interval_covers_mu_star_over_seeds() -> None:
 
     seeds, acts = range(12), ("asymmetric", "symmetric", "antisymmetric")
     covered = sum(
-        bool(warn(a, seed=s, max_measurements=30).to_dict()["truth"]["covered"])
+        bool(warn(a, seed=s, max_measurements=30).truth["covered"])
         for a in acts
         for s in seeds
     )
@@ -139,9 +138,9 @@ def test_normal_form_warn_intervals_cover_its_mu_star(actuation: str) -> None:
     records' frequency shift biased mu* by -2e-6 (7-11 standard errors, 3 seeds of 3 missed);
     kicks scaled with the expected rate cubed keep the response a fixed fraction of the well."""
     for seed in (1, 2, 3):
-        doc = warn(actuation, model="normal-form", seed=seed, max_measurements=30).to_dict()
-        t = doc["truth"]
+        res = warn(actuation, model="normal-form", seed=seed, max_measurements=30)
+        t, std = res.truth, res.prediction.mu_star_std
         assert t["covered"], (seed, t)
         # the old bias sat 7-11 standard errors off; an unbiased estimate stays within 3
-        assert abs(t["error"]) < 3 * doc["mu_star_std"], (seed, t, doc["mu_star_std"])
+        assert abs(t["error"]) < 3 * std, (seed, t, std)
         assert abs(t["error"]) < 1e-5, (seed, t)  # the warn accuracy target

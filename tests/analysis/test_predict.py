@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_classify import BEAM_KIND, KINDS, beam_sweeps, law, sweep  # noqa: F401
 
+from service import convert
 from service.analysis.predict import PaperRule, Prediction, paper_rule, predict
 
 # --------------------------------------------------------------------------------------------
@@ -140,7 +141,7 @@ def test_flat_data_flag_and_no_safe_step() -> None:
     p = predict(1 - x, s2, sigma2_std=5e-3 * np.ones(x.size), a=0.5)
     codes = {f.code for f in p.flags}
     assert "interval_huge" in codes or "no_safe_step" in codes
-    doc = json.loads(json.dumps(p.to_dict(), allow_nan=False))
+    doc = json.loads(json.dumps(convert.prediction(p).model_dump(mode="json"), allow_nan=False))
     assert doc["mu_star_interval"][0] is not None
 
 
@@ -191,7 +192,7 @@ def test_never_nan_without_a_flag(n: int, seed: int, with_std: bool, a: float | 
             p.alarm.t_ratio, p.alarm.distance]  # fmt: skip
     if not all(math.isfinite(v) for v in nums):
         assert p.flags, p
-    json.dumps(p.to_dict(), allow_nan=False)
+    json.dumps(convert.prediction(p).model_dump(mode="json"), allow_nan=False)
 
 
 # --------------------------------------------------------------------------------------------

@@ -182,7 +182,7 @@ def detect(
     Returns
     -------
     Detection
-        Frozen result; ``to_dict()`` gives the CLI document.
+        Frozen result; ``service.convert.detection`` gives its wire document.
 
     Raises
     ------

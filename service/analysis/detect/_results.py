@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 from service.analysis.common import Flag
 
@@ -58,14 +57,6 @@ PEAK_FALSE_ALARM = 1e-3
 #: ``ln N`` noise variances (MDL: ``(k / 2) ln N`` for its ``k = 4`` parameters, doubled
 #: because the RSS is compared in noise variances, ``2 x`` the log-likelihood).
 ORDER_PENALTY = 4.0
-
-
-def _num(x: float | None) -> float | None:
-    """A plain float for JSON, ``None`` for missing / non-finite values."""
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -123,27 +114,6 @@ class Mode:
     real_amplitudes: tuple[float, float] | None = None
     snr_db: float = math.nan
     combination: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "omega": _num(self.omega),
-            "frequency": _num(self.frequency),
-            "damping": _num(self.damping),
-            "sigma2": _num(self.sigma2),
-            "amplitude": _num(self.amplitude),
-            "phase": _num(self.phase),
-            "omega_std": _num(self.omega_std),
-            "damping_std": _num(self.damping_std),
-            "sigma2_std": _num(self.sigma2_std),
-            "amplitude_std": _num(self.amplitude_std),
-            "regime": self.regime,
-            "real_poles": None if self.real_poles is None else [_num(v) for v in self.real_poles],
-            "real_amplitudes": None
-            if self.real_amplitudes is None
-            else [_num(v) for v in self.real_amplitudes],
-            "snr_db": _num(self.snr_db),
-            "combination": self.combination,
-        }
 
 
 @dataclass(frozen=True)
@@ -206,19 +176,6 @@ class Fundamental:
     def poles(self) -> tuple[float, float] | None:
         return self.mode.real_poles
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "omega": _num(self.omega),
-            "omega_std": _num(self.omega_std),
-            "sigma2": _num(self.sigma2),
-            "sigma2_std": _num(self.sigma2_std),
-            "damping": _num(self.damping),
-            "damping_std": _num(self.damping_std),
-            "regime": self.regime,
-            "poles": None if self.poles is None else [_num(v) for v in self.poles],
-            "index": self.index,
-        }
-
 
 @dataclass(frozen=True)
 class Detection:
@@ -263,20 +220,3 @@ class Detection:
     @property
     def flag_codes(self) -> tuple[str, ...]:
         return tuple(f.code for f in self.flags)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The CLI document: plain floats, ``None`` for missing values."""
-        return {
-            "modes": [m.to_dict() for m in self.modes],
-            "fundamental": None if self.fundamental is None else self.fundamental.to_dict(),
-            "flags": [f.to_dict() for f in self.flags],
-            "static_level": _num(self.static_level),
-            "static_level_std": _num(self.static_level_std),
-            "method": self.method,
-            "noise_std": _num(self.noise_std),
-            "snr_db": _num(self.snr_db),
-            "n_samples": int(self.n_samples),
-            "dt": _num(self.dt),
-            "kind": self.kind,
-        }
-

@@ -13,7 +13,7 @@ from typing import Any
 from anyio import to_thread
 from fastapi import Request
 
-from service import recordings
+from service import convert, recordings
 from service.api import jsonbody
 from service.api.auth import Caller
 from service.api.problems import ApiProblem, invalid
@@ -152,7 +152,7 @@ async def store_recording(
     meta = dict(item.get("metadata") or {})
     meta["live_sweep"] = live_row.id
     if rec.flags:
-        meta["flags"] = [f.to_dict() for f in rec.flags]
+        meta["flags"] = [convert.flag(f).model_dump() for f in rec.flags]
     row = await to_thread.run_sync(
         lambda: state.store.add_signal(
             w=rec.w, dt=rec.dt, t0=rec.t0, t=rec.t, source=rec.source, name=item.get("name"),

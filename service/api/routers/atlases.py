@@ -16,6 +16,7 @@ from anyio import to_thread
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
 
+from service import convert
 from service.api import limits
 from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
@@ -225,4 +226,4 @@ def run_atlas_job(ctx: JobContext) -> dict[str, Any]:
         raise ApiProblem(503, f"{len(result.missing)} of {len(spec.cells)} cells are not done "
                          f"(time bound or lost workers); the finished cells are stored",
                          field="cells_done", value=len(spec.cells) - len(result.missing))
-    return {"summary": result.summary.to_dict()}
+    return {"summary": convert.atlas_summary(result.summary).model_dump(mode="json")}

@@ -128,7 +128,9 @@ class DbCellSink:
         return {d["key"]: CellResult.from_dict(d) for d in docs}
 
     def put(self, row: Any) -> bool:
-        doc = sanitize(row.to_dict())
+        from service import convert
+
+        doc = sanitize(convert.atlas_cell(row).model_dump(mode="json"))
         try:
             with self.store.session() as s:
                 s.add(AtlasCellRow(atlas_id=self.atlas_id, key=row.key, idx=row.index,
