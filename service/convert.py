@@ -32,6 +32,7 @@ __all__ = [
     "atlas_report",
     "atlas_summary",
     "backend_choice",
+    "beam_summary",
     "bifurcation",
     "bifurcation_point",
     "equilibria",
@@ -450,6 +451,25 @@ def simulation(sig: Any, *, path: str) -> sim_wire.Simulation:
         sigma2=plain((info.get("sigma2") or [None])[0]),
         resolution=typed("resolution", resolution), error=typed("error", error_estimate),
         auto=typed("auto", backend_choice),
+    )  # fmt: skip
+
+
+def beam_summary(
+    transitions: Iterable[Any], spectra: Iterable[tuple[str, float, Any]], signal: Any
+) -> sim_wire.BeamSummary:
+    """The demo's beam in brief: the ``Bifurcation`` of each actuation, ``(actuation, mu,
+    sigma2)`` of U_A at a few mu, and one simulated ``Signal`` summarised."""
+    info = signal.info
+    return sim_wire.BeamSummary(
+        transitions=[bifurcation(b) for b in transitions],
+        spectrum_U_A=[sim_wire.SpectrumPoint(actuation=a, mu=plain(mu), sigma2=plain(s2))
+                      for a, mu, s2 in spectra],
+        impulse_response=sim_wire.ImpulseResponseSummary(
+            actuation=signal.scene.actuation, mu=plain(signal.scene.mu),
+            samples=int(signal.t.size), dt=plain(signal.dt), w_static=plain(signal.w_static),
+            w_min=plain(signal.w.min()), w_max=plain(signal.w.max()),
+            sigma2=plain((info.get("sigma2") or [None])[0]),
+        ),
     )  # fmt: skip
 
 

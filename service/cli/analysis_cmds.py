@@ -273,6 +273,7 @@ def _run_demo_sweeps(seed: int, show_progress: bool) -> list[dict]:
 def _demo(args: argparse.Namespace) -> int:
     """The main job: early warning for the three actuations of the Euler beam."""
     from service.cli.sim_cmds import beam_summary, beam_summary_text
+    from service.schemas.demo import Demo
 
     t0 = time.perf_counter()
     summary = beam_summary()
@@ -280,7 +281,8 @@ def _demo(args: argparse.Namespace) -> int:
         sys.stdout.write(beam_summary_text(summary) + "\n\n")
         sys.stdout.flush()
     runs = _run_demo_sweeps(args.seed, not args.no_progress)
-    doc = {"beam": summary, "warn": runs, "seconds": time.perf_counter() - t0}
+    doc = Demo.model_validate({"beam": summary, "warn": runs,
+                               "seconds": time.perf_counter() - t0}).model_dump(mode="json")
     rows = [
         "Early warning (Euler beam, xi = 2e-4, 40 dB): true mu*, the paper's rule, ours",
         f"{'actuation':14} {'type found':24} {'true mu*':>12} {'paper rule':>12} {'ours':>14} "

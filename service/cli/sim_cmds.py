@@ -235,34 +235,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def beam_summary() -> dict:
-    """The simulator part of the demo: transitions, U_A spectrum along mu, one response."""
+    """The simulator part of the demo: transitions, U_A spectrum along mu, one response (the
+    :class:`~service.schemas.sim.BeamSummary` document)."""
     from service import convert
     from sim import simulate
     from sim.euler_beam import bifurcation, spectrum
     from sim.scene import Scene
 
-    doc: dict = {"transitions": [], "spectrum_U_A": [], "impulse_response": {}}
-    for act in ("asymmetric", "symmetric", "antisymmetric"):
-        doc["transitions"].append(convert.bifurcation(bifurcation(act)).model_dump(mode="json"))
-    for act in ("asymmetric", "symmetric", "antisymmetric"):
-        mu_star = bifurcation(act).mu_star
-        for frac in (0.0, 0.5, 0.9, 0.99, 0.999):
-            sp = spectrum(act, frac * mu_star, "U_A", modes=2)
-            doc["spectrum_U_A"].append(
-                {"actuation": act, "mu": frac * mu_star, "sigma2": sp.sigma2.tolist()}
-            )
+    acts = ("asymmetric", "symmetric", "antisymmetric")
+    bifs = [bifurcation(act) for act in acts]
+    spectra = [(b.actuation, frac * b.mu_star,
+                spectrum(b.actuation, frac * b.mu_star, "U_A", modes=2).sigma2)
+               for b in bifs for frac in (0.0, 0.5, 0.9, 0.99, 0.999)]  # fmt: skip
     sig = simulate(Scene(actuation="asymmetric", mu=1.5, kick=1e-3, snr_db=40.0, seed=1))
-    doc["impulse_response"] = {
-        "actuation": "asymmetric",
-        "mu": 1.5,
-        "samples": int(sig.t.size),
-        "dt": sig.dt,
-        "w_static": sig.w_static,
-        "w_min": float(sig.w.min()),
-        "w_max": float(sig.w.max()),
-        "sigma2": sig.info["sigma2"][0],
-    }
-    return doc
+    return convert.beam_summary(bifs, spectra, sig).model_dump(mode="json")
 
 
 def beam_summary_text(doc: dict) -> str:

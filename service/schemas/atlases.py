@@ -84,6 +84,10 @@ class AtlasCellError(BaseModel):
     message: str
 
 
+Scalar = float | int | bool | str | None
+"""A cell's result value: a number (null when missing or not finite), a flag or a name."""
+
+
 class AtlasCell(BaseModel):
     """One row: the cell's inputs, results, flags, time and worker."""
 
@@ -91,11 +95,20 @@ class AtlasCell(BaseModel):
     index: int
     inputs: dict[str, Any]
     status: Literal["ok", "failed"]
-    results: dict[str, Any] = Field(default_factory=dict)
+    results: dict[str, Scalar] = Field(
+        default_factory=dict,
+        description="Flat scalar results of the kind (empty for a failed cell). bifurcation: "
+        "mu_star, lambda_star, secondary_mu_star, mu_star_error (units of mu; Lambda for "
+        "lambda_star), transition, elements, newton_solves. warn and sweep: mu_star, "
+        "mu_star_lo, mu_star_hi (the 95 % interval), mu_star_true, error, abs_error, "
+        "paper_mu_star, paper_error (units of the control), transition, transition_true, "
+        "transition_correct, covered, better_than_paper, a, responses, stopped.",
+    )
     flags: list[AtlasFlag] = Field(default_factory=list)
     error: AtlasCellError | None = None
     seconds: float = Field(description="Wall time of the computation in its worker (s).")
-    cpu_seconds: float = 0.0
+    cpu_seconds: float = Field(default=0.0, description="CPU time of the worker process "
+                               "during the computation (s).")
     worker: str = ""
 
 
@@ -104,18 +117,27 @@ class AtlasSummary(BaseModel):
 
     name: str
     kind: AtlasKind
-    cells: int
-    ok: int
-    failed: int
-    missing: int
-    resumed: int
-    wall_s: float
-    cell_seconds: float
-    cpu_seconds: float
-    cell_seconds_median: float | None = None
-    workers: list[str] = Field(default_factory=list)
-    engine: str
-    metrics: dict[str, Any] = Field(default_factory=dict)
+    cells: int = Field(description="Cells in the spec.")
+    ok: int = Field(description="Cells computed.")
+    failed: int = Field(description="Cells whose computation raised (see their error).")
+    missing: int = Field(description="Cells not done (time bound or lost workers).")
+    resumed: int = Field(description="Cells taken from an earlier run (not recomputed).")
+    wall_s: float = Field(description="Wall time of the run, s.")
+    cell_seconds: float = Field(description="Sum of the cells' wall times in their workers, s.")
+    cpu_seconds: float = Field(description="Sum of the cells' CPU times, s.")
+    cell_seconds_median: float | None = Field(default=None, description="Median cell wall "
+                                              "time, s (null without cells).")
+    workers: list[str] = Field(default_factory=list, description="Workers that computed cells.")
+    engine: str = Field(description="Where the cells ran: the dask cluster, 'serial', or "
+                        "'none (all cells resumed)'.")
+    metrics: dict[str, Scalar | dict[str, int]] = Field(
+        default_factory=dict,
+        description="The kind's headline numbers over the successful cells. bifurcation: "
+        "mu_star_min, mu_star_max, transitions (count per type). warn and sweep: "
+        "median_abs_error, paper_median_abs_error (units of the control), coverage, "
+        "transition_correct, better_than_paper (fractions of cells), mean_responses, "
+        "transitions.",
+    )
 
 
 class AtlasReport(BaseModel):

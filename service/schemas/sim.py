@@ -163,3 +163,33 @@ class Simulation(_Result):
     error: ErrorEstimate | None = Field(default=None, description="Estimated relative error.")
     auto: BackendChoice | None = Field(default=None, description="With model='auto': the "
                                        "backend picked and why (null otherwise).")
+
+
+class SpectrumPoint(_Result):
+    """The lowest eigenvalues of U_A at one mu (the demo's slowing-down table)."""
+
+    actuation: str
+    mu: Num = Field(description="Control (units of mu).")
+    sigma2: list[Num] = Field(description="Eigenvalues sigma^2, 1/T^2, by |sigma^2|.")
+
+
+class ImpulseResponseSummary(_Result):
+    """One simulated impulse response, summarised (the demo's example record)."""
+
+    actuation: str
+    mu: Num = Field(description="Control (units of mu).")
+    samples: int
+    dt: Num = Field(description="Sample step, T.")
+    w_static: Num = Field(description="W(probe) at equilibrium, units of sqrt(L dL).")
+    w_min: Num = Field(description="Smallest W(probe, t) recorded, units of sqrt(L dL).")
+    w_max: Num = Field(description="Largest W(probe, t) recorded, units of sqrt(L dL).")
+    sigma2: Num = Field(description="Fundamental's sigma^2 of the equilibrium, 1/T^2.")
+
+
+class BeamSummary(_Result):
+    """The Euler beam in brief (``snapwarn demo``): its three transitions, the slowing down of
+    U_A's fundamental as mu -> mu*, and one impulse response."""
+
+    transitions: list[Bifurcation]
+    spectrum_U_A: list[SpectrumPoint]
+    impulse_response: ImpulseResponseSummary

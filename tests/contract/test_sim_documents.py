@@ -122,3 +122,16 @@ def test_atlas_rows_and_summary_go_through_the_converter() -> None:
         "saddle-node", "subcritical-pitchfork"]  # fmt: skip
     assert report["summary"] == convert.atlas_summary(res.summary).model_dump(mode="json")
     assert report["summary"]["ok"] == 2 and report["summary"]["workers"]
+
+
+def test_the_demos_beam_summary_is_typed() -> None:
+    from service.cli.sim_cmds import beam_summary
+
+    doc = _strict(beam_summary())
+    beam = sim_wire.BeamSummary.model_validate(doc)
+    assert [b.transition for b in beam.transitions] == [
+        "saddle-node", "subcritical-pitchfork", "supercritical-pitchfork"]  # fmt: skip
+    assert len(beam.spectrum_U_A) == 15 and beam.impulse_response.samples > 0
+    # U_A's fundamental slows down as mu -> mu*
+    asym = [abs(p.sigma2[0]) for p in beam.spectrum_U_A if p.actuation == "asymmetric"]
+    assert asym == sorted(asym, reverse=True)
