@@ -373,6 +373,11 @@ class LightPool(Executor):
         """The live workers' process ids."""
         return [w.proc.pid for w in self._workers if w.alive and w.proc.pid]
 
+    @property
+    def idle(self) -> int:
+        """Workers started, connected and waiting for a call."""
+        return len(self._idle)
+
     # -- internals
     def _spawn(self) -> None:
         parent_end, child_end = socket.socketpair()
@@ -427,7 +432,7 @@ class LightPool(Executor):
             except Exception as exc:  # noqa: BLE001 - not picklable: the caller's error
                 call.future.set_exception(exc)
                 continue
-            w = self._idle.popleft()
+            w = self._idle.pop()  # the last one to answer: its caches are the warmest
             w.call, call.worker = call, w
             assert w.transport is not None
             w.transport.write(frame)

@@ -42,7 +42,7 @@ async def _until(cond, timeout: float, what: str) -> None:  # noqa: ANN001
 @pytest.fixture
 async def pool():  # noqa: ANN201
     p = LightPool(2, name="test-pool")
-    await _until(lambda: len(p.pids) == 2 and len(p._idle) == 2, 60, "two workers")
+    await _until(lambda: len(p.pids) == 2 and p.idle == 2, 60, "two workers")
     try:
         yield p
     finally:
@@ -117,7 +117,7 @@ async def test_submit_from_another_thread(pool: LightPool) -> None:
 
 async def test_shutdown_ends_every_worker_and_fails_queued_calls() -> None:
     p = LightPool(1, name="test-pool")
-    await _until(lambda: len(p._idle) == 1, 60, "a worker")
+    await _until(lambda: p.idle == 1, 60, "a worker")
     pids = p.pids
     busy = asyncio.ensure_future(p.run(time.sleep, 60))
     queued = asyncio.ensure_future(p.run(math.sqrt, 1.0))
@@ -150,7 +150,7 @@ async def test_a_detection_past_the_request_time_limit_is_a_422_and_the_pool_rec
     ring = np.sin(0.3 * np.arange(2000)) * np.exp(-0.002 * np.arange(2000))
     async with app.router.lifespan_context(app):
         state = app.state.snapwarn
-        await _until(lambda: len(state.pool._idle) == 1, 60, "the analysis worker")
+        await _until(lambda: state.pool.idle == 1, 60, "the analysis worker")
         before = set(state.pool.pids)
         async with httpx2.AsyncClient(
             transport=httpx2.ASGITransport(app=app), base_url="http://limit", timeout=60
