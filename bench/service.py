@@ -9,9 +9,10 @@ against the core-bound throughput of the same work measured in-process, in one r
 
 Core-bound throughput: the request's whole work without HTTP -- parse and validate the same
 body, detect, serialise the answer (``inline_detection``, exactly what a server's analysis
-worker runs per request) -- looped in one process per core for ``--core-seconds``, measured
-before and after the service levels (the load may change in between: both are printed, their
-mean is the reference).
+worker runs per request) -- looped in one process per core for ``--core-seconds``, in windows:
+one before the first level and one after each level (the same processes, warmed once). On a
+shared machine the load changes: each level is compared with the mean of the two windows next
+to it; every window is printed.
 
 The service: a real server (`snapwarn serve`, uvicorn, SQLite file in a temporary folder) on
 127.0.0.1, warmed up; for each level of concurrency that many client tasks, one keep-alive
@@ -344,33 +345,59 @@ def _core_loop(body: bytes, start: float, seconds: float) -> tuple[int, float]:
     return n, time.process_time() - c0
 
 
-def core_bound(body: bytes, cores: int, seconds: float) -> dict:
-    """Throughput of the request's work alone, one process per core (no HTTP, no hand-off)."""
-    import multiprocessing as mp
+class CoreBound:
+    """The request's work alone, one process per core (no HTTP, no hand-off), in windows.
 
-    saved = {k: os.environ.get(k) for k in _ONE_THREAD}
-    os.environ.update({k: "1" for k in _ONE_THREAD})  # as the server's analysis workers
-    try:
-        with mp.get_context("spawn").Pool(cores) as pool:
-            start = time.time() + 20.0  # every process imported and warm by then
-            load0 = os.getloadavg()[0]
-            got = pool.starmap(_core_loop, [(body, start, seconds)] * cores)
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    n = sum(g[0] for g in got)
+    The processes are spawned and warmed once; :meth:`measure` runs one window on all of them
+    at once. Windows are taken next to each service level (before it and after it), so that on
+    a shared machine each level is compared with what the same cores gave the in-process work
+    around the same time.
+    """
+
+    def __init__(self, body: bytes, cores: int) -> None:
+        import multiprocessing as mp
+
+        self.body, self.cores, self.first = body, cores, True
+        saved = {k: os.environ.get(k) for k in _ONE_THREAD}
+        os.environ.update({k: "1" for k in _ONE_THREAD})  # as the server's analysis workers
+        try:
+            self.pool = mp.get_context("spawn").Pool(cores)
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+
+    def measure(self, seconds: float) -> dict:
+        """One window of ``seconds``: requests per second, CPU per request, share of cores."""
+        start = time.time() + (20.0 if self.first else 2.0)  # every process warm by then
+        self.first = False
+        load0 = os.getloadavg()[0]
+        got = self.pool.starmap(_core_loop, [(self.body, start, seconds)] * self.cores)
+        n = sum(g[0] for g in got)
+        return {
+            "processes": self.cores,
+            "seconds": seconds,
+            "requests": n,
+            "throughput_rps": n / seconds,
+            "cpu_ms_per_request": 1e3 * sum(g[1] for g in got) / max(1, n),
+            "cpu_share": sum(g[1] for g in got) / (seconds * self.cores),
+            "loadavg_1min_before": load0,
+            "loadavg_1min_after": os.getloadavg()[0],
+        }
+
+    def close(self) -> None:
+        self.pool.terminate()
+        self.pool.join()
+
+
+def _mean_windows(windows: list[dict]) -> dict:
+    """The reference of a level: the mean of the core-bound windows around it."""
     return {
-        "processes": cores,
-        "seconds": seconds,
-        "requests": n,
-        "throughput_rps": n / seconds,
-        "cpu_ms_per_request": 1e3 * sum(g[1] for g in got) / max(1, n),
-        "cpu_share": sum(g[1] for g in got) / (seconds * cores),
-        "loadavg_1min_before": load0,
-        "loadavg_1min_after": os.getloadavg()[0],
+        "throughput_rps": float(np.mean([w["throughput_rps"] for w in windows])),
+        "cpu_ms_per_request": float(np.mean([w["cpu_ms_per_request"] for w in windows])),
+        "cpu_share": float(np.mean([w["cpu_share"] for w in windows])),
     }
 
 
@@ -421,7 +448,7 @@ def _print_level(r: dict) -> None:
     print(
         f"{r['clients']:3d} clients: p50 {r['p50_ms']:.1f} ms  p95 {r['p95_ms']:.1f} ms  "
         f"p99 {r['p99_ms']:.1f} ms  {r['throughput_rps']:.1f} req/s = "
-        f"{100 * r['fraction_of_core_bound']:.0f}% of core-bound "
+        f"{100 * r['fraction_of_core_bound']:.0f}% of core-bound {r['core_bound_rps']:.1f} "
         f"({100 * r['fraction_of_core_bound_client_left']:.0f}% of it on the cores the client "
         f"left)  errors {r['errors']}  per-client {r['min_requests_per_client']}.."
         f"{r['max_requests_per_client']}\n"
@@ -500,43 +527,45 @@ def main(argv: list[str] | None = None) -> int:
         f"{args.analysis_workers or 'default'}; client: {args.client}",
         flush=True,
     )
-    before = core_bound(body, cores, args.core_seconds)
-    _print_core("before", before)
+    cb = CoreBound(body, cores)
     rows = []
-    with tempfile.TemporaryDirectory() as d:
-        proc, url = start_server(
-            Path(d), args.http_workers, args.analysis_workers, args.http, args.loop
-        )
-        try:
-            health = httpx2.get(url + "/healthz").json()
-            warm = _level(url, body, max(args.clients), args.warmup, args.client)
-            asyncio.run(warm)  # warm every worker
-            for c in args.clients:
-                row = _measure(
-                    proc, url, body, c, args.seconds, cores, args.http_workers, args.client
-                )
-                rows.append(row)
-        finally:
-            proc.send_signal(signal.SIGTERM)
+    try:
+        windows = [cb.measure(args.core_seconds)]
+        _print_core("before the levels", windows[0])
+        with tempfile.TemporaryDirectory() as d:
+            proc, url = start_server(
+                Path(d), args.http_workers, args.analysis_workers, args.http, args.loop
+            )
             try:
-                proc.wait(20)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-    after = core_bound(body, cores, args.core_seconds)
-    _print_core("after", after)
-    ref = {
-        "throughput_rps": (before["throughput_rps"] + after["throughput_rps"]) / 2,
-        "cpu_ms_per_request": (before["cpu_ms_per_request"] + after["cpu_ms_per_request"]) / 2,
-    }
-    print(f"core-bound reference (mean): {ref['throughput_rps']:.1f} req/s")
-    if min(before["cpu_share"], after["cpu_share"]) < 0.9:
+                health = httpx2.get(url + "/healthz").json()
+                warm = _level(url, body, max(args.clients), args.warmup, args.client)
+                asyncio.run(warm)  # warm every worker
+                for c in args.clients:
+                    row = _measure(
+                        proc, url, body, c, args.seconds, cores, args.http_workers, args.client
+                    )
+                    windows.append(cb.measure(args.core_seconds))
+                    _print_core(f"after {c} clients", windows[-1])
+                    row["core_bound_windows"] = windows[-2:]
+                    rows.append(row)
+            finally:
+                proc.send_signal(signal.SIGTERM)
+                try:
+                    proc.wait(20)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+    finally:
+        cb.close()
+    before, after, ref = windows[0], windows[-1], _mean_windows(windows)
+    print(f"core-bound, mean of the {len(windows)} windows: {ref['throughput_rps']:.1f} req/s")
+    if min(w["cpu_share"] for w in windows) < 0.9:
         print(
-            "note: the core-bound runs got less than 90% of the cores (a shared machine): the "
-            "req/s fractions compare two runs that each got what the others left; the cpu "
-            "ceiling (in-process CPU / server+client CPU per request) does not depend on it"
+            "note: core-bound windows got less than 90% of the cores (a shared machine): each "
+            "level is compared with the mean of the windows just before and after it; the cpu "
+            "ceiling (in-process CPU / server+client CPU per request) depends less on it"
         )
-    for r in rows:  # against the mean of both core-bound runs
-        r.update(_relative(r, ref))
+    for r in rows:  # against the windows next to it
+        r.update(_relative(r, _mean_windows(r["core_bound_windows"])))
         _print_level(r)
     det = _detect_reference(body)
     print(
@@ -547,7 +576,7 @@ def main(argv: list[str] | None = None) -> int:
     doc = {
         "benchmark": "POST /v1/detections, inline signal",
         "live_record": live,
-        "core_bound": {"before": before, "after": after, "reference": ref},
+        "core_bound": {"before": before, "after": after, "reference": ref, "windows": windows},
         "detect_in_process": det,
         "samples": args.samples,
         "seconds_per_level": args.seconds,
@@ -569,7 +598,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(doc, indent=2) + "\n")
-    keys = [k for k in rows[0] if k != "error_samples"]
+    keys = [k for k in rows[0] if k not in ("error_samples", "core_bound_windows")]
     with open(args.out.with_suffix(".csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
         w.writeheader()
