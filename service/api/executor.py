@@ -243,7 +243,8 @@ class _Channel(asyncio.Protocol):
                 del buf[: _HEADER.size]
             if len(buf) < self.need:
                 return
-            frame = bytes(buf[: self.need])
+            with memoryview(buf) as view:  # one copy of a large answer, not two
+                frame = bytes(view[: self.need])
             del buf[: self.need]
             self.need = -1
             self.pool._on_answer(self.worker, frame)
