@@ -269,10 +269,10 @@ def test_weak_fast_decaying_mode_at_zero_db_per_sample_is_kept() -> None:
 @pytest.mark.parametrize(("n", "gamma2"), [(4000, 3.0), (4000, 0.0), (20000, 1.0)])
 def test_weak_mode_retention_at_20_db_record_snr(n: int, gamma2: float) -> None:
     """200 trials per case at 20 dB record SNR: kept in >= 95 %; the same records without the
-    weak mode carry at most 0.03 spurious modes per record. (At 15 dB the detection rate is
-    10-25 %: the energy, 31.6 noise variances, is below the MDL threshold ``4 ln N`` = 33-40 and
-    the 0.1 %-false-alarm search threshold ~ 29; a 95 % rate there would cost about one false
-    mode per record.)"""
+    weak mode carry at most 0.03 spurious modes per record. (At 15 dB the detector keeps 6-12 %
+    and needs 19.3-19.6 dB for 95 %; no detector keeps 95 % at 15 dB with <= 0.03 false modes
+    per record: the Neyman-Pearson bound keeps 83-91 % and needs 15.6-16.2 dB, see
+    bench/detector_weak.py and tests/analysis/test_detect_weak.py.)"""
     kept, spurious = _retention(n, 1e-3, gamma2, 20.0, 200, seed=n + int(gamma2))
     assert kept >= 0.95
     _, false_modes = _retention(n, 1e-3, gamma2, 20.0, 200, seed=7, weak=False)
