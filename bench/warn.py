@@ -47,12 +47,14 @@ def part_sweeps(seeds: int, xis, snrs) -> list[dict]:
             for snr in snrs:
                 for seed in range(seeds):
                     t0 = time.perf_counter()
-                    d = warn(act, damping=xi, snr_db=snr, seed=1000 * seed + 7).to_dict()
-                    t = d.get("truth") or {}
+                    res = warn(act, damping=xi, snr_db=snr, seed=1000 * seed + 7)
+                    t = res.truth or {}
                     rows.append({
                         "actuation": act, "xi": xi, "snr_db": snr, "seed": seed,
-                        "n": d["n_measurements"], "stopped": d["stopped"],
-                        "transition": d["transition"], "correct": t.get("transition_correct"),
+                        "n": len(res.measurements), "stopped": res.stopped,
+                        "transition": res.prediction.transition if res.prediction
+                        else "undetermined",
+                        "correct": t.get("transition_correct"),
                         "error": t.get("error", math.nan), "covered": t.get("covered"),
                         "baseline_error": t.get("baseline_error", math.nan),
                         "crossed": t.get("max_mu_measured", -1) >= t.get("mu_star", math.inf),

@@ -35,7 +35,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -62,7 +61,6 @@ __all__ = [
     "Sweep",
     "classify",
     "classify_sweep",
-    "clean",
     "prepare_sweep",
 ]
 
@@ -82,17 +80,6 @@ MIN_T_RATIO = 2.75  # T/T0 below which the type is never named (measured on the 
 # --------------------------------------------------------------------------------------------
 # result
 # --------------------------------------------------------------------------------------------
-
-
-def clean(v: Any) -> Any:
-    """JSON-ready copy: non-finite floats become None, tuples lists (recursively)."""
-    if isinstance(v, float | np.floating):
-        return float(v) if math.isfinite(v) else None
-    if isinstance(v, dict):
-        return {k: clean(x) for k, x in v.items()}
-    if isinstance(v, tuple | list):
-        return [clean(x) for x in v]
-    return v
 
 
 @dataclass(frozen=True)

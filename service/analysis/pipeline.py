@@ -21,12 +21,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_measurement
-from service.analysis.classify import clean
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
@@ -135,27 +133,6 @@ class WarnResult:
     truth: dict | None = None
     flags: tuple[Flag, ...] = ()
     detections: tuple[tuple[Detection, float, str | None], ...] = field(default=(), repr=False)
-
-    def to_dict(self) -> dict[str, Any]:
-        """A flat summary for scripts (``bench/warn.py``): mu*, its interval, the transition
-        and the stop reason (non-finite numbers as None), and the truth as computed. Not the
-        sweep's document: that is ``service.convert.sweep_result`` (``snapwarn warn --json``,
-        ``/v1/sweeps``)."""
-        p = self.prediction
-        truth = None
-        if self.truth is not None:
-            truth = {k: v for k, v in self.truth.items() if k != "resolution"}
-        return {**clean({
-            "actuation": self.actuation,
-            "model": self.model,
-            "transition": p.transition if p else "undetermined",
-            "a": p.a if p else None,
-            "mu_star": p.mu_star if p else None,
-            "mu_star_interval": list(p.mu_star_interval) if p else None,
-            "mu_star_std": p.mu_star_std if p else None,
-            "n_measurements": len(self.measurements),
-            "stopped": self.stopped,
-        }), "truth": truth}
 
 
 def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | None:

@@ -96,7 +96,7 @@ def test_real_results_convert_to_strict_json() -> None:
 
 
 def test_older_stored_documents_still_read() -> None:
-    """A sweep stored by an earlier version (``WarnResult.to_dict()``: flat mu*, alarms
+    """A sweep stored by an earlier version (a flat document: mu* at the top level, alarms
     without a level) reads as the typed document, with the alarm rule filling the level."""
     old = {
         "actuation": "asymmetric", "model": "euler-beam", "transition": "saddle-node",
