@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import multiprocessing
 import os
 import time
@@ -70,17 +69,6 @@ class MemorySink:
             return False
         self.rows[row.key] = row
         return True
-
-
-def clean_json(obj: Any) -> Any:
-    """Strict JSON values: non-finite floats -> None, tuples -> lists."""
-    if isinstance(obj, dict):
-        return {str(k): clean_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [clean_json(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 class JsonlSink:
