@@ -7,10 +7,32 @@ from typing import Any
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
+from service import recordings
 from service.schemas.common import PROBLEM_MEDIA_TYPE
 
 #: Largest ``offset`` of a page (an SQL OFFSET beyond 64-bit integers is a database error).
 MAX_OFFSET = 1_000_000_000
+
+#: Multipart fields that read a recording file (the signal upload and a live sweep's record).
+RECORDING_FORM_FIELDS: dict[str, dict[str, Any]] = {
+    "file": {
+        "type": "string",
+        "format": "binary",
+        "description": "CSV with a header, .npy, .npz, .wav or .mat",
+    },
+    "format": {
+        "type": "string",
+        "enum": list(recordings.FORMATS),
+        "description": "Overrides the file extension.",
+    },
+    "dt": {"type": "number", "description": "Sampling step when the file has no time."},
+    "t0": {"type": "number"},
+    "unit": {"type": "string", "description": "Time unit (CSV headers may carry it)."},
+    "column": {"type": "string", "description": "Column/variable holding w."},
+    "time_column": {"type": "string", "description": "Column/variable holding t."},
+    "channel": {"type": "integer", "description": "WAV channel (default 0)."},
+    "name": {"type": "string"},
+}
 
 _PROBLEM = {"content": {PROBLEM_MEDIA_TYPE: {"schema": {"$ref": "#/components/schemas/Problem"}}}}
 

@@ -17,6 +17,7 @@ from service import convert, recordings
 from service.api import jsonbody
 from service.api.auth import Caller
 from service.api.problems import ApiProblem, invalid
+from service.api.routers._common import RECORDING_FORM_FIELDS
 from service.api.state import AppState
 from service.schemas.live import LiveRecordIn
 
@@ -26,20 +27,8 @@ RECORD_FORM_SCHEMA = {
     "type": "object",
     "required": ["file"],
     "properties": {
-        "file": {
-            "type": "string",
-            "format": "binary",
-            "description": "CSV with a header, .npy, .npz, .wav or .mat",
-        },
+        **RECORDING_FORM_FIELDS,
         "control": {"type": "number", "description": "Control value of the record."},
-        "format": {"type": "string", "enum": list(recordings.FORMATS)},
-        "dt": {"type": "number", "description": "Sampling step when the file has no time."},
-        "t0": {"type": "number"},
-        "unit": {"type": "string", "description": "Time unit."},
-        "column": {"type": "string"},
-        "time_column": {"type": "string"},
-        "channel": {"type": "integer"},
-        "name": {"type": "string"},
     },
 }
 

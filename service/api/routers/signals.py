@@ -14,7 +14,7 @@ from service import convert, recordings
 from service.api import jsonbody, limits, plots
 from service.api.auth import CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
-from service.api.routers._common import MAX_OFFSET
+from service.api.routers._common import MAX_OFFSET, RECORDING_FORM_FIELDS
 from service.api.state import AppState, StateDep, signal_meta
 from service.schemas import Control, SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.common import PROBLEM_MEDIA_TYPE
@@ -33,23 +33,8 @@ UPLOAD_FORM_SCHEMA = {
     "type": "object",
     "required": ["file"],
     "properties": {
-        "file": {
-            "type": "string",
-            "format": "binary",
-            "description": "CSV with a header, .npy, .npz, .wav or .mat",
-        },
-        "format": {
-            "type": "string",
-            "enum": list(recordings.FORMATS),
-            "description": "Overrides the file extension.",
-        },
-        "dt": {"type": "number", "description": "Sampling step when the file has no time."},
-        "t0": {"type": "number"},
-        "unit": {"type": "string", "description": "Time unit (CSV headers may carry it)."},
+        **RECORDING_FORM_FIELDS,
         "value_unit": {"type": "string"},
-        "column": {"type": "string", "description": "Column/variable holding w."},
-        "time_column": {"type": "string", "description": "Column/variable holding t."},
-        "channel": {"type": "integer", "description": "WAV channel (default 0)."},
         "resample": {
             "type": "boolean",
             "description": "Interpolate non-uniform sample times onto a uniform grid.",
@@ -58,7 +43,6 @@ UPLOAD_FORM_SCHEMA = {
         "control_value": {"type": "number"},
         "control_unit": {"type": "string"},
         "metadata": {"type": "string", "description": "A JSON object."},
-        "name": {"type": "string"},
     },
 }
 
