@@ -1,0 +1,49 @@
+"""The window selection's shortcut: the polynomial lower bound of a plain pitchfork law.
+
+Reference: the law's -2 log L evaluated by the kernels at every mu* of a fine grid (and the
+profile search's minimum): the bound must lie below all of them, and close to them when the
+data are a polynomial of the same degree (the bound is then attained in the limit mu* -> inf).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from service.analysis._laws_kernels import nll_fixed_u
+from service.analysis._likelihood import _Comp, _pack, _profile, _sigma_exps
+from service.analysis._windows import _polynomial_bound
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("K", [0, 1, 2, 3])
+def test_bound_lies_below_the_law_at_every_mu_star(seed: int, K: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(K + 4, 14))
+    mu = np.sort(rng.uniform(0.0, 1.95, n))
+    x = 2.0 - mu
+    # a fold's data (not a pitchfork's): the plain pitchfork law misfits them
+    y = 3.0 * np.sqrt(x) * (1 + 0.2 * x) * (1 + 1e-3 * rng.standard_normal(n))
+    sd = 1e-3 * y
+    comp = _Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True)
+    lb = _polynomial_bound(mu, y, 1.0 / sd, K + 1)
+    ms = mu[-1] + np.geomspace(1e-9, 1e3, 4000)
+    nll = nll_fixed_u(ms, 0.0, *_pack(mu, [comp]), float(mu[-1]))
+    assert lb <= nll.min()
+    prof = _profile(mu, [comp], float(mu[-1] - mu[0]), with_interval=False)
+    assert lb <= prof.nll
+
+
+@pytest.mark.parametrize("K", [0, 1, 2])
+def test_bound_is_tight_for_a_polynomial_far_from_mu_star(K: int) -> None:
+    """Data exactly a polynomial of degree K + 1 with no constant term in x = mu0 - mu (mu0
+    far away): the law at mu* = mu0 fits them, and the bound is (near) zero."""
+    mu = np.linspace(0.0, 1.0, 12)
+    x = 5.0 - mu
+    y = sum(c * x ** (j + 1) for j, c in enumerate([1.0, 0.3, -0.05, 0.01][: K + 1]))
+    wt = np.full(mu.size, 1e3)
+    comp = _Comp(y, wt, _sigma_exps(1.0, 1.0, K), True, False)
+    lb = _polynomial_bound(mu, y, wt, K + 1)
+    at_mu0 = float(nll_fixed_u(np.array([5.0]), 0.0, *_pack(mu, [comp]), float(mu[-1]))[0])
+    assert lb <= at_mu0 + 1e-9
+    assert at_mu0 < 1e-6 and lb < 1e-6
