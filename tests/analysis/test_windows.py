@@ -47,3 +47,31 @@ def test_bound_is_tight_for_a_polynomial_far_from_mu_star(K: int) -> None:
     at_mu0 = float(nll_fixed_u(np.array([5.0]), 0.0, *_pack(mu, [comp]), float(mu[-1]))[0])
     assert lb <= at_mu0 + 1e-9
     assert at_mu0 < 1e-6 and lb < 1e-6
+
+
+@pytest.mark.parametrize("act", ["asymmetric", "symmetric", "antisymmetric"])
+def test_term_choice_with_bounds_equals_the_exhaustive_choice(
+    act: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The candidates' fits (terms, window, mu*, interval) are the same whether the term choice
+    skips combinations by the lower bounds or searches every one (Euler beam, w given)."""
+    from service.analysis import _laws
+    from service.analysis._sweep import prepare_sweep
+    from sim.euler_beam import bifurcation, equilibrium, spectrum
+
+    b = bifurcation(act)
+    mu = b.mu_star - np.geomspace(0.999 * b.mu_star, 1e-3, 16)
+    s2 = np.array([spectrum(act, m, "U_A", modes=1).sigma2[0] for m in mu])
+    w = np.array([equilibrium(act, m, "U_A").w_quarter for m in mu])
+    rng = np.random.default_rng(1)
+    sw = prepare_sweep(mu, s2 * (1 + 1e-4 * rng.standard_normal(mu.size)),
+                       sigma2_std=1e-4 * np.abs(s2), w_static=w + 1e-6 * rng.standard_normal(
+                           mu.size), w_static_std=1e-6)  # fmt: skip
+    _, fast, n_fast, _ = _laws.analyse(sw)
+    monkeypatch.setattr(_laws, "_sigma_bound", lambda *a, **k: -np.inf)
+    monkeypatch.setattr(_laws, "_w_bound", lambda *a, **k: -np.inf)
+    _, full, n_full, _ = _laws.analyse(sw)
+    assert n_fast == n_full
+    for f, g in zip(fast, full, strict=True):
+        assert (f.name, f.n, f.K, f.Kw, f.conformal) == (g.name, g.n, g.K, g.Kw, g.conformal)
+        assert f.profile == g.profile and f.weight == g.weight
