@@ -69,19 +69,6 @@ def _chi2_isf(alpha: float, dof: int) -> float:
     return float(special.chdtri(dof, alpha))
 
 
-def _polynomial_bound(mu: np.ndarray, y: np.ndarray, wt: np.ndarray, degree: int) -> float:
-    """A lower bound of the chi^2 of a plain pitchfork law with ``degree - 1`` corrections at
-    every mu*: its terms ``x, ..., x^degree`` (``x = mu* - mu``) are polynomials of that degree
-    in ``mu``, so no mu* fits better than the best polynomial (weighted least squares, less
-    a rounding margin). Exact, and costs one small fit instead of a profile search."""
-    t = (mu - mu.mean()) / max(float(np.ptp(mu)), 1e-300)
-    A = np.vander(t, degree + 1) * wt[:, None]
-    b = y * wt
-    coef, *_ = np.linalg.lstsq(A, b, rcond=None)
-    r = b - A @ coef
-    return max(float(r @ r) - 1e-9 * float(b @ b), 0.0)
-
-
 def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
     """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2.
 
@@ -102,11 +89,6 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
                 if dof < 1:
                     break
                 crit = _chi2_isf(_ALPHA, dof)
-                if p == 1.0 and h == 1.0 and not cf and fallback is not None and n > K + 2:
-                    # rejected whatever the search would find, and not the best of the rejected
-                    lb = _polynomial_bound(sw.mu[idx], sw.y[idx], 1.0 / sw.sd[idx], K + 1)
-                    if lb > crit and _chi2_sf(lb, dof) <= fallback.pvalue:
-                        continue
                 comp = _sigma_comp(sw, idx, p, h, K, cf)
                 # screening: a cheap search accepts a window that passes at its best point (an
                 # upper bound of the minimum); the full search decides the rest (a screening

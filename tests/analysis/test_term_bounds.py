@@ -1,4 +1,4 @@
-"""The window selection's shortcut: the polynomial lower bound of a plain pitchfork law.
+"""The term choice's shortcut: the polynomial lower bound of a plain pitchfork law.
 
 Reference: the law's -2 log L evaluated by the kernels at every mu* of a fine grid (and the
 profile search's minimum): the bound must lie below all of them, and close to them when the
@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from service.analysis._laws import _polynomial_bound
 from service.analysis._laws_kernels import nll_fixed_u
 from service.analysis._likelihood import _Comp, _pack, _profile, _sigma_exps
-from service.analysis._windows import _polynomial_bound
 
 
 @pytest.mark.parametrize("seed", range(6))
