@@ -23,6 +23,15 @@ PG_ENV = "SNAPWARN_TEST_PG_URL"
 SNAPWARN = [sys.executable, "-c", "import sys; from service.cli import main; sys.exit(main())"]
 
 
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie (Linux /proc)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
 def numerics_has(module: str, attr: str) -> bool:
     """Whether a numerics entry point exists (tests of routes that need it skip otherwise)."""
     import importlib

@@ -17,18 +17,11 @@ import time
 from concurrent.futures.process import BrokenProcessPool
 
 import pytest
+from _svc_helpers import alive
 
 from service.api.executor import LightPool, RemoteTraceback, TimeLimitExceeded
 
 pytestmark = pytest.mark.anyio
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 async def _until(cond, timeout: float, what: str) -> None:  # noqa: ANN001
@@ -79,7 +72,7 @@ async def test_a_call_past_its_time_limit_is_killed_and_its_worker_replaced(
     await _until(lambda: len(pool.pids) == 2 and set(pool.pids) != before, 60, "a new worker")
     gone = before - set(pool.pids)
     assert len(gone) == 1
-    await _until(lambda: not any(_alive(p) for p in gone), 10, "the killed worker to end")
+    await _until(lambda: not any(alive(p) for p in gone), 10, "the killed worker to end")
     assert await pool.run(math.sqrt, 9.0) == 3.0
 
 
@@ -126,7 +119,7 @@ async def test_shutdown_ends_every_worker_and_fails_queued_calls() -> None:
     for fut in (busy, queued):
         with pytest.raises((RuntimeError, BrokenProcessPool)):
             await fut
-    await _until(lambda: not any(_alive(x) for x in pids), 10, "the workers to end")
+    await _until(lambda: not any(alive(x) for x in pids), 10, "the workers to end")
     with pytest.raises(RuntimeError, match="shut down"):
         await p.run(math.sqrt, 1.0)
 

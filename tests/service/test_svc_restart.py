@@ -9,7 +9,7 @@ import time
 
 import httpx2
 import pytest
-from _svc_helpers import start_server
+from _svc_helpers import alive, start_server
 from _svc_signals import ringdown
 
 from service.api.storage import Store
@@ -38,14 +38,6 @@ def _descendants(root: int) -> set[int]:
                 tree.add(pid)
                 grew = True
     return tree - {root}
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def _until(pred, timeout: float, what: str):  # noqa: ANN001, ANN202
@@ -99,7 +91,7 @@ def test_sigkill_mid_job_loses_nothing_completed(tmp_path) -> None:  # noqa: ANN
         a.stop(signal.SIGKILL)
         assert a.proc.returncode == -signal.SIGKILL
         # its worker processes exit with it: nobody updates the job any more
-        _until(lambda: not any(_alive(p) for p in workers), 20, "orphans to exit")
+        _until(lambda: not any(alive(p) for p in workers), 20, "orphans to exit")
         frozen = store.get_job(long.id)
         time.sleep(0.6)
         again = store.get_job(long.id)
