@@ -134,18 +134,28 @@ _MIN_NOISE_DOF = 3
 
 
 def _estimate_noise(sw: Sweep) -> Sweep:
-    """Relative noise of |sigma^2| when not given: residual scatter of the nearest points about
-    the best candidate law with two corrections (at least 3 degrees of freedom); with fewer than
-    6 points it cannot be estimated and ``_ASSUMED_REL`` is assumed (see ``_noise_flag``)."""
+    """Relative noise of |sigma^2| when not given: the smaller of two estimates that can only
+    err upwards (by a law's truncation), each a residual scatter:
+
+    * about the best candidate law with two corrections on the nearest ``m`` points, for
+      ``m`` the fewest with ``_MIN_NOISE_DOF`` degrees of freedom and for half the sweep
+      (the law holds near mu*; on a coarse grid half the sweep reaches where it does not,
+      and its misfit there read as noise was 100x the true noise on beam plans);
+    * model-free, :func:`_local_scatter` (local cubics in mu, away from mu* as well).
+
+    With fewer than 6 points neither exists and ``_ASSUMED_REL`` is assumed (``_noise_flag``).
+    """
     if sw.noise_given:
         return sw
     N = sw.mu.size
-    n = min(N, max(8, N // 2))
-    idx = slice(N - n, N)
     scale = float(sw.mu[-1] - sw.mu[0])
+    local = _local_scatter(sw.mu, sw.y) ** 2
     best = math.inf
-    K = min(2, n - 2 - _MIN_NOISE_DOF)
-    if K >= 0:
+    for n in sorted({min(N, 8), min(N, max(8, N // 2))}):
+        idx = slice(N - n, N)
+        K = min(2, n - 2 - _MIN_NOISE_DOF)
+        if K < 0:
+            continue
         for _, (a, _, h) in CANDIDATES.items():
             for cf in _variants(2 * a, h):
                 if n - K - 2 - int(cf) < 1:
@@ -154,9 +164,34 @@ def _estimate_noise(sw: Sweep) -> Sweep:
                           conformal=cf)  # fmt: skip
                 prof = _profile(sw.mu[idx], [c], scale, with_interval=False)
                 best = min(best, prof.nll / (n - K - 2 - int(cf)))
+    if not best < local / _LOCAL_TRUNCATED**2:
+        best = local
     s = math.sqrt(best) if math.isfinite(best) else _ASSUMED_REL
     s = max(s, _REL_FLOOR)
     return replace(sw, sd=s * sw.y, noise_given=False)
+
+
+_LOCAL_TRUNCATED = 3.0  # a law's scatter this much below the local one: the cubics truncate
+_CHI2_1_MEDIAN = 0.454936423119572  # median of chi^2 with one degree of freedom
+
+
+def _local_scatter(mu: np.ndarray, y: np.ndarray) -> float:
+    """Model-free relative noise of ``y``: each 5 consecutive points leave one residual degree
+    of freedom about a weighted cubic in ``mu`` (weights ``1/|y|``), whose squared residual is
+    ``(sum d_i y_i)^2 / sum (d_i y_i)^2`` with ``d`` the fourth divided difference's weights;
+    the noise is read from their median (robust to the blocks near mu*, where y is not a
+    cubic on the grid's scale). ``inf`` with fewer than 3 blocks."""
+    N = mu.size
+    if N < 7:
+        return math.inf
+    i = np.arange(N - 4)[:, None] + np.arange(5)[None, :]  # (B, 5) block indices
+    m, v = mu[i], y[i]
+    diff = m[:, :, None] - m[:, None, :]  # (B, 5, 5)
+    diff[:, np.arange(5), np.arange(5)] = 1.0
+    d = 1.0 / np.prod(diff / np.ptp(m, axis=1)[:, None, None], axis=2)  # scaled weights
+    dv = d * v
+    r2 = np.sum(dv, axis=1) ** 2 / np.sum(dv * dv, axis=1)
+    return math.sqrt(float(np.median(r2)) / _CHI2_1_MEDIAN)
 
 
 def _noise_flag(sw: Sweep) -> Flag:
