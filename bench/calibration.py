@@ -2,6 +2,7 @@
 against the paper's two-point rule on the same data.
 
     python bench/calibration.py [--plans N] [--seed S] [--workers W] [--quick] [--from-csv]
+                                [--input sigma2|sigma2-no-std|omega|omega-no-std]
 
 A lab plan is what an experimenter does without knowing mu*: a fixed grid of control values
 ``mu_k = mu_last - k h`` (step ``h`` uniform in [0.02, 0.1], every point >= 0) that stops at
@@ -24,13 +25,19 @@ and how many of those our interval misses (on the normal form's pure laws the ru
 nearest points carry nearly all the information, so "worse" there is a coin toss between two
 estimates of equal accuracy, inside our interval).
 
-Writes bench/results/calibration.csv and calibration.md.
+``--input``: what the lab hands over: sigma^2 with its std (the default), sigma^2 alone (the
+noise then estimated), or the rates omega = sqrt|sigma^2| with or without their std and no
+damping (which must then not be invented).
+
+Writes bench/results/calibration.csv and calibration.md (``calibration_<input>.*`` for the
+other inputs).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import math
 import multiprocessing as mp
 import sys
@@ -138,16 +145,29 @@ def plan_data(plan: Plan) -> dict:
             "mu_star": mu_star, "kind": kind}  # fmt: skip
 
 
-def run_plan(plan: Plan) -> dict:
-    """Ours and the paper's rule on one plan."""
+INPUTS = ("sigma2", "sigma2-no-std", "omega", "omega-no-std")
+
+
+def run_plan(plan: Plan, given: str = "sigma2") -> dict:
+    """Ours and the paper's rule on one plan; ``given``: what the lab hands over, sigma^2 or
+    the rates omega = sqrt|sigma^2| (no damping), with or without their std (the std of w
+    goes with it)."""
     d = plan_data(plan)
+    if given.startswith("omega"):
+        om = np.sqrt(-d["sigma2"])
+        data = {"omega": om, "omega_std": d["sigma2_std"] / (2 * om)}
+    else:
+        data = {"sigma2": d["sigma2"], "sigma2_std": d["sigma2_std"]}
+    std = not given.endswith("no-std")
+    if not std:
+        data = {k: v for k, v in data.items() if not k.endswith("_std")}
     t0 = time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         p = predict(
-            d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"],
+            d["mu"], **data,
             w_static=d["w"] if plan.with_w else None,
-            w_static_std=d["w_std"] if plan.with_w else None,
+            w_static_std=d["w_std"] if (plan.with_w and std) else None,
         )  # fmt: skip
     cpu = time.process_time() - t0
     rule = paper_rule(d["mu"], d["sigma2"], A_TRUE[d["kind"]])
@@ -267,6 +287,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="10 plans per (source, actuation)")
+    ap.add_argument("--input", choices=INPUTS, default="sigma2",
+                    help="what the plans hand over (results in calibration_<input>.*)")
     ap.add_argument("--from-csv", action="store_true",
                     help="rebuild the table from bench/results/calibration.csv")  # fmt: skip
     args = ap.parse_args(argv)
@@ -277,7 +299,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     t0 = time.perf_counter()
     rows: list[dict] = []
     with mp.get_context("fork").Pool(args.workers) as pool:
-        for k, r in enumerate(pool.imap_unordered(run_plan, plans, chunksize=2)):
+        run = functools.partial(run_plan, given=args.input)
+        for k, r in enumerate(pool.imap_unordered(run, plans, chunksize=2)):
             rows.append(r)
             if (k + 1) % 10 == 0 or k + 1 == len(plans):
                 print(f"[{k + 1}/{len(plans)}] {time.perf_counter() - t0:.0f} s", flush=True)
@@ -287,16 +310,18 @@ def main(argv: list[str] | None = None) -> list[dict]:
         f"{len(rows)} plans ({n_per} per source and actuation), seed {args.seed}; "
         "`python bench/calibration.py"
         + (" --quick" if args.quick else f" --plans {n_per}")
+        + ("" if args.input == "sigma2" else f" --input {args.input}")
         + f"` ({time.perf_counter() - t0:.0f} s wall on {args.workers} workers)."
     )
     md = table_md(summary, meta)
     print(md)
     OUT.mkdir(parents=True, exist_ok=True)
-    with open(OUT / "calibration.csv", "w", newline="") as fh:
+    stem = "calibration" if args.input == "sigma2" else f"calibration_{args.input}"
+    with open(OUT / f"{stem}.csv", "w", newline="") as fh:
         wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
         wr.writeheader()
         wr.writerows(rows)
-    (OUT / "calibration.md").write_text(md)
+    (OUT / f"{stem}.md").write_text(md)
     return summary
 
 
