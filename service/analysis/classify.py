@@ -153,11 +153,15 @@ def classify(
         (e.g. ``-s1 s2`` from a pole detector). Give this or ``omega``.
     sigma2_std : array_like, shape (n,), optional
         Standard deviation of ``sigma2``. Without it the relative noise is estimated from the
-        scatter (flag ``noise_estimated``).
+        scatter about the best law on the nearest points and about local cubics along the
+        sweep (flag ``noise_estimated``).
     omega : array_like, shape (n,), optional
         Observed angular rate (rad/time): the pole modulus ``sqrt(-sigma^2)`` when under-damped
         (the FFT peak when ``xi << omega``), the slow decay rate when over-damped. Inside the
-        boundary layer these follow the doubled exponent; the damping is then fitted.
+        boundary layer these follow the doubled exponent; without ``damping`` it is fitted, and
+        kept only on decisive evidence (an over-damped layer near mu* with under-damped points
+        beyond it, fitting far better than one more correction term): a fold's slow rate in
+        the layer grows like a pitchfork's frequency, so rates alone rarely prove a damping.
     omega_std : array_like, shape (n,), optional
         Standard deviation of ``omega``.
     w_static : array_like, shape (n,), optional
