@@ -188,9 +188,14 @@ def _local_scatter(mu: np.ndarray, y: np.ndarray) -> float:
     m, v = mu[i], y[i]
     diff = m[:, :, None] - m[:, None, :]  # (B, 5, 5)
     diff[:, np.arange(5), np.arange(5)] = 1.0
-    d = 1.0 / np.prod(diff / np.ptp(m, axis=1)[:, None, None], axis=2)  # scaled weights
-    dv = d * v
-    r2 = np.sum(dv, axis=1) ** 2 / np.sum(dv * dv, axis=1)
+    with np.errstate(all="ignore"):
+        d = 1.0 / np.prod(diff / np.ptp(m, axis=1)[:, None, None], axis=2)  # scaled weights
+    with np.errstate(all="ignore"):
+        dv = d * v
+        r2 = np.sum(dv, axis=1) ** 2 / np.sum(dv * dv, axis=1)
+    r2 = r2[np.isfinite(r2)]  # a block of nearly coincident points over- or underflows
+    if r2.size < 3:
+        return math.inf
     return math.sqrt(float(np.median(r2)) / _CHI2_1_MEDIAN)
 
 

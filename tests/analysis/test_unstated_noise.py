@@ -105,3 +105,15 @@ def test_rates_without_damping_are_not_called_overdamped(
     ps = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
     lo, hi = ps.mu_star_interval
     assert lo <= p.mu_star <= hi
+
+
+def test_local_scatter_survives_extreme_grids() -> None:
+    """Points 1e-300 apart within a block (over/underflowing weights) are skipped, and a sweep
+    that leaves fewer than 3 usable blocks has no model-free estimate (inf), never NaN."""
+    rng = np.random.default_rng(2)
+    mu = np.linspace(0.0, 1.0, 30)
+    mu[10:12] = [mu[10], mu[10] + 1e-300]
+    y = (2 + mu) * (1 + 1e-4 * rng.standard_normal(30))
+    est = _local_scatter(mu, y)
+    assert math.isfinite(est) and 0.3e-4 < est < 3e-4
+    assert _local_scatter(mu[:6], y[:6]) == math.inf
