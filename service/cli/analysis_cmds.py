@@ -107,6 +107,10 @@ def _predict(args: argparse.Namespace) -> int:
         raise bad("SWEEP", args.file, "needs a column 'sigma2' or 'omega'")
     if "w_static" in table:
         kw["w_static"] = _floats(table, "w_static", "SWEEP", args.file)
+        if "w_static_std" in table:
+            kw["w_static_std"] = _floats(table, "w_static_std", "SWEEP", args.file)
+    if args.damping is not None:
+        kw["damping"] = args.damping
     if args.transition:
         kw["transition"] = args.transition
     try:
@@ -327,8 +331,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plot_flag(p, "the record, the detector's fit over it and the residual")
     p.set_defaults(func=_detect)
 
-    p = sub.add_parser("predict", help="mu* from a sweep table (mu,sigma2[,sigma2_std][,w_static])")
+    p = sub.add_parser(
+        "predict",
+        help="mu* from a sweep table (mu, sigma2 or omega, [sigma2_std or omega_std], "
+        "[w_static[, w_static_std]])",
+    )
     p.add_argument("file", metavar="SWEEP")
+    p.add_argument("--damping", type=float, default=None, metavar="XI",
+                   help="damping xi (1/time) of the rates omega when known; without it a damping "
+                   "is inferred only on decisive evidence")  # fmt: skip
     p.add_argument("--transition", default=None,
                    choices=("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork",
                             "pitchfork"))  # fmt: skip

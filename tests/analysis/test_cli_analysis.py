@@ -93,3 +93,29 @@ def test_simulated_record_round_trip_through_detect_keeps_static_level(tmp_path,
     np.save(p, np.column_stack([sig.t, sig.w]))
     doc = run_json(capsys, "detect", str(p))
     assert doc["static_level"] == pytest.approx(sig.w_static, abs=1e-5)
+
+
+def test_predict_table_of_rates_with_every_column_and_damping(tmp_path, capsys) -> None:
+    """omega, omega_std, w_static, w_static_std and --damping reach the predictor: the CLI's
+    document is the function's (each column dropped or the damping changed changes it)."""
+    from service import convert
+    from service.analysis.predict import predict
+
+    mu_star = bifurcation("asymmetric").mu_star
+    mus = mu_star - np.geomspace(1.0, 1e-3, 12)
+    om = np.array([np.sqrt(-spectrum("asymmetric", m, "U_A", modes=1).sigma2[0]) for m in mus])
+    w = 0.1 + 0.01 * np.sqrt(mu_star - mus)
+    cols = {"mu": mus, "omega": om, "omega_std": 1e-5 * om, "w_static": w,
+            "w_static_std": np.full(mus.size, 1e-7)}  # fmt: skip
+    path = tmp_path / "rates.csv"
+    with path.open("w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(list(cols))
+        for i in range(mus.size):
+            wr.writerow([repr(float(cols[k][i])) for k in cols])
+    doc = run_json(capsys, "predict", str(path), "--damping", "0.5")
+    want = predict(mus, omega=om, omega_std=1e-5 * om, w_static=w,
+                   w_static_std=np.full(mus.size, 1e-7), damping=0.5)  # fmt: skip
+    assert doc == json.loads(convert.prediction(want).model_dump_json())
+    other = predict(mus, omega=om, omega_std=1e-5 * om, w_static=w, damping=0.5)
+    assert json.loads(convert.prediction(other).model_dump_json()) != doc
