@@ -456,13 +456,22 @@ def _search_damping(sw: Sweep, scale: float) -> float:
         options={"xatol": 1e-4},
     )
     xi = math.exp(float(res.x))
-    chi_xi = _sigma_chi2(_with_damping(sw, xi), p, h, sel.n, sel.K, scale)
+    # the evidence is read at the refined damping, on the window it selects (a grid point's
+    # window can leave no degree of freedom where the refined one fits within the noise)
+    s_xi = _with_damping(sw, xi)
+    _, (p, h, sel) = score(s_xi)
+    # xi is a parameter of the fit: the damped law keeps _XI_DOF degrees of freedom after it
+    # (fewer corrections if need be; a window it fits exactly proves nothing)
+    K = min(sel.K, sel.n - 3 - int(sel.conformal) - _XI_DOF)
+    if K < 0:
+        return 0.0
+    chi_xi = _sigma_chi2(s_xi, p, h, sel.n, K, scale, sel.conformal)
     # the damping must beat the undamped laws on the same window decisively, even spending its
     # parameter on one more correction instead: xi is searched, and a spurious damping doubles
     # the exponent near mu* (measured: beam plans given as omega had 10 of 33 called
     # over-damped when an undamped law on a smaller window exempted the comparison; coverage
     # 67 %, intervals past mu*)
-    k_0 = [k for k in (sel.K, sel.K + 1) if k <= _KMAX and sel.n - k - 2 >= 1]
+    k_0 = [k for k in (K, K + 1) if k <= _KMAX and sel.n - k - 2 >= 1]
     chi_0 = min(
         _sigma_chi2(sw, p0, h0, sel.n, k, scale)
         for p0, h0 in ((0.5, 0.5), (1.0, 1.0))
@@ -473,8 +482,6 @@ def _search_damping(sw: Sweep, scale: float) -> float:
     # frequency, and the omega data alone cannot tell them apart)
     n_over = int(np.sum(sw.omega < xi / 2))
     layer = n_over > 0 and sw.omega.size - n_over >= max(3, _XI_UNDER * sw.omega.size)
-    # and xi is a parameter of the fit: a window it fits exactly proves nothing
-    layer = layer and sel.n - sel.K - 3 - int(sel.conformal) >= _XI_DOF
     if layer and chi_xi + max(math.log(sel.n), _XI_EVIDENCE) < chi_0:
         return xi
     return 0.0

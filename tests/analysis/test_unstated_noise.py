@@ -117,3 +117,23 @@ def test_local_scatter_survives_extreme_grids() -> None:
     est = _local_scatter(mu, y)
     assert math.isfinite(est) and 0.3e-4 < est < 3e-4
     assert _local_scatter(mu[:6], y[:6]) == math.inf
+
+
+@pytest.mark.parametrize(("act", "stop"), [("asymmetric", 1e-2), ("antisymmetric", 1e-3)])
+def test_a_true_overdamped_layer_on_a_fixed_grid_is_found(act: str, stop: float) -> None:
+    """Rates of a heavily damped strip (xi = 30: the nearest 2-6 points over-damped, their
+    slow pole given) on a fixed grid, no damping given: the layer is found from the rates
+    alone (evidence read at the refined damping with its parameter counted), the type is
+    right and the interval covers mu* (with the evidence read at the grid point's window: a fold
+    named a pitchfork, error 7e-3, the antisymmetric case undetermined, error 1e-3)."""
+    xi = 30.0
+    d = lab_sweep(act, 0.05, stop, rel=1e-4, seed=1)
+    s = -d["sigma2"]
+    w0 = np.sqrt(s)
+    r = np.where(w0 >= xi / 2, w0, xi / 2 - np.sqrt(np.maximum(xi**2 / 4 - s, 0.0)))
+    assert 2 <= int(np.sum(w0 < xi / 2)) <= 6
+    p = predict(d["mu"], omega=r, omega_std=d["sigma2_std"] / (2 * w0) * r / w0)
+    assert "overdamped" in {f.code for f in p.flags}
+    assert p.transition in (d["kind"], "pitchfork" if "pitchfork" in d["kind"] else d["kind"])
+    lo, hi = p.mu_star_interval
+    assert lo <= d["mu_star"] <= hi
