@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
 
-.PHONY: setup demo test test-slow lint bench serve openapi fuzz clean
+.PHONY: setup demo test test-slow lint bench serve openapi fuzz clean clean-kernels
 
 # Create the virtual environment with the project (editable) and its dev tools, only when
 # missing or when pyproject.toml changed since the last install.
@@ -51,5 +51,10 @@ fuzz: setup
 openapi: setup
 	$(BIN)/snapwarn openapi
 
-clean:
+clean: clean-kernels
 	rm -rf $(VENV) .pytest_cache build *.egg-info
+
+## numba's compiled kernels: a kernel's cache is not refreshed when a kernel it calls, in
+## another module, changes (run this after editing one).
+clean-kernels:
+	find sim service -name '*.nbi' -delete -o -name '*.nbc' -delete
