@@ -52,6 +52,8 @@ __all__ = [
     "prediction",
     "resolution",
     "simulation",
+    "simulation_info",
+    "simulation_info_problems",
     "snap",
     "spectrum",
     "sweep_document",
@@ -435,22 +437,38 @@ def normal_form(nf: Any) -> sim_wire.NormalForm:
     return sim_wire.NormalForm.model_validate(_fields(nf, skip=("phi0",)))
 
 
+def simulation_info(info: Mapping[str, Any]) -> sim_wire.SimulationInfo:
+    """What a backend reports about a simulation (``sim.scene.Signal.info``): its
+    ``Resolution``, ``ErrorEstimate`` and (``model="auto"``) ``Choice`` typed, its own numbers
+    as plain data (a key without a wire field is left out: see
+    :func:`simulation_info_problems`)."""
+    typed = {"resolution": resolution, "error": error_estimate, "auto": backend_choice}
+    doc = {
+        str(k): typed[k](v) if k in typed and dataclasses.is_dataclass(v) else plain(v)
+        for k, v in info.items()
+    }
+    return sim_wire.SimulationInfo.model_validate(doc)
+
+
+def simulation_info_problems(info: Mapping[str, Any]) -> list[str]:
+    """The keys of a simulation's ``info`` that :class:`~service.schemas.sim.SimulationInfo`
+    has no field for (empty when the wire carries all of it)."""
+    wire_keys = {f.alias or name for name, f in sim_wire.SimulationInfo.model_fields.items()}
+    return [f"info[{k!r}] has no field in SimulationInfo (add it)"
+            for k in sorted(map(str, info)) if k not in wire_keys]  # fmt: skip
+
+
 def simulation(sig: Any, *, path: str) -> sim_wire.Simulation:
     """A simulated signal (``sim.scene.Signal``) written to ``path``: its scene, sampling and
-    the resolution, error estimate and (``model="auto"``) choice in its ``info``."""
-    info, scene = sig.info, sig.scene
-
-    def typed(key: str, convert: Any) -> Any:
-        v = info.get(key)
-        return None if v is None else convert(v) if not isinstance(v, Mapping) else v
-
+    the resolution, error estimate and (``model="auto"``) choice in its ``info`` (as
+    :func:`simulation_info` types them)."""
+    info, scene = simulation_info(sig.info), sig.scene
     return sim_wire.Simulation(
         path=path, samples=int(sig.t.size), model=sig.model, actuation=scene.actuation,
         mu=plain(scene.mu), branch=scene.branch, dt=plain(sig.dt),
         duration=plain(sig.t[-1]) if sig.t.size else None, w_static=plain(sig.w_static),
-        sigma2=plain((info.get("sigma2") or [None])[0]),
-        resolution=typed("resolution", resolution), error=typed("error", error_estimate),
-        auto=typed("auto", backend_choice),
+        sigma2=info.sigma2[0] if info.sigma2 else None, resolution=info.resolution,
+        error=info.error, auto=info.auto,
     )  # fmt: skip
 
 

@@ -126,7 +126,8 @@ class Api(AtlasOperations):
 
     @operation
     def get_signal(self, signal_id: str) -> Flow[SignalMeta]:
-        """``GET /v1/signals/{id}``."""
+        """``GET /v1/signals/{id}``; a simulated signal's ``.simulation`` is its typed
+        metadata (``.simulation.info.resolution``, ``.error``, ``.auto``...)."""
         return (yield core.get_signal(signal_id))
 
     @operation
@@ -151,7 +152,8 @@ class Api(AtlasOperations):
 
     @operation
     def simulate(self, **scene: Any) -> Flow[SimulationResult]:
-        """``POST /v1/simulations``: ``.signal`` at once, or ``.job`` to :meth:`wait` for."""
+        """``POST /v1/simulations``: ``.signal`` at once (``.signal.simulation``: the scene,
+        the backend and its typed report), or ``.job`` to :meth:`wait` for."""
         return (yield core.simulate(**scene))
 
     @operation

@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from datetime import datetime
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, StrictFloat
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    StrictFloat,
+    Tag,
+    ValidationError,
+    model_validator,
+)
 
 from service.schemas.common import Control
+from service.schemas.sim import SimulationMetadata
 
 
 class SignalIn(BaseModel):
@@ -46,8 +57,32 @@ class SignalIn(BaseModel):
     )
 
 
+def _metadata_kind(value: Any) -> str:
+    return "simulation" if isinstance(value, SimulationMetadata) else "data"
+
+
+def _any_of(schema: dict[str, Any]) -> None:
+    # a simulation's document is an object too: either may match, so anyOf (oneOf would not
+    # hold for a simulation's metadata)
+    schema["anyOf"] = schema.pop("oneOf")
+
+
+Metadata = Annotated[
+    Annotated[SimulationMetadata, Tag("simulation")] | Annotated[dict[str, Any], Tag("data")],
+    Discriminator(_metadata_kind),
+]
+"""A signal's metadata: typed for a simulated signal, the uploader's own JSON object
+otherwise."""
+
+
 class SignalMeta(BaseModel):
-    """What the server keeps about a stored signal (the samples are at ``/data``)."""
+    """What the server keeps about a stored signal (the samples are at ``/data``).
+
+    ``metadata`` is a :class:`~service.schemas.sim.SimulationMetadata` for a simulated signal
+    (``source`` 'simulation'; :attr:`simulation` gives it or ``None``) and the uploader's own
+    JSON object otherwise. A simulated signal stored in a form the model does not read (an
+    older server's) is served as stored.
+    """
 
     id: str
     name: str | None = None
@@ -58,11 +93,38 @@ class SignalMeta(BaseModel):
     unit: str | None = None
     value_unit: str | None = None
     control: Control | None = None
-    metadata: dict[str, Any] = Field(default_factory=dict)
+    metadata: Metadata = Field(
+        default_factory=dict,
+        description="A simulated signal's scene, backend and the backend's report "
+        "(SimulationMetadata); for an upload, the uploader's JSON object (plus the reader's "
+        "notes: 'recording_flags', and 'file' for a file).",
+        json_schema_extra=_any_of,
+    )
     source: str = Field(description="'json', 'csv', 'npy', 'npz', 'wav', 'mat' or 'simulation'.")
     has_t: bool = Field(description="Whether explicit sample times are stored (else t0 + k dt).")
     sha256: str = Field(description="SHA-256 of the stored little-endian float64 samples.")
     created_at: datetime
+
+    @model_validator(mode="before")
+    @classmethod
+    def _typed_simulation(cls, data: Any) -> Any:
+        """A simulated signal's metadata as :class:`SimulationMetadata` (kept as stored when
+        it does not read as one)."""
+        if not isinstance(data, Mapping) or data.get("source") != "simulation":
+            return data
+        meta = data.get("metadata")
+        if not isinstance(meta, Mapping):
+            return data
+        try:
+            typed = SimulationMetadata.model_validate(meta)
+        except ValidationError:
+            return data
+        return {**data, "metadata": typed}
+
+    @property
+    def simulation(self) -> SimulationMetadata | None:
+        """The typed metadata of a simulated signal (``None`` for an upload)."""
+        return self.metadata if isinstance(self.metadata, SimulationMetadata) else None
 
 
 class SignalData(BaseModel):

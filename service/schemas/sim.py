@@ -12,6 +12,8 @@ Strict JSON: a number that is missing or not finite is ``null``.
 
 from __future__ import annotations
 
+from typing import Any
+
 from pydantic import BaseModel, ConfigDict, Field
 
 Num = float | None
@@ -144,6 +146,79 @@ class NormalForm(_Result):
                                          "the amplitude A (units of sqrt(L dL)) and of T.")
     I1: Num = Field(description="Integral of Phi0^2 over X in [0, 1] (critical mode Phi0).")
     I2: Num = Field(description="Integral of Phi0'^2 over X in [0, 1].")
+
+
+class SimulationInfo(_Result):
+    """What the backend that ran a simulation reports about it (``sim.scene.Signal.info``; a
+    simulated signal's ``metadata.info``): every backend's resolution, error estimate and
+    spectrum, the choice of ``model="auto"``, and each backend's own numbers (null where the
+    backend that ran does not report them)."""
+
+    resolution: Resolution | None = Field(default=None, description="Discretisation used and "
+                                          "its estimated mu* error (every backend).")
+    error: ErrorEstimate | None = Field(default=None, description="Estimated relative error "
+                                        "of mu* and of the fundamental's sigma^2 (every "
+                                        "backend).")
+    auto: BackendChoice | None = Field(default=None, description="With model='auto': the "
+                                       "backend picked and why (null otherwise).")
+    sigma2: list[Num] = Field(default_factory=list, description="Lowest eigenvalues sigma^2 "
+                              "of the equilibrium, 1/T^2, fundamental first (the normal "
+                              "form: its one).")
+    lambda_: Num = Field(default=None, alias="lambda", description="Lambda of the equilibrium "
+                         "(Euler beam, Cosserat rod).")
+    # the normal form
+    dmu: Num = Field(default=None, description="mu - mu*, units of mu (normal form).")
+    coefficients: dict[str, Num] | None = Field(
+        default=None, description="{a1, a2} (saddle-node) or {b1, b2} (pitchfork) of the "
+        "amplitude equation (normal form; see NormalForm).")
+    # the Euler beam
+    method: str | None = Field(default=None, description="'modal' or 'nonlinear' (Euler "
+                               "beam).")
+    galerkin_n: int | None = Field(default=None, description="Galerkin basis size (Euler "
+                                   "beam).")
+    modes: int | None = Field(default=None, description="Modes superposed (Euler beam, "
+                              "modal).")
+    substeps: int | None = Field(default=None, description="Integration steps per sample "
+                                 "(Euler beam, nonlinear).")
+    completed: bool | None = Field(default=None, description="Whether the nonlinear "
+                                   "integration reached the last sample (false after a "
+                                   "Newton failure; Euler beam, nonlinear).")
+    # the Cosserat rod
+    omega: Num = Field(default=None, description="sqrt(|sigma^2|) of the fundamental, rad/T "
+                       "(Cosserat rod).")
+    min_eigenvalue: Num = Field(default=None, description="Smallest eigenvalue of the rod's "
+                                "energy Hessian at the equilibrium (> 0: stable; Cosserat "
+                                "rod).")
+    sigma2_error: Num = Field(default=None, description="Estimated relative error of the "
+                              "fundamental's sigma^2 (Richardson, n against n/2; Cosserat "
+                              "rod).")
+    time_error: Num = Field(default=None, description="Estimated relative error of the time "
+                            "stepping, (2 pi / steps per period)^2 / 12 (Cosserat rod).")
+    internal_dt: Num = Field(default=None, description="Integration step, T (Cosserat rod).")
+    steps: int | None = Field(default=None, description="Integration steps taken (Cosserat "
+                              "rod).")
+    newton_iterations: int | None = Field(default=None, description="Newton iterations, all "
+                                          "steps together (Cosserat rod).")
+    cpu_s: Num = Field(default=None, description="CPU time of the integration, s (Cosserat "
+                       "rod).")
+    stop: str | None = Field(default=None, description="Why the integration stopped ('done' "
+                             "when it reached the last sample; Cosserat rod).")
+    clamp: str | None = Field(default=None, description="'node' or 'element' (Cosserat rod).")
+    rho_inf: Num = Field(default=None, description="Generalised-alpha spectral radius at "
+                         "infinite frequency (Cosserat rod).")
+    elements: int | None = Field(default=None, description="Elements of the rod (Cosserat "
+                                 "rod).")
+
+
+class SimulationMetadata(_Result):
+    """A simulated signal's ``metadata`` (``POST /v1/simulations``): the scene, the backend
+    that ran it and what that backend reports."""
+
+    scene: dict[str, Any] = Field(description="The scene simulated: the request's fields but "
+                                  "model, background and name (see SimulationRequest).")
+    model: str = Field(description="Backend that ran (the one picked for model='auto').")
+    w_static: Num = Field(description="W(probe) at equilibrium, units of sqrt(L dL).")
+    info: SimulationInfo
 
 
 class Simulation(_Result):

@@ -95,7 +95,8 @@ def check_scene(params: dict[str, Any]) -> None:
 
 def simulate(params: dict[str, Any], model: str) -> dict[str, Any]:
     """Run ``sim.simulate(Scene(**params), model=model)`` (in the analysis pool): the arrays,
-    the static level and the simulator's notes."""
+    the static level and the backend's report (the document of
+    :class:`~service.schemas.sim.SimulationInfo`, stored as the signal's ``metadata.info``)."""
     with as_problems("scene"):
         out = sim.simulate(sim.Scene(**params), model=model)
     w_static = float(out.w_static)
@@ -104,5 +105,5 @@ def simulate(params: dict[str, Any], model: str) -> dict[str, Any]:
         "w": np.asarray(out.w, dtype=np.float64),
         "w_static": w_static if math.isfinite(w_static) else None,
         "model": str(out.model),
-        "info": convert.plain(dict(out.info or {})),
+        "info": convert.simulation_info(out.info or {}).model_dump(mode="json"),
     }
