@@ -34,6 +34,8 @@ from service.schemas.sim import (
     NormalForm,
     Resolution,
     Simulation,
+    SimulationInfo,
+    SimulationMetadata,
     Spectrum,
 )
 from service.schemas.simulations import SimulationRequest, SimulationResult
@@ -85,6 +87,8 @@ __all__ = [
     "NormalForm",
     "Resolution",
     "Simulation",
+    "SimulationInfo",
+    "SimulationMetadata",
     "Spectrum",
     "SimulatedSweep",
     "SimulationRequest",
