@@ -145,16 +145,42 @@ def _is_number(s: str) -> bool:
     return True
 
 
-def _parse_csv(
-    data: bytes, *, column: str | None, time_column: str | None, has_dt: bool
-) -> _Raw:
+def _decode(data: bytes) -> tuple[str, str]:
+    """The text of a CSV and the encoding read: UTF-8 (BOM or not), UTF-16 with its BOM (a
+    spreadsheet's "Unicode text" export), else Windows-1252 (a spreadsheet's legacy export:
+    the numbers are ASCII in every one of them; only names such as ``µm`` differ)."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        try:
+            return data.decode("utf-16"), "utf-16"
+        except UnicodeDecodeError as exc:
+            raise RecordingError("file", f"byte {exc.start}", "is not UTF-16 text") from None
     try:
-        text = data.decode("utf-8-sig")
+        return data.decode("utf-8-sig"), "utf-8"
     except UnicodeDecodeError as exc:
-        raise RecordingError("file", f"byte {exc.start}", "is not UTF-8 text") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+        if b"\x00" in data:  # binary, or UTF-16 without a BOM: never read as 8-bit text
+            raise RecordingError("file", f"byte {exc.start}", "is not UTF-8 text") from None
+        return data.decode("cp1252", errors="replace"), "cp1252"
+
+
+def _is_units_row(cells: list[str]) -> bool:
+    """A row of units under the header (``s,mm``, ``(ms),(V)``, ``[s];[mm]``): no number in it,
+    every non-empty cell a short unit, and at least one cell given."""
+    texts = [c.strip().strip("()[]{}").strip() for c in cells]
+    if not any(texts) or any(_is_number(c) for c in cells if c.strip()):
+        return False
+    return all(not t or (len(t) <= 12 and " " not in t) for t in texts)
+
+
+def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_dt: bool) -> _Raw:
+    text, encoding = _decode(data)
+    numbered = [
+        (k + 1, ln)
+        for k, ln in enumerate(text.splitlines())
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]  # (line number in the file, line): errors name the line a text editor shows
+    if not numbered:
         raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
+    lines = [ln for _, ln in numbered]
     head = lines[0]
     delim = max((",", ";", "\t"), key=head.count)
     if head.count(delim) == 0:
@@ -167,14 +193,20 @@ def _parse_csv(
             ",".join(header)[:80],
             "has no header row (the first line must name the columns, e.g. 't [s],w [mm]')",
         )
-    body = rows[1:]
+    first = 1
+    if len(rows) > 1 and len(rows[1]) == len(header) and _is_units_row(rows[1]):
+        units = [c.strip().strip("()[]{}").strip() for c in rows[1]]
+        header = [h if split_unit(h)[1] or not u else f"{h} [{u}]" for h, u in zip(header, units)]
+        first = 2
+    body = rows[first:]
+    line_of = [num for num, _ in numbered[first:]]
     if len(body) < 2:
         raise RecordingError("file", f"{len(body)} rows", "must hold at least 2 data rows")
     ncol = len(header)
     for k, r in enumerate(body):
         if len(r) != ncol:
             raise RecordingError(
-                f"file: line {k + 2}",
+                f"file: line {line_of[k]}",
                 f"{len(r)} cells",
                 f"is ragged: the header has {ncol} columns",
             )
@@ -191,7 +223,7 @@ def _parse_csv(
                 vals[k] = float(cell)
             except ValueError:
                 raise RecordingError(
-                    f"file: line {k + 2}, column {header[idx]!r}", cell, "is not a number"
+                    f"file: line {line_of[k]}, column {header[idx]!r}", cell, "is not a number"
                 ) from None
         cols[idx], cells[idx] = vals, texts
     return _Raw(
@@ -205,51 +237,100 @@ def _parse_csv(
             "columns": header,
             "value_column": header[wi],
             "time_column": header[ti] if ti is not None else None,
+            **({} if encoding == "utf-8" else {"encoding": encoding}),
         },
     )
+
+
+_RATE_NAMES = ("fs", "sample_rate", "sampling_rate", "samplerate", "srate", "sr", "rate")
+_STEP_NAMES = ("dt", "ts", "sample_period", "sampling_period")
+
+
+def _scalar(arrs: dict[str, Any], options: tuple[str, ...]) -> tuple[str | None, float | None]:
+    """The first variable named one of ``options`` (any case) holding one number."""
+    for key in arrs:
+        if key.lower() in options:
+            a = np.asarray(arrs[key])
+            if np.size(a) != 1:
+                raise RecordingError(f"file: {key}", list(np.shape(a)), "must be one number")
+            if a.dtype.kind not in "iuf":
+                raise RecordingError(f"file: {key}", str(a.dtype), "must be a number")
+            return key, float(a.reshape(()))
+    return None, None
+
+
+def _is_scalar_number(v: Any) -> bool:
+    a = np.asarray(v)
+    return a.size == 1 and a.dtype.kind in "iuf"
+
+
+def _pick(
+    arrs: dict[str, Any], names: list[str], role: str, preferred: tuple[str, ...]
+) -> str | None:
+    """The variable with a name of ``role`` (the CSV's names, any case; ``preferred`` first)."""
+    for n in preferred:
+        if n in arrs:
+            return n
+    found = [n for n in names if _role(n) == role]
+    if len(found) > 1:
+        raise RecordingError(
+            "file",
+            names,
+            f"has several {role} variables ({found}); name one with "
+            + ("column" if role == "value" else "time_column"),
+        )
+    return found[0] if found else None
 
 
 def _from_mapping(
     arrs: dict[str, Any], source: str, column: str | None, time_column: str | None
 ) -> _Raw:
     names = sorted(arrs)
-
-    def get(options: tuple[str, ...]) -> tuple[str | None, Any]:
-        for n in options:
-            if n in arrs:
-                return n, np.squeeze(np.asarray(arrs[n]))
-        return None, None
-
-    if column is not None:
-        wn, w = get((column,))
-        if w is None:
-            raise RecordingError("column", column, f"is not a variable of the file ({names})")
-    else:
-        wn, w = get(("w", "signal", "x", "y", "value", "values"))
-        if w is None:
-            raise RecordingError(
-                "file",
-                names,
-                "has no signal variable (w, signal, x, y, value); name it with column",
-            )
+    arrays = {k: v for k, v in arrs.items() if not _is_scalar_number(v)}
+    if source == "npz" and len(arrs) == 1 and column is None and time_column is None:
+        only = np.squeeze(np.asarray(next(iter(arrs.values()))))
+        if only.ndim == 2 and 2 in only.shape:  # np.savez(f, table): one unnamed (n, 2) table
+            a2 = only if only.shape[1] == 2 else only.T
+            return _Raw(w=a2[:, 1], t=a2[:, 0], source=source,
+                        metadata={"variables": names, "time_column": f"{names[0]}[:, 0]",
+                                  "value_column": f"{names[0]}[:, 1]"})  # fmt: skip
     if time_column is not None:
-        tn, t = get((time_column,))
-        if t is None:
+        if time_column not in arrs:
             raise RecordingError(
                 "time_column", time_column, f"is not a variable of the file ({names})"
             )
+        tn: str | None = time_column
     else:
-        tn, t = get(("t", "time"))
-    _, dt = get(("dt",))
-    if dt is not None and np.size(dt) != 1:
-        raise RecordingError("file: dt", list(np.shape(dt)), "must be one number")
-    return _Raw(
-        w=w,
-        t=t,
-        dt=float(dt) if dt is not None and np.asarray(dt).dtype.kind in "iuf" else None,
-        source=source,
-        metadata={"variables": names, "value_column": wn, "time_column": tn},
-    )
+        tn = _pick(arrays, sorted(arrays), "time", ("t", "time"))
+    if column is not None:
+        if column not in arrs:
+            raise RecordingError("column", column, f"is not a variable of the file ({names})")
+        wn: str | None = column
+    else:
+        wn = _pick(arrays, sorted(arrays), "value", ("w", "signal", "x", "y", "value", "values"))
+        others = [n for n in sorted(arrays) if n != tn]
+        if wn is None and len(others) == 1:
+            wn = others[0]  # the one array besides the time, as the CSV's one other column
+    if wn is None:
+        raise RecordingError(
+            "file",
+            names,
+            f"has no signal variable (one of {sorted(_VALUE_NAMES)}, or a single array "
+            "besides the time); name it with column",
+        )
+    w = np.squeeze(np.asarray(arrs[wn]))
+    t = None if tn is None else np.squeeze(np.asarray(arrs[tn]))
+    dn, dt = _scalar(arrs, _STEP_NAMES)
+    rn, rate = _scalar(arrs, _RATE_NAMES)
+    meta: dict[str, Any] = {"variables": names, "value_column": wn, "time_column": tn}
+    if rate is not None:
+        if not (np.isfinite(rate) and rate > 0):
+            raise RecordingError(f"file: {rn}", rate, "must be a sample rate > 0")
+        if dt is not None and abs(dt * rate - 1.0) > 1e-9:
+            raise RecordingError(f"file: {rn}", rate, f"disagrees with {dn} = {dt!r} (1/{rn})")
+        dt = 1.0 / rate if dt is None else dt
+        meta["sample_rate"] = rate
+    return _Raw(w=w, t=t, dt=dt, source=source, metadata=meta)
 
 
 def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:
