@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import sys
 import time
@@ -37,34 +36,43 @@ def read_record(
         raise err from None
 
 
-def _read_table(path: str, option: str) -> dict[str, np.ndarray]:
+def _read_table(path: str, option: str) -> Any:
+    """A table (sweep, manifest) read by :func:`service.recordings.read_table`: the text rules
+    of the recordings' CSV (BOM, UTF-16, comments, ``;``/tab, units in the header)."""
+    from service.recordings import RecordingError, read_table
+
     p = Path(path)
     if not p.is_file():
         raise bad(option, path, "is not a readable file")
-    with p.open(newline="") as fh:
-        rows = list(csv.reader(fh))
-    if len(rows) < 2:
-        raise bad(option, path, "has no data rows")
-    header = [h.strip() for h in rows[0]]
-    cols: dict[str, list] = {h: [] for h in header}
-    for i, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise bad(option, path, f"line {i} has {len(row)} fields, header has {len(header)}")
-        for h, c in zip(header, row):
-            cols[h].append(c.strip())
-    return {h: np.array(v, dtype=object) for h, v in cols.items()}
-
-
-def _floats(table: dict, name: str, option: str, path: str) -> np.ndarray:
     try:
-        arr = table[name].astype(float)
-    except ValueError:
-        raise bad(option, path, f"column {name!r} holds a value that is not a number") from None
-    if not np.all(np.isfinite(arr)):
-        raise bad(option, path, f"column {name!r} holds NaN or inf")
-    return arr
+        return read_table(p.read_bytes(), what="file")
+    except RecordingError as exc:
+        err = error_from(exc, context=f"{option} {path!r}")
+        assert err is not None
+        raise err from None
+
+
+def _floats(table: Any, name: str, option: str, path: str) -> np.ndarray:
+    from service.recordings import RecordingError
+
+    try:
+        return table.floats(name, what="file")
+    except RecordingError as exc:
+        err = error_from(exc, context=f"{option} {path!r}")
+        assert err is not None
+        raise err from None
+
+
+#: Units of a rate column read as cycles per time: ``omega [Hz]`` is ``2 pi f`` rad/s.
+_CYCLES = {"hz": 1.0, "khz": 1e3, "mhz": 1e6}
+
+
+def _rate_column(table: Any, name: str, option: str, path: str) -> np.ndarray:
+    """A rate column (omega, omega_std) in rad/time: a header unit Hz/kHz/MHz is converted
+    (``2 pi f``; the time unit is then the second)."""
+    v = _floats(table, name, option, path)
+    unit = (table.units.get(name) or "").lower()
+    return v * (2.0 * math.pi * _CYCLES[unit]) if unit in _CYCLES else v
 
 
 # ------------------------------------------------------------------------------- commands
@@ -91,24 +99,29 @@ def _predict(args: argparse.Namespace) -> int:
     from service.analysis.predict import predict
 
     table = _read_table(args.file, "SWEEP")
-    if "mu" not in table:
-        raise bad("SWEEP", args.file, "needs a column 'mu'")
-    mu = _floats(table, "mu", "SWEEP", args.file)
+    mu_name = table.find(args.control_column or "mu")
+    if mu_name is None:
+        raise bad("SWEEP", args.file, f"needs a column {args.control_column or 'mu'!r} "
+                  f"(columns found: {table.names}; name the control with --control-column)")
+    mu = _floats(table, mu_name, "SWEEP", args.file)
     kw: dict[str, Any] = {}
-    if "sigma2" in table:
-        kw["sigma2"] = _floats(table, "sigma2", "SWEEP", args.file)
-        if "sigma2_std" in table:
-            kw["sigma2_std"] = _floats(table, "sigma2_std", "SWEEP", args.file)
-    elif "omega" in table:
-        kw["omega"] = _floats(table, "omega", "SWEEP", args.file)
-        if "omega_std" in table:
-            kw["omega_std"] = _floats(table, "omega_std", "SWEEP", args.file)
+    col = {c: table.find(c) for c in ("sigma2", "sigma2_std", "omega", "omega_std",
+                                      "w_static", "w_static_std")}  # fmt: skip
+    if col["sigma2"]:
+        kw["sigma2"] = _floats(table, col["sigma2"], "SWEEP", args.file)
+        if col["sigma2_std"]:
+            kw["sigma2_std"] = _floats(table, col["sigma2_std"], "SWEEP", args.file)
+    elif col["omega"]:
+        kw["omega"] = _rate_column(table, col["omega"], "SWEEP", args.file)
+        if col["omega_std"]:
+            kw["omega_std"] = _rate_column(table, col["omega_std"], "SWEEP", args.file)
     else:
-        raise bad("SWEEP", args.file, "needs a column 'sigma2' or 'omega'")
-    if "w_static" in table:
-        kw["w_static"] = _floats(table, "w_static", "SWEEP", args.file)
-        if "w_static_std" in table:
-            kw["w_static_std"] = _floats(table, "w_static_std", "SWEEP", args.file)
+        raise bad("SWEEP", args.file, f"needs a column 'sigma2' or 'omega' (columns found: "
+                  f"{table.names})")
+    if col["w_static"]:
+        kw["w_static"] = _floats(table, col["w_static"], "SWEEP", args.file)
+        if col["w_static_std"]:
+            kw["w_static_std"] = _floats(table, col["w_static_std"], "SWEEP", args.file)
     if args.damping is not None:
         kw["damping"] = args.damping
     if args.transition:
@@ -121,7 +134,8 @@ def _predict(args: argparse.Namespace) -> int:
     doc = convert.prediction(pred)
     if args.plot:
         plot_prediction_table(args.plot, mu, kw, doc, control_name=args.control_name,
-                              control_unit=args.control_unit, time_unit=args.time_unit)
+                              control_unit=args.control_unit or table.units.get(mu_name),
+                              time_unit=args.time_unit)
     lo, hi = doc.mu_star_interval
     emit(doc, json_mode=args.json,
          text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
@@ -189,13 +203,17 @@ def _sweep(args: argparse.Namespace) -> int:
     from service.analysis.pipeline import sweep_from_signals
 
     table = _read_table(args.manifest, "MANIFEST")
-    if "path" not in table or "control" not in table:
-        raise bad("MANIFEST", args.manifest, "needs the header 'path,control'")
-    control = _floats(table, "control", "MANIFEST", args.manifest)
-    steps = _floats(table, "dt", "MANIFEST", args.manifest) if "dt" in table else None
+    path_col, control_col = table.find("path"), table.find("control")
+    if path_col is None or control_col is None:
+        raise bad("MANIFEST", args.manifest,
+                  f"needs the header 'path,control' (columns found: {table.names})")
+    control = _floats(table, control_col, "MANIFEST", args.manifest)
+    dt_col = table.find("dt")
+    steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None
+    paths = table.cells[path_col]
     base = Path(args.manifest).resolve().parent
     records, names, time_units, notes = [], [], set(), {}
-    for k, (rel, c) in enumerate(zip(table["path"], control)):
+    for k, (rel, c) in enumerate(zip(paths, control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
         dt = args.dt if steps is None else float(steps[k])
@@ -215,7 +233,8 @@ def _sweep(args: argparse.Namespace) -> int:
             cb.close()
     doc = convert.sweep_result(res, record_flags=notes)
     if args.plot:
-        plot_sweep(args.plot, doc, control_name=args.control_name, control_unit=args.control_unit,
+        plot_sweep(args.plot, doc, control_name=args.control_name,
+                   control_unit=args.control_unit or table.units.get(control_col),
                    time_unit=time_units.pop() if len(time_units) == 1 else None)  # fmt: skip
     p = doc.prediction
     text = (
@@ -334,9 +353,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "predict",
         help="mu* from a sweep table (mu, sigma2 or omega, [sigma2_std or omega_std], "
-        "[w_static[, w_static_std]])",
+        "[w_static[, w_static_std]]); units in the header ('mu [deg]'): mu* comes in the "
+        "control's unit, 'omega [Hz]' is read as 2 pi f",
     )
     p.add_argument("file", metavar="SWEEP")
+    p.add_argument("--control-column", default=None, metavar="NAME",
+                   help="the control's column when it is not named mu")  # fmt: skip
     p.add_argument("--damping", type=float, default=None, metavar="XI",
                    help="damping xi (1/time) of the rates omega when known; without it a damping "
                    "is inferred only on decisive evidence")  # fmt: skip

@@ -10,8 +10,12 @@ otherwise), the CLI to its one-line error.
 Layouts
 -------
 CSV (``,``, ``;``, tab or blanks) with a header row
+    Text in UTF-8 (with or without a BOM), UTF-16 with its BOM (a spreadsheet's "Unicode
+    text"), else Windows-1252 (``metadata["encoding"]`` says which); ``#`` comment lines and
+    blank lines are skipped, and errors name the line as a text editor numbers it.
     The time column is recognised by its name (``t``, ``time``, ``timestamp``, ``seconds``...),
-    with its unit kept from the header: ``t [ms]``, ``time (s)``, ``time_s``. The signal is the
+    with its unit kept from the header: ``t [ms]``, ``time (s)``, ``time_s``, or from a row of
+    units under the header (``s,mm`` or ``(ms),(V)``, as oscilloscopes write). The signal is the
     one other column (any name, e.g. ``accel_mV`` or ``w [mm]``), or among several the one with
     a signal's name (``w``, ``x``, ``signal``, ``displacement``...), or the one named by
     ``column``. A header that does not say which column is which is an error that lists the
@@ -19,8 +23,11 @@ CSV (``,``, ``;``, tab or blanks) with a header row
 NPY
     1-D: the samples (give ``dt``). 2-D, two columns (or two rows): ``t`` then ``w``.
 NPZ, MATLAB .mat
-    Variables ``w`` (or ``signal``, ``x``, ``y``, ``value(s)``) and ``t`` (or ``time``) or
-    ``dt``.
+    Variables named as the CSV's columns (any case): the signal ``w`` (or ``signal``, ``x``,
+    ``displacement``, ``data``...; or the one array besides the time), the time ``t`` (or
+    ``time``, ``timestamps``...) or the step ``dt`` (or a sample rate ``fs``, ``Fs``,
+    ``sample_rate``: ``dt = 1/fs``). An NPZ holding one unnamed (n, 2) array is read as a 2-D
+    NPY.
 WAV
     ``dt = 1 / rate``; ``channel`` picks one channel of a multi-channel file.
 
@@ -37,6 +44,11 @@ recording carries the flag ``rounded_timestamps`` that says so. Steps the roundi
 explain (a dropped sample, a jittering clock) are an error naming the worst step, unless
 ``resample=True``, which interpolates the record linearly onto a uniform grid (flag
 ``resampled``).
+
+Tables
+-------
+:func:`read_table` reads a table of numbers (a sweep, a manifest of records) by the CSV's text
+rules, with each column's unit from the header.
 
 ``dt`` given by the caller supplies the step of a record that has no time of its own (1-D
 NPY, a one-column CSV); given for a file that carries its own times (a time column, ``t`` or
@@ -64,6 +76,7 @@ from service.recordings._record import (
     to_npy,
     uniform_rtol_from_env,
 )
+from service.recordings._table import Table, read_table
 from service.recordings._validate import from_arrays
 
 __all__ = [
@@ -73,12 +86,14 @@ __all__ = [
     "Recording",
     "RecordingError",
     "RecordingTooLarge",
+    "Table",
     "UnsupportedFormat",
     "check_finite",
     "from_arrays",
     "guess_format",
     "read_bytes",
     "read_file",
+    "read_table",
     "split_unit",
     "time_axis",
     "to_csv",
