@@ -1,0 +1,149 @@
+"""Lab files the project did not write, read by the CLI (in-process) and checked against the
+truth they were generated from (see ``_foreign``): a record's omega, a sweep's mu* in the
+lab's own control unit; broken files give an error naming the field, never a traceback."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).parents[1] / "contract"))
+from _contract_helpers import run_cli  # noqa: E402
+from _foreign import bad_records, beam_grid, lab_records, table  # noqa: E402
+
+from service import recordings as R  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    d = tmp_path_factory.mktemp("foreign")
+    return {"good": lab_records(d), "bad": bad_records(d)}
+
+
+@pytest.mark.parametrize("name", [
+    "comments.csv", "units_row.csv", "scope.csv", "excel_unicode.txt", "legacy.csv",
+    "named.npz", "logger.npz", "table.npz", "rate.npz", "daq.mat", "UPPER.CSV",
+])  # fmt: skip
+def test_a_lab_record_gives_its_true_frequency(files, name) -> None:  # noqa: ANN001
+    path, omega = files["good"][name]
+    rc, doc, err = run_cli("detect", str(path), "--json")
+    assert rc == 0, err
+    assert "Traceback" not in err
+    # noise 1e-3 on a unit ringdown of 4000 samples: omega to ~1e-5; 1e-4 leaves room
+    assert doc["fundamental"]["omega"] == pytest.approx(omega, rel=1e-4)
+    assert len(doc["modes"]) == 1
+
+
+def test_units_from_a_row_under_the_header() -> None:
+    t = np.arange(5) * 1e-3
+    for units, expect in (("s,mm", ("s", "mm")), ("(ms),(V)", ("ms", "V")),
+                          ("[s],", ("s", None))):  # fmt: skip
+        text = table(f"time,w\n{units}", [t * (1e3 if "ms" in units else 1), t], ["%g", "%g"])
+        rec = R.read_bytes(text.encode(), "csv")
+        assert (rec.unit, rec.value_unit) == expect
+        assert rec.n == 5  # the units row is not a sample
+
+
+def test_error_lines_are_the_files_own_lines(files) -> None:  # noqa: ANN001
+    path, field = files["bad"]["bad_cell.csv"]
+    assert path.read_text().splitlines()[10].endswith(",n/a")  # line 11 as an editor counts
+    rc, doc, err = run_cli("detect", str(path), "--json")
+    assert rc == 2 and doc["field"] == field and doc["value"] == "n/a"
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("name", ["rate_conflict.npz", "two_signals.npz"])
+def test_ambiguous_variables_are_refused_by_name(files, name) -> None:  # noqa: ANN001
+    path, field = files["bad"][name]
+    rc, doc, err = run_cli("detect", str(path), "--json")
+    assert rc == 2 and doc["field"] == field, doc
+    assert doc["status"] == 422 and "Traceback" not in err
+
+
+def test_binary_bytes_are_not_read_as_legacy_text() -> None:
+    with pytest.raises(R.RecordingError) as e:
+        R.read_bytes(b"t,w\n0,1\n\x00\xff\x00,2\n", "csv")
+    assert e.value.field == "file"
+
+
+# --- sweep tables ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def fold() -> tuple:
+    """The asymmetric beam (a fold) on a fixed grid of 0.05 stopping 0.01 before mu*."""
+    return beam_grid("asymmetric", 0.05, 0.01)
+
+
+def _predict(path: Path, *extra: str) -> dict:
+    rc, doc, err = run_cli("predict", str(path), "--json", *extra)
+    assert rc == 0, err
+    return doc
+
+
+def test_a_sweep_in_degrees_and_hertz_gives_mu_star_in_degrees(tmp_path, fold) -> None:  # noqa: ANN001
+    ms, mu, s2, sd = fold
+    om, om_sd = np.sqrt(-s2), sd / (2 * np.sqrt(-s2))
+    plain = tmp_path / "rad.csv"
+    plain.write_text(table("mu,omega,omega_std", [mu, om, om_sd], ["%.17g"] * 3))
+    lab = tmp_path / "deg.csv"
+    lab.write_bytes(("\ufeff# strip B, 2025-03-02\n" + table(
+        "theta [deg];omega [Hz];omega_std [Hz]",
+        [np.degrees(mu), om / (2 * np.pi), om_sd / (2 * np.pi)], ["%.15g"] * 3, sep=";",
+    )).encode())  # fmt: skip
+    rad = _predict(plain)
+    deg = _predict(lab, "--control-column", "theta")
+    assert rad["transition"] == deg["transition"] == "saddle-node"
+    lo, hi = rad["mu_star_interval"]
+    assert lo <= ms <= hi  # the truth, in radians
+    assert abs(rad["mu_star"] - ms) < 1e-3
+    # the same answer in the lab's unit (degrees): equivariant to the written digits
+    assert deg["mu_star"] == pytest.approx(math.degrees(rad["mu_star"]), rel=1e-7)
+    dlo, dhi = deg["mu_star_interval"]
+    assert dlo <= math.degrees(ms) <= dhi
+
+
+def test_hertz_is_read_as_cycles(tmp_path, fold) -> None:  # noqa: ANN001
+    """With a damping given (1/s), omega [Hz] must be turned into rad/s, not read as rad/s."""
+    ms, mu, s2, sd = fold
+    om = np.sqrt(-s2)
+    a, b = tmp_path / "rad.csv", tmp_path / "hz.csv"
+    a.write_text(table("mu,omega", [mu, om], ["%.17g"] * 2))
+    b.write_text(table("mu,omega [Hz]", [mu, om / (2 * np.pi)], ["%.17g"] * 2))
+    ra, rb = _predict(a, "--damping", "0.5"), _predict(b, "--damping", "0.5")
+    assert rb["mu_star"] == pytest.approx(ra["mu_star"], rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "text, field, value",
+    [
+        ("mu,omega\n0,10\n0.5,9\n1,NaN\n1.5,7\n", "file: line 4, column 'omega'", "NaN"),
+        ("# run 3\nmu,omega\n0,10\n0.5,\n1,8\n", "file: line 4, column 'omega'", ""),
+        ("mu;omega\n0;10\n0,5;9\n1;8;3\n", "file: line 4", "3 cells"),
+        ("theta,omega\n0,10\n1,9\n", "SWEEP", None),  # no mu: the columns are listed
+    ],
+)
+def test_a_broken_sweep_table_names_line_and_column(tmp_path, text, field, value) -> None:  # noqa: ANN001
+    p = tmp_path / "s.csv"
+    p.write_text(text)
+    rc, doc, err = run_cli("predict", str(p), "--json")
+    assert rc == 2 and doc["field"] == field, doc
+    if value is not None:
+        assert doc["value"] == value
+    else:
+        assert "['theta', 'omega']" in doc["detail"]
+    assert "Traceback" not in err
+
+
+def test_a_spreadsheet_sweep_with_bom_and_trailing_rows(tmp_path, fold) -> None:  # noqa: ANN001
+    ms, mu, s2, sd = fold
+    p = tmp_path / "excel.csv"
+    body = table("mu,sigma2,sigma2_std", [mu, s2, sd], ["%.17g"] * 3)
+    p.write_bytes(("\ufeff" + body + ",,\n,,\n").replace("\n", "\r\n").encode())
+    doc = _predict(p)
+    assert doc["transition"] == "saddle-node"
+    lo, hi = doc["mu_star_interval"]
+    assert lo <= ms <= hi
