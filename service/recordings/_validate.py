@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from service.analysis.common import Flag
 from service.recordings._errors import RecordingError, RecordingTooLarge
 from service.recordings._record import (
@@ -96,7 +98,7 @@ def _validate(
     if wa.size < 2:
         raise RecordingError(w_name, wa.tolist(), f"must hold at least 2 samples, got {wa.size}")
     check_finite(w_name, wa)
-    flags: tuple[Flag, ...] = ()
+    flags: tuple[Flag, ...] = _clipping(wa, w_name)
     if raw.t is not None:
         if dt is not None:
             why = (
@@ -114,11 +116,12 @@ def _validate(
                 f"and {w_name} ({wa.size} samples) must have the same length",
             )
         check_finite(t_name, ta)
-        wa, t_out, step, first, flags = _uniform_grid(
+        wa, t_out, step, first, grid_flags = _uniform_grid(
             wa, ta, t_name=t_name, rtol=rtol, cells=raw.t_cells, resample=resample
         )
+        flags += grid_flags
         if raw.dt is not None:  # a file with both t and dt: they must agree
-            if abs(raw.dt - step) > max(rtol, 1e-9) * step and not flags:
+            if abs(raw.dt - step) > max(rtol, 1e-9) * step and not grid_flags:
                 raise RecordingError(
                     "file", f"dt={raw.dt!r}", f"disagrees with its own times (step {step!r})"
                 )
@@ -146,3 +149,32 @@ def _validate(
         raise RecordingError("t0", t0f, "must be finite")
     return Recording(wa, None, step, t0f, raw.unit, raw.value_unit, raw.source, flags,
                      dict(raw.metadata))  # fmt: skip
+
+
+#: A record is flagged ``clipped`` when its largest (or smallest) value is held in at least
+#: this many separate runs: a decaying response reaches its extreme once; a saturated sensor
+#: or ADC holds every clipped peak at the same value.
+CLIP_RUNS = 3
+
+
+def _clipping(w: np.ndarray, w_name: str) -> tuple[Flag, ...]:
+    """The ``clipped`` flag when the record's extremes look saturated (see :data:`CLIP_RUNS`)."""
+    if w.size < 3 * CLIP_RUNS or float(w.max()) == float(w.min()):
+        return ()
+    found = []
+    for side, level in (("maximum", float(w.max())), ("minimum", float(w.min()))):
+        at = w == level
+        runs = int(np.count_nonzero(at[1:] & ~at[:-1])) + int(at[0])
+        if runs >= CLIP_RUNS and int(at.sum()) >= 2 * runs:
+            found.append(f"its {side} {level:.6g} is held in {runs} separate runs "
+                         f"({int(at.sum())} samples)")  # fmt: skip
+    if not found:
+        return ()
+    return (
+        Flag(
+            "clipped",
+            f"{w_name} looks saturated: " + "; ".join(found) + ". A sensor or converter at the "
+            "end of its range (or a very coarse quantisation) flattens the peaks, which shifts "
+            "the fitted frequencies and damping; record with more range",
+        ),
+    )
