@@ -45,6 +45,11 @@ explain (a dropped sample, a jittering clock) are an error naming the worst step
 ``resample=True``, which interpolates the record linearly onto a uniform grid (flag
 ``resampled``).
 
+Saturation
+----------
+A record whose maximum or minimum is held in several separate runs (a sensor or converter at
+the end of its range flattens every clipped peak) carries the flag ``clipped``.
+
 Tables
 -------
 :func:`read_table` reads a table of numbers (a sweep, a manifest of records) by the CSV's text

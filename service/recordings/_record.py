@@ -39,7 +39,8 @@ class Recording:
     source : str
         ``"json"``, ``"arrays"``, or the file format.
     flags : tuple of Flag
-        ``rounded_timestamps`` (dt estimated by least squares), ``resampled``.
+        ``rounded_timestamps`` (dt estimated by least squares), ``resampled``, ``clipped``
+        (the extremes held in several separate runs: a saturated sensor).
     metadata : dict
         What the reader learnt about the file (columns, variables, sample rate...).
     """
