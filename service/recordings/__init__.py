@@ -51,7 +51,7 @@ A record whose maximum or minimum is held in several separate runs (a sensor or 
 the end of its range flattens every clipped peak) carries the flag ``clipped``.
 
 Tables
--------
+------
 :func:`read_table` reads a table of numbers (a sweep, a manifest of records) by the CSV's text
 rules, with each column's unit from the header.
 
