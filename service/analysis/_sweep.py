@@ -66,7 +66,7 @@ def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ParameterError(
-            name, value, f"{name} must be an array of numbers, got {value!r}"
+            name, value, f"{name} must be an array of numbers, got {repr(value)[:200]}"
         ) from exc
     if arr.ndim != 1:
         raise ParameterError(
@@ -80,7 +80,7 @@ def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
     if bad.size:
         i = int(bad[0])
         raise ParameterError(
-            name, float(arr[i]), f"{name} must be finite, got {name}[{i}]={arr[i]!r}"
+            name, float(arr[i]), f"{name} must be finite, got {name}[{i}]={float(arr[i])!r}"
         )
     return arr
 
@@ -126,8 +126,14 @@ def prepare_sweep(
         i = int(np.flatnonzero(step <= 0)[0])
         raise ParameterError(
             "mu", float(m[i + 1]),
-            f"mu must be strictly increasing (an upward sweep), got mu[{i}]={m[i]!r} "
-            f"then mu[{i + 1}]={m[i + 1]!r}",
+            f"mu must be strictly increasing (an upward sweep), got mu[{i}]={float(m[i])!r} "
+            f"then mu[{i + 1}]={float(m[i + 1])!r}"
+            + (
+                "; the whole sweep decreases: if the transition lies below it (the control "
+                "was lowered toward it), give -mu (mu* is then minus the answer)"
+                if np.all(step < 0)
+                else ""
+            ),
         )  # fmt: skip
     if (sigma2 is None) == (omega is None):
         given = "neither" if sigma2 is None else "both"
@@ -149,7 +155,7 @@ def prepare_sweep(
             raise ParameterError(
                 "sigma2", float(s2[i]),
                 f"sigma2 must be < 0 (a stable mode on the measured branch), got sigma2[{i}]="
-                f"{s2[i]!r}",
+                f"{float(s2[i])!r}",
             )  # fmt: skip
         y = -s2
         kind = "sigma2"
@@ -161,14 +167,14 @@ def prepare_sweep(
                 raise ParameterError(
                     "sigma2_std",
                     float(sd[i]),
-                    f"sigma2_std must be > 0, got sigma2_std[{i}]={sd[i]!r}",
+                    f"sigma2_std must be > 0, got sigma2_std[{i}]={float(sd[i])!r}",
                 )
     else:
         om = _as_1d("omega", omega, n)
         if np.any(om <= 0):
             i = int(np.flatnonzero(om <= 0)[0])
             raise ParameterError(
-                "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={om[i]!r}"
+                "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={float(om[i])!r}"
             )
         y = om**2
         kind = "omega"
@@ -179,7 +185,7 @@ def prepare_sweep(
                 i = int(np.flatnonzero(om_sd <= 0)[0])
                 raise ParameterError(
                     "omega_std", float(om_sd[i]),
-                    f"omega_std must be > 0, got omega_std[{i}]={om_sd[i]!r}",
+                    f"omega_std must be > 0, got omega_std[{i}]={float(om_sd[i])!r}",
                 )  # fmt: skip
             sd = np.sqrt((2 * om * om_sd) ** 2 + 2 * om_sd**4)
     w = w_sd = None
@@ -192,7 +198,7 @@ def prepare_sweep(
                 i = int(np.flatnonzero(w_sd <= 0)[0])
                 raise ParameterError(
                     "w_static_std", float(w_sd[i]),
-                    f"w_static_std must be > 0, got w_static_std[{i}]={w_sd[i]!r}",
+                    f"w_static_std must be > 0, got w_static_std[{i}]={float(w_sd[i])!r}",
                 )  # fmt: skip
     elif w_static_std is not None:
         raise ParameterError("w_static_std", "given", "w_static_std=... was given without w_static")

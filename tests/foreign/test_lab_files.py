@@ -163,3 +163,18 @@ def test_a_saturated_sensor_is_flagged_and_a_decaying_record_is_not(tmp_path) ->
     assert abs(doc["fundamental"]["omega"] / OMEGA - 1) > 1e-2  # why the flag matters
     for fine in (w, np.round(w * 100) / 100, np.round(w * 3e4)):
         assert not R.from_arrays(fine, dt=1e-3).flags
+
+
+def test_sweep_errors_echo_plain_numbers_and_say_the_direction() -> None:
+    """The message shows the lab's number (not ``np.float64(...)``), and a sweep written from
+    the top down is told how to be read."""
+    from service.analysis.predict import predict
+
+    mu = np.array([0.0, 0.5, 1.0])
+    with pytest.raises(ValueError) as e:
+        predict(mu, np.array([-3.0, 0.25, -1.0]))
+    assert e.value.parameter == "sigma2" and "sigma2[1]=0.25" in str(e.value)
+    assert "np." not in str(e.value)
+    with pytest.raises(ValueError) as e:
+        predict(mu[::-1], np.array([-1.0, -2.0, -3.0]))
+    assert e.value.parameter == "mu" and "give -mu" in str(e.value)
