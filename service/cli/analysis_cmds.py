@@ -19,17 +19,24 @@ from service.cli._progress import Progress, warm_kernels
 
 # ------------------------------------------------------------------------------- file readers
 def read_record(
-    path: str, option: str = "FILE", *, dt: float | None = None, resample: bool = False
+    path: str,
+    option: str = "FILE",
+    *,
+    dt: float | None = None,
+    resample: bool = False,
+    reader: dict[str, Any] | None = None,
 ) -> Any:
     """Read a record with :mod:`service.recordings`: the API's reader and rules.
 
     ``dt`` supplies the step of a file without times (1-D .npy, one-column CSV) and is an error
     for a file that has them; the uniform-sampling tolerance is ``SNAPWARN_UNIFORM_RTOL``.
+    ``reader``: the upload's other fields (``fmt``, ``column``, ``time_column``, ``channel``).
     """
     from service.recordings import RecordingError, read_file
 
+    opts = {k: v for k, v in (reader or {}).items() if v is not None}
     try:
-        return read_file(path, dt=dt, resample=resample)
+        return read_file(path, dt=dt, resample=resample, **opts)
     except RecordingError as exc:
         err = error_from(exc, context=f"{option} {path!r}")
         assert err is not None
@@ -79,7 +86,7 @@ def _rate_column(table: Any, name: str, option: str, path: str) -> np.ndarray:
 def _detect(args: argparse.Namespace) -> int:
     from service.analysis.detect import detect
 
-    rec = read_record(args.file, dt=args.dt, resample=args.resample)
+    rec = read_record(args.file, dt=args.dt, resample=args.resample, reader=_reader_options(args))
     det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
     doc = convert.detection(det, extra_flags=rec.flags)
     if args.plot:
@@ -217,7 +224,8 @@ def _sweep(args: argparse.Namespace) -> int:
         p = Path(rel)
         p = p if p.is_absolute() else base / p
         dt = args.dt if steps is None else float(steps[k])
-        rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample)
+        rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample,
+                          reader=_reader_options(args))  # fmt: skip
         records.append((rec.w, rec.dt, float(c)))
         names.append(str(rel))
         time_units.add(rec.unit)
@@ -329,6 +337,25 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _reader_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The reader's options of the command line (the API's upload fields of the same names)."""
+    return {"fmt": args.format, "column": args.column, "time_column": args.time_column,
+            "channel": args.channel}  # fmt: skip
+
+
+def _reader_flags(p: argparse.ArgumentParser) -> None:
+    """The upload's fields as options: the same reader, the same choices as over HTTP."""
+    from service.recordings import FORMATS
+
+    p.add_argument("--format", default=None, choices=FORMATS,
+                   help="the file's format when its extension does not say it")  # fmt: skip
+    p.add_argument("--column", default=None, metavar="NAME",
+                   help="the column (CSV) or variable (NPZ, MAT) holding the signal")
+    p.add_argument("--time-column", default=None, metavar="NAME",
+                   help="the column or variable holding the time")
+    p.add_argument("--channel", type=int, default=None, help="WAV channel (default 0)")
+
+
 def _resample_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resample", action="store_true",
                    help="interpolate non-uniform sample times onto a uniform grid (else an "
@@ -346,6 +373,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="sample step of a file without times (1-D .npy, one-column CSV); an "
                    "error for a file that has them")  # fmt: skip
     _resample_flag(p)
+    _reader_flags(p)
     add_json_flag(p)
     add_plot_flag(p, "the record, the detector's fit over it and the residual")
     p.set_defaults(func=_detect)
@@ -397,6 +425,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dt", type=finite, default=None,
                    help="sample step of the files without times (a 'dt' column overrides)")
     _resample_flag(p)
+    _reader_flags(p)
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
     add_plot_flag(p, "T(control), the T^(-1/a) collapse with the transition and its interval")
