@@ -162,6 +162,16 @@ def _decode(data: bytes) -> tuple[str, str]:
         return data.decode("cp1252", errors="replace"), "cp1252"
 
 
+_SEP_LINE = re.compile(r'^\s*"?sep=(.)"?\s*$', re.IGNORECASE)
+
+
+def _sep_hint(numbered: list[tuple[int, str]]) -> tuple[list[tuple[int, str]], str | None]:
+    """Drop a spreadsheet's ``sep=;`` first line and return the delimiter it names."""
+    if numbered and (m := _SEP_LINE.match(numbered[0][1])):
+        return numbered[1:], m.group(1)
+    return numbered, None
+
+
 def _is_units_row(cells: list[str]) -> bool:
     """A row of units under the header (``s,mm``, ``(ms),(V)``, ``[s];[mm]``): no number in it,
     every non-empty cell a short unit, and at least one cell given."""
@@ -180,9 +190,12 @@ def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_
     ]  # (line number in the file, line): errors name the line a text editor shows
     if not numbered:
         raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
+    numbered, hint = _sep_hint(numbered)
     lines = [ln for _, ln in numbered]
+    if not lines:
+        raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
     head = lines[0]
-    delim = max((",", ";", "\t"), key=head.count)
+    delim: str | None = hint or max((",", ";", "\t"), key=head.count)
     if head.count(delim) == 0:
         delim = None
     rows = list(csv.reader(lines, delimiter=delim)) if delim else [ln.split() for ln in lines]
@@ -271,7 +284,7 @@ def _pick(
     for n in preferred:
         if n in arrs:
             return n
-    found = [n for n in names if _role(n) == role]
+    found = [n for n in names if _role(n.rsplit(".", 1)[-1]) == role]  # struct fields: rec.t
     if len(found) > 1:
         raise RecordingError(
             "file",
@@ -280,6 +293,20 @@ def _pick(
             + ("column" if role == "value" else "time_column"),
         )
     return found[0] if found else None
+
+
+def _struct_fields(arrs: dict[str, Any]) -> dict[str, Any]:
+    """MATLAB structs (one level) opened into their fields, named ``struct.field`` (not a
+    struct named as a signal or a time: ``w`` must be numbers, and its error says so)."""
+    out: dict[str, Any] = {}
+    for k, v in arrs.items():
+        a = np.asarray(v)
+        if a.dtype.names and a.size == 1 and _role(k) is None:
+            for f in a.dtype.names:
+                out[f"{k}.{f}"] = a[f].reshape(-1)[0]
+        else:
+            out[k] = v
+    return out
 
 
 def _from_mapping(
@@ -458,11 +485,16 @@ def _parse(
 
         if max_decompressed_bytes is not None:
             _check_unpacked_size(data, fmt, max_decompressed_bytes)
+        if b"MATLAB 7.3" in data[:128] or data[512:520] == b"\x89HDF\r\n\x1a\n":
+            raise RecordingError(
+                "file", f"{len(data)} bytes", "is a MATLAB v7.3 (HDF5) file, which this reader "
+                "cannot open: save it with save(name, '-v7'), or as CSV",
+            )  # fmt: skip
         try:
             arrs = {k: v for k, v in loadmat(buf).items() if not k.startswith("__")}
         except Exception as exc:  # noqa: BLE001
             raise _load_failed(".mat", data, exc) from None
-        return _from_mapping(arrs, "mat", column, time_column)
+        return _from_mapping(_struct_fields(arrs), "mat", column, time_column)
     if fmt == "wav":
         from scipy.io import wavfile
 

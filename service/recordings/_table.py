@@ -16,7 +16,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from service.recordings._errors import RecordingError
-from service.recordings._formats import _decode, _is_number, _is_units_row, split_unit
+from service.recordings._formats import (
+    _decode,
+    _is_number,
+    _is_units_row,
+    _sep_hint,
+    split_unit,
+)
 
 
 @dataclass(frozen=True)
@@ -76,10 +82,11 @@ def read_table(data: bytes, *, what: str = "file") -> Table:
         for k, ln in enumerate(text.splitlines())
         if ln.strip() and not ln.lstrip().startswith("#")
     ]
+    numbered, hint = _sep_hint(numbered)
     if not numbered:
         raise RecordingError(what, "", "is empty (a table needs a header row and data rows)")
     head = numbered[0][1]
-    delim = max((",", ";", "\t"), key=head.count)
+    delim = hint or max((",", ";", "\t"), key=head.count)
     lines = [ln for _, ln in numbered]
     if head.count(delim):
         rows = list(csv.reader(lines, delimiter=delim))

@@ -178,3 +178,41 @@ def test_sweep_errors_echo_plain_numbers_and_say_the_direction() -> None:
     with pytest.raises(ValueError) as e:
         predict(mu[::-1], np.array([-1.0, -2.0, -3.0]))
     assert e.value.parameter == "mu" and "give -mu" in str(e.value)
+
+
+def test_the_cli_takes_the_readers_options_the_api_takes(tmp_path) -> None:  # noqa: ANN001
+    """A file the CLI's own error tells to 'name the format' / 'name it with column' can be
+    named on the command line (the API's upload fields format, column, channel)."""
+    from _foreign import OMEGA, ringdown
+
+    t, w = ringdown()
+    two = tmp_path / "two.csv"
+    two.write_text(table("t,ch1,ch2", [t, -w, w], ["%.6f", "%.6e", "%.6e"]))
+    rc, doc, _ = run_cli("detect", str(two), "--json")
+    assert rc == 2 and "name it with column" in doc["detail"]
+    rc, doc, err = run_cli("detect", str(two), "--column", "ch2", "--json")
+    assert rc == 0 and doc["fundamental"]["omega"] == pytest.approx(OMEGA, rel=1e-4), err
+    bare = tmp_path / "export"  # no extension
+    bare.write_text(table("t,w", [t, w], ["%.6f", "%.6e"]))
+    rc, doc, _ = run_cli("detect", str(bare), "--json")
+    assert rc == 2 and doc["status"] == 415 and "name the format" in doc["detail"]
+    rc, doc, err = run_cli("detect", str(bare), "--format", "csv", "--json")
+    assert rc == 0 and doc["fundamental"]["omega"] == pytest.approx(OMEGA, rel=1e-4), err
+
+
+def test_excel_sep_line_matlab_struct_and_v73(tmp_path) -> None:  # noqa: ANN001
+    from _foreign import DT, mat, ringdown
+
+    t, w = ringdown()
+    text = 'sep=;\n' + table("t;w", [t, w], ["%.6f", "%.6e"], sep=";")
+    rec = R.read_bytes(text.encode(), "csv")
+    assert rec.dt == pytest.approx(DT, rel=1e-9) and rec.n == t.size
+    sweep = R.read_table(b'"sep=;"\nmu;omega\n0;1\n1;2\n')
+    assert sweep.names == ["mu", "omega"] and sweep.floats("omega").tolist() == [1.0, 2.0]
+    rec = R.read_bytes(mat(run={"t": t, "w": w}), "mat")  # a MATLAB struct: run.t, run.w
+    assert rec.dt == pytest.approx(DT, rel=1e-9)
+    np.testing.assert_array_equal(rec.w, w)
+    v73 = b"MATLAB 7.3 MAT-file, Platform: GLNXA64".ljust(512) + b"\x89HDF\r\n\x1a\n" + bytes(64)
+    with pytest.raises(R.RecordingError) as e:
+        R.read_bytes(v73, "mat")
+    assert e.value.field == "file" and "-v7" in str(e.value)
