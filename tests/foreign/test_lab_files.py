@@ -216,3 +216,25 @@ def test_excel_sep_line_matlab_struct_and_v73(tmp_path) -> None:  # noqa: ANN001
     with pytest.raises(R.RecordingError) as e:
         R.read_bytes(v73, "mat")
     assert e.value.field == "file" and "-v7" in str(e.value)
+
+
+@pytest.mark.parametrize("fs", [1e4, 1e5])
+def test_epoch_times_in_binary_floats_are_uniform_to_their_rounding(tmp_path, fs) -> None:  # noqa: ANN001
+    """Unix times (1.7e9 s) stored as float64 at 10-100 kHz: float64's own spacing there
+    (2.4e-7 s) is a few thousandths of a step; that is not irregular sampling (was refused as
+    'written too coarsely'). A dropped sample is still named."""
+    n = 20000
+    k = np.arange(n)
+    t = 1.7e9 + k / fs
+    omega = 2 * np.pi * fs / 100.0  # 100 samples a period
+    w = np.exp(-fs / 4000.0 * k / fs) * np.cos(omega * k / fs)
+    p = tmp_path / "epoch.npy"
+    np.save(p, np.column_stack([t, w]))
+    rc, doc, err = run_cli("detect", str(p), "--json")
+    assert rc == 0, err
+    assert doc["fundamental"]["omega"] == pytest.approx(omega, rel=1e-5)
+    keep = np.ones(n, bool)
+    keep[5000] = False
+    with pytest.raises(R.RecordingError) as e:
+        R.from_arrays(w[keep], t=t[keep])
+    assert e.value.field == "t[5000]"
