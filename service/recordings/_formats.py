@@ -336,14 +336,15 @@ def _from_mapping(
     else:
         wn = _pick(arrays, sorted(arrays), "value", ("w", "signal", "x", "y", "value", "values"))
         others = [n for n in sorted(arrays) if n != tn]
-        if wn is None and len(others) == 1:
-            wn = others[0]  # the one array besides the time, as the CSV's one other column
+        timed = tn is not None or any(k.lower() in _STEP_NAMES + _RATE_NAMES for k in arrs)
+        if wn is None and len(others) == 1 and timed:
+            wn = others[0]  # the one array besides the time (or the step): the signal
     if wn is None:
         raise RecordingError(
             "file",
             names,
             f"has no signal variable (one of {sorted(_VALUE_NAMES)}, or a single array "
-            "besides the time); name it with column",
+            "besides a time or a step); name it with column",
         )
     w = np.squeeze(np.asarray(arrs[wn]))
     t = None if tn is None else np.squeeze(np.asarray(arrs[tn]))
