@@ -77,6 +77,14 @@ def lab_records(d: Path) -> dict[str, tuple[Path, float]]:
     put("rate.npz", npz(w=w, fs=1000.0))
     put("daq.mat", mat(y=w.reshape(-1, 1), Fs=1000.0))
     put("UPPER.CSV", table("T,W", [t, w], ["%.6f", "%.6e"]).replace("\n", "\r\n").encode())
+    put("excel_sep.csv", ("sep=;\n" + table("t;w", [t, w], ["%.6f", "%.6e"], sep=";")).encode())
+    put("struct.mat", mat(run={"t": t, "w": w}))
+    # Unix times at 10 kHz stored as float64 (their spacing: 2.4e-7 s, 2.4e-3 of a step)
+    k = np.arange(20000)
+    buf = io.BytesIO()
+    te = k / 1e4
+    np.save(buf, np.column_stack([1.7e9 + te, np.exp(-2.5 * te) * np.cos(628.0 * te)]))
+    put("epoch.npy", buf.getvalue(), 628.0)
     return out
 
 

@@ -28,6 +28,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict:
 @pytest.mark.parametrize("name", [
     "comments.csv", "units_row.csv", "scope.csv", "excel_unicode.txt", "legacy.csv",
     "named.npz", "logger.npz", "table.npz", "rate.npz", "daq.mat", "UPPER.CSV",
+    "excel_sep.csv", "struct.mat", "epoch.npy",
 ])  # fmt: skip
 def test_a_lab_record_gives_its_true_frequency(files, name) -> None:  # noqa: ANN001
     path, omega = files["good"][name]
