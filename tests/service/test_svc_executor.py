@@ -3,6 +3,9 @@
 Answers and errors come back whole; a call past its time limit is stopped by killing its
 worker (even when its caller has gone), which is replaced; a worker that dies fails its call
 and is replaced; ``submit`` works from any thread; a shut-down pool leaves no process behind.
+Pipelining (a call written behind a busy worker's): the call waiting behind one that passes
+its limit or kills its worker runs on the replacement, and one whose own limit passes while
+it waits fails alone, its worker kept.
 The callables are the standard library's, so that the workers import nothing from the tests.
 """
 
@@ -90,6 +93,51 @@ async def test_a_worker_that_dies_fails_its_call_and_is_replaced(pool: LightPool
         await pool.run(os._exit, 3)
     await _until(lambda: len(pool.pids) == 2 and set(pool.pids) != before, 60, "a new worker")
     assert await pool.run(math.sqrt, 16.0) == 4.0
+
+
+@pytest.fixture
+async def one():  # noqa: ANN201
+    p = LightPool(1, name="test-pool", depth=2)
+    await _until(lambda: p.idle == 1, 60, "a worker")
+    try:
+        yield p
+    finally:
+        p.shutdown(wait=False)
+
+
+async def test_a_call_behind_one_past_its_limit_runs_on_the_replacement(one: LightPool) -> None:
+    (first,) = one.pids
+    slow = asyncio.ensure_future(one.run(time.sleep, 60, timeout=0.5))
+    await asyncio.sleep(0.05)
+    behind = asyncio.ensure_future(one.run(os.getpid, timeout=60))  # written behind the slow
+    await asyncio.sleep(0.05)
+    assert len(one._queue) == 0  # pipelined: in the worker's socket, not in the queue
+    with pytest.raises(TimeLimitExceeded):
+        await slow
+    pid = await behind
+    assert pid != first and pid in one.pids
+
+
+async def test_a_call_behind_a_dying_worker_runs_on_the_replacement(one: LightPool) -> None:
+    (first,) = one.pids
+    dying = asyncio.ensure_future(one.run(os._exit, 3))
+    behind = asyncio.ensure_future(one.run(os.getpid))
+    with pytest.raises(BrokenProcessPool):
+        await dying
+    assert await behind not in (first, None)
+
+
+async def test_a_waiting_call_past_its_own_limit_fails_alone(one: LightPool) -> None:
+    (first,) = one.pids
+    busy = asyncio.ensure_future(one.run(time.sleep, 1.0, timeout=30))
+    await asyncio.sleep(0.05)
+    t0 = time.monotonic()
+    with pytest.raises(TimeLimitExceeded):
+        await one.run(math.sqrt, 4.0, timeout=0.2)
+    assert time.monotonic() - t0 < 0.9  # failed at its limit, not when the worker got to it
+    assert await busy is None
+    assert one.pids == [first]  # the worker was not killed: the waiting call never ran
+    assert await one.run(math.sqrt, 9.0) == 3.0
 
 
 async def test_submit_from_another_thread(pool: LightPool) -> None:
