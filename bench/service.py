@@ -329,9 +329,11 @@ _ONE_THREAD = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "NU
 def _core_loop(body: bytes, start: float, seconds: float) -> tuple[int, float]:
     """One core's share of the core-bound measurement (a spawned process): the request's work
     back to back from ``start`` (wall clock) for ``seconds``; (requests done, CPU seconds)."""
+    from service.api import warm
     from service.api.routers.detections import inline_detection
     from service.api.settings import Settings
 
+    warm.warm()  # started as the server's analysis workers are (imports, then gc.freeze)
     s = Settings()
     for _ in range(20):  # imports, JIT, caches
         kind, _out = inline_detection(body, s.max_samples, s.uniform_rtol)

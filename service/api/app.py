@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import sys
@@ -76,6 +77,7 @@ def _lifespan(settings: Settings) -> Any:
             await to_thread.run_sync(runner.start)
         state.runner = runner
         app.state.snapwarn = state
+        gc.freeze()  # start-up's objects live as long as the server: out of the collector's way
         try:
             yield
         finally:
