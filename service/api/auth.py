@@ -12,6 +12,7 @@ admin reads all): anything else answers 404, as if the resource did not exist.
 
 from __future__ import annotations
 
+import functools
 import hmac
 import ipaddress
 import time
@@ -64,7 +65,12 @@ def is_loopback(host: str | None) -> bool:
     """True for 127.0.0.0/8, ::1 and ``localhost``; False for 0.0.0.0, :: and other names."""
     if not host:
         return False
-    h = host.strip("[]")
+    return _is_loopback(host.strip("[]"))
+
+
+@functools.lru_cache(maxsize=1024)
+def _is_loopback(h: str) -> bool:
+    """``is_loopback`` of a bare name (memoised: asked on every request)."""
     if h == "localhost":
         return True
     try:
@@ -88,12 +94,18 @@ def keys_required(settings: Settings, request: Request | None = None) -> bool:
         return True
     if request is not None:  # the socket's own address, when it is an IP beyond loopback
         host = _server_host(request)
-        try:
-            if host is not None and not ipaddress.ip_address(host.strip("[]")).is_loopback:
-                return True
-        except ValueError:
-            pass
+        if host is not None and _beyond_loopback(host.strip("[]")):
+            return True
     return False
+
+
+@functools.lru_cache(maxsize=1024)
+def _beyond_loopback(h: str) -> bool:
+    """True for an IP address that is not a loopback one (False for names; memoised)."""
+    try:
+        return not ipaddress.ip_address(h).is_loopback
+    except ValueError:
+        return False
 
 
 def _token(request: Request) -> str | None:
@@ -106,7 +118,9 @@ def _token(request: Request) -> str | None:
 def _unauthorized(given: bool) -> ApiProblem:
     return ApiProblem(
         401,
-        "wrong or revoked API key" if given else "an API key is required (send "
+        "wrong or revoked API key"
+        if given
+        else "an API key is required (send "
         "'Authorization: Bearer <key>'; create one with 'snapwarn keys create')",
         field="authorization",
         value="<hidden>" if given else None,

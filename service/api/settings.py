@@ -40,6 +40,12 @@ class Settings(BaseSettings):
         default="auto",
         description="uvicorn event loop: 'auto' (uvloop if installed), 'uvloop' or 'asyncio'.",
     )
+    forwarded_allow_ips: list[str] = Field(
+        default_factory=list,
+        description="Addresses of reverse proxies whose X-Forwarded-For/-Proto are trusted (the "
+        "access log then shows the client's address); none by default: no request's "
+        "forwarding headers are read (the API does not use the client's address).",
+    )
     api_key: str | None = Field(
         default=None,
         description="A single admin key from the environment (compared in constant time); "

@@ -169,6 +169,8 @@ def _serve(args: argparse.Namespace) -> int:
         log_level=settings.log_level,
         http=settings.http_impl,
         loop=settings.loop_impl,
+        proxy_headers=bool(settings.forwarded_allow_ips),
+        forwarded_allow_ips=",".join(settings.forwarded_allow_ips) or None,
         timeout_graceful_shutdown=5,
     )
     return 0
