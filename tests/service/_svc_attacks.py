@@ -2,7 +2,8 @@
 
 Each case is ``(label, method, path, request kwargs, allowed statuses, field)``: the answer must
 be one of the statuses (never 5xx) and, where ``field`` is given, name that field. Used by
-``test_svc_hardening.py``, which also prints the pass rate.
+``test_svc_hardening.py``, one test per case and database (the pass rate is pytest's count of
+them: ``pytest tests/service/test_svc_hardening.py -k attack``).
 """
 
 from __future__ import annotations
