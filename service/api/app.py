@@ -22,6 +22,7 @@ from service.api import pages
 from service.api.auth import get_caller
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_analysis_pool, make_pool, warm_pool
+from service.api.hotpath import HotPathMiddleware
 from service.api.idempotency import IdempotencyMiddleware
 from service.api.jobs import JobRunner
 from service.api.routers import detections, health, jobs, live, signals, simulations, sweeps
@@ -105,6 +106,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.snapwarn = None
     install_handlers(app)
+    if settings.hot_path:  # innermost of ours: the checks of those below still apply
+        app.add_middleware(HotPathMiddleware)
     app.add_middleware(IdempotencyMiddleware)
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
     app.add_middleware(SecurityMiddleware, settings=settings)

@@ -21,7 +21,6 @@ from __future__ import annotations
 import asyncio
 import atexit
 import functools
-import io
 import logging
 import multiprocessing as mp
 import os
@@ -163,15 +162,16 @@ def _recv_exact(sock: socket.socket, n: int) -> bytearray | None:
     return buf
 
 
+def _frame_parts(obj: object) -> tuple[bytes, bytes]:
+    """``obj`` pickled, and its length header (written together: one copy of a large body)."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    return _HEADER.pack(len(data)), data
+
+
 def _frame(obj: object) -> bytes:
-    """``obj`` pickled behind its length (one buffer: one write, no copy of a large body)."""
-    out = io.BytesIO()
-    out.write(b"\0" * _HEADER.size)
-    pickle.dump(obj, out, protocol=pickle.HIGHEST_PROTOCOL)
-    size = out.tell() - _HEADER.size
-    out.seek(0)
-    out.write(_HEADER.pack(size))
-    return out.getvalue()
+    """``obj`` pickled behind its length, in one buffer."""
+    head, data = _frame_parts(obj)
+    return head + data
 
 
 def _answer(data: bytearray) -> bytes:
@@ -447,7 +447,7 @@ class LightPool(Executor):
                 self._queue.appendleft(call)
                 return
             try:
-                frame = _frame((call.fn, call.args))
+                frame = _frame_parts((call.fn, call.args))
             except Exception as exc:  # noqa: BLE001 - not picklable: the caller's error
                 if not w.calls:
                     self._idle.append(w)
@@ -456,7 +456,7 @@ class LightPool(Executor):
             w.calls.append(call)
             call.worker, call.sent = w, time.monotonic()
             assert w.transport is not None
-            w.transport.write(frame)
+            w.transport.writelines(frame)
 
     def _free_worker(self) -> _Worker | None:
         """An idle worker (the last one to answer: its caches are the warmest); else, when

@@ -66,6 +66,12 @@ class Settings(BaseSettings):
         "(besides localhost and loopback addresses; DNS-rebinding defence).",
     )
 
+    hot_path: bool = Field(
+        default=True,
+        description="POST /v1/detections with a small inline body answered by a middleware "
+        "before the framework's routing (the same worker function, documents and errors).",
+    )
+
     # Limits (413 beyond them).
     max_body_bytes: int = Field(default=64 * 1024 * 1024, ge=1024)
     max_samples: int = Field(default=4_000_000, ge=2)
