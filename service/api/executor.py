@@ -284,7 +284,8 @@ class LightPool(Executor):
     one answer straight to its next call without waiting for the event loop (under load the
     cores stayed 8-10 % idle at one call per worker, bench/service.py). A call waiting behind
     another never started: if the one ahead passes its time limit or its worker dies, the
-    waiting calls go back to the front of the queue.
+    waiting calls go back to the front of the queue; one that passes its own limit while it
+    waits fails then, and its worker is replaced before it would run it without a limit.
 
     Parameters
     ----------
@@ -493,13 +494,22 @@ class LightPool(Executor):
                         value.__cause__ = RemoteTraceback(tb)
                         call.future.set_exception(value)
         if w.alive and not self._closed:
+            if w.calls and w.calls[0].future.done() and w.calls[0].timer is None:
+                # the next call passed its limit while it waited: it would now run without one
+                log.info("a call passed its time limit while waiting: worker %s is replaced",
+                         w.proc.pid)  # fmt: skip
+                w.proc.kill()
+                if w.transport is not None:
+                    w.transport.abort()  # -> _on_lost: the calls behind it go back to the queue
+                return
             if not w.calls:
                 self._idle.append(w)
             self._dispatch()
 
     def _expire(self, call: _Call, timeout: float) -> None:
         """``call`` passed its time limit: fail it; kill its worker if it is running it (a call
-        still waiting behind another is skipped by the worker's answers, not run twice)."""
+        still waiting behind another fails now; its worker is replaced when it would start it,
+        see ``_on_answer``)."""
         call.timer = None
         if not call.future.done():
             call.future.set_exception(
