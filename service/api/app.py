@@ -25,12 +25,21 @@ from service.api.executor import make_analysis_pool, make_pool, warm_pool
 from service.api.hotpath import HotPathMiddleware
 from service.api.idempotency import IdempotencyMiddleware
 from service.api.jobs import JobRunner
-from service.api.routers import detections, health, jobs, live, signals, simulations, sweeps
+from service.api.routers import (
+    detections,
+    health,
+    jobs,
+    live,
+    predictions,
+    signals,
+    simulations,
+    sweeps,
+)
 from service.api.security import SecurityMiddleware
 from service.api.settings import Settings
 from service.api.state import AppState
 from service.api.storage import Store
-from service.schemas import DetectionRequest, Problem, SignalIn
+from service.schemas import DetectionRequest, PredictionRequest, Problem, SignalIn
 from service.schemas.common import PROBLEM_MEDIA_TYPE
 
 log = logging.getLogger("snapwarn.api")
@@ -123,7 +132,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
     app.include_router(health.router)
     guarded = [Depends(get_caller)]
-    for r in (signals.router, simulations.router, detections.router, sweeps.router, jobs.router):
+    for r in (
+        signals.router,
+        simulations.router,
+        detections.router,
+        predictions.router,
+        sweeps.router,
+        jobs.router,
+    ):
         app.include_router(r, dependencies=guarded)
     app.include_router(live.router, dependencies=guarded)
     from service.api.routers import atlases
@@ -145,7 +161,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         title=app.title, version=app.version, description=app.description, routes=app.routes
     )
     comps = doc.setdefault("components", {}).setdefault("schemas", {})
-    for model in (Problem, SignalIn, DetectionRequest):
+    for model in (Problem, SignalIn, DetectionRequest, PredictionRequest):
         schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
         for name, sub in schema.pop("$defs", {}).items():
             comps.setdefault(name, sub)

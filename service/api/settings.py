@@ -76,6 +76,12 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=64 * 1024 * 1024, ge=1024)
     max_samples: int = Field(default=4_000_000, ge=2)
     max_sweep_signals: int = Field(default=500, ge=2)
+    max_prediction_points: int = Field(
+        default=10_000,
+        ge=3,
+        description="Most points (rows) of a table sent to POST /v1/predictions (422 beyond; "
+        "the prediction's cost grows with them: about 4 s for 10 000 points).",
+    )
     min_sweep_signals: int = Field(
         default=3, ge=3, description="Fewest recorded signals a sweep needs (the pipeline's)."
     )

@@ -26,6 +26,7 @@ from service.schemas import (
     Health,
     Job,
     JobPage,
+    Prediction,
     SignalMeta,
     SignalPage,
     SimulationResult,
@@ -177,6 +178,37 @@ class Api(AtlasOperations):
         Returns the typed document: ``det.fundamental.sigma2``, ``det.modes[0].omega``...
         """
         return (yield core.detect(signal_id, w=w, t=t, dt=dt, method=method))
+
+    @operation
+    def predict(
+        self,
+        mu: Any,
+        sigma2: Any = None,
+        *,
+        sigma2_std: Any = None,
+        omega: Any = None,
+        omega_std: Any = None,
+        omega_unit: str | None = None,
+        w_static: Any = None,
+        w_static_std: Any = None,
+        damping: float | None = None,
+        transition: str | None = None,
+        level: float | None = None,
+    ) -> Flow[Prediction]:
+        """``POST /v1/predictions``: mu* from a sweep table measured elsewhere.
+
+        ``mu`` (increasing) with ``sigma2`` or ``omega`` (exactly one; lists or numpy arrays),
+        their standard deviations, ``w_static``; the options of ``snapwarn predict``
+        (``damping``, ``transition``) and the interval's ``level`` (0.95). ``omega_unit``
+        ``"Hz"``, ``"kHz"``, ``"MHz"`` or ``"rpm"`` reads the rates as ``2 pi f`` rad/s (the
+        CLI's ``omega [Hz]`` header). Returns the typed document that ``snapwarn predict
+        --json`` prints: ``p.mu_star``, ``p.mu_star_interval``, ``p.transition``, ``p.flags``.
+        """
+        return (yield core.predict(
+            mu, sigma2, sigma2_std=sigma2_std, omega=omega, omega_std=omega_std,
+            omega_unit=omega_unit, w_static=w_static, w_static_std=w_static_std,
+            damping=damping, transition=transition, level=level,
+        ))  # fmt: skip
 
     @operation
     def create_sweep(

@@ -25,6 +25,7 @@ from service.schemas import (
     Health,
     Job,
     JobPage,
+    Prediction,
     Problem,
     SignalMeta,
     SignalPage,
@@ -288,6 +289,52 @@ def detect(
         content=dumps(doc),
         headers=dict(JSON_HEADERS),
         parse=_model(Detection),
+    )
+
+
+def _column_or_number(values: Any, name: str) -> Any:
+    """A column as a list, or a single number as it is (``w_static_std=1e-3``)."""
+    if isinstance(values, (int, float)) or getattr(values, "ndim", None) == 0:
+        return float(values)
+    return as_list(values, name)
+
+
+def predict(
+    mu: Any,
+    sigma2: Any = None,
+    *,
+    sigma2_std: Any = None,
+    omega: Any = None,
+    omega_std: Any = None,
+    omega_unit: str | None = None,
+    w_static: Any = None,
+    w_static_std: Any = None,
+    damping: float | None = None,
+    transition: str | None = None,
+    level: float | None = None,
+) -> Call:
+    doc: dict[str, Any] = {"mu": as_list(mu, "mu")}
+    for k, v in (
+        ("sigma2", as_list(sigma2, "sigma2")),
+        ("sigma2_std", as_list(sigma2_std, "sigma2_std")),
+        ("omega", as_list(omega, "omega")),
+        ("omega_std", as_list(omega_std, "omega_std")),
+        ("omega_unit", omega_unit),
+        ("w_static", as_list(w_static, "w_static")),
+        ("w_static_std", None if w_static_std is None else _column_or_number(w_static_std,
+                                                                            "w_static_std")),
+        ("damping", damping),
+        ("transition", transition),
+        ("level", level),
+    ):  # fmt: skip
+        if v is not None:
+            doc[k] = v
+    return Call(
+        "POST",
+        "/v1/predictions",
+        content=dumps(doc),
+        headers=dict(JSON_HEADERS),
+        parse=_model(Prediction),
     )
 
 

@@ -23,6 +23,7 @@ from service.schemas.common import (
 )
 from service.schemas.detections import Detection, DetectionFlag, DetectionRequest
 from service.schemas.jobs import TERMINAL_STATUSES, Job, JobError, JobPage, JobStatus, Progress
+from service.schemas.predictions import PredictionRequest
 from service.schemas.signals import SignalData, SignalIn, SignalMeta, SignalPage
 from service.schemas.sim import (
     BackendChoice,
@@ -72,6 +73,7 @@ __all__ = [
     "JobError",
     "JobPage",
     "JobStatus",
+    "PredictionRequest",
     "Problem",
     "Progress",
     "SignalData",
