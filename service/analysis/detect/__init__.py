@@ -33,7 +33,8 @@ Methods (``method=``)
     fitted as two real poles and ``sigma^2 = -q`` keeps its meaning. The model order is
     chosen by MDL (backward elimination of modes whose removal costs less than
     ``4 ln N`` in chi-square units, i.e. ``(1/2) ln N`` per real parameter). The fundamental
-    is the significant mode with the smallest ``|sigma^2|`` that is not a combination tone.
+    is the significant mode with the smallest ``|sigma^2|`` that is neither a combination tone
+    nor a trend (a component that the record cannot tell from a quadratic drift).
     This is the maximum-likelihood estimator for white Gaussian noise, efficient (at the
     Cramer-Rao bound) above threshold; standard errors come from the Gauss-Newton covariance
     ``s^2 (J^T J)^-1`` of the fit.
@@ -52,7 +53,15 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
 ``few_periods``        the record spans fewer than 2 periods ``2 pi / sqrt|sigma^2|``.
 ``low_snr``            the fundamental's record-integrated SNR is below 20 dB.
 ``overdamped``         a mode has two real poles (no FFT peak); ``sigma^2 = -s1 s2``.
-``unstable``           a mode has ``sigma^2 > 0`` (a growing real pole).
+``unstable``           a mode grows: a pole with a positive real part beyond 3 standard errors,
+                       ``sigma^2 > 0`` (a growing real pole), or an envelope that grows
+                       (a growing oscillation, two growing real poles) at least 2x over the
+                       record; the equilibrium is unstable (past the transition) or driven.
+``trend``              slow components set aside: slower than the record (``sqrt|sigma^2| T
+                       < 2 pi``) and, once a quadratic ``a + b t + c t^2`` is removed from
+                       their waveform, below the detection threshold of a mode (``4 ln N``
+                       noise variances): a drift, never the fundamental (no fundamental and
+                       ``no_mode`` when every mode is one).
 ``nonlinear``          the fundamental's ``sigma^2`` differs between the two halves of the
                        record by more than 5 standard errors (amplitude-dependent frequency).
 ``aliasing``           significant energy or a mode above 0.8 x Nyquist.

@@ -17,7 +17,7 @@ from service.analysis.detect._methods import (
     Outcome,
     Record,
 )
-from service.analysis.detect._modes import _as_fundamental, _fundamental, _scaled
+from service.analysis.detect._modes import _as_fundamental, _fundamental, _scaled, _trends
 from service.analysis.detect._results import KINDS, MIN_SAMPLES, Detection
 from service.analysis.detect._spectral import _spectrum, _welch_peaks
 from service.analysis.errors import ParameterError
@@ -207,11 +207,17 @@ def detect(
         out = METHOD_TABLE[resolved](rec, dt, opts)
     if rec.static_std is not None:
         out.static, out.static_std = rec.mean, rec.static_std
-    modes = _fundamental(out.modes, n=arr.size, dt=dt)
-    snr_db = _snr_db(modes, out, kind)
+    trend = frozenset()
+    if kind == "impulse":
+        trend = _trends(out.modes, n=arr.size, dt=dt, noise_std=out.noise_std)
+    modes, order = _fundamental(out.modes, n=arr.size, dt=dt, trend=trend)
+    growth = None if out.growth is None else [out.growth[k] for k in order]
+    trend_at = frozenset(i for i, k in enumerate(order) if k in trend)
+    found = bool(modes) and 0 not in trend_at  # every mode a trend: no fundamental
+    snr_db = _snr_db(modes if found else [], out, kind)
     f = rec.unit * rec.unit if kind == "ambient" else rec.unit
     modes = [_scaled(m, f) for m in modes]
-    fund = _as_fundamental(modes)
+    fund = _as_fundamental(modes) if found else None
     flags = rec.flags + out.flags
     u = rec.unit
     noise_std = out.noise_std * u
@@ -220,12 +226,14 @@ def detect(
             Flag(
                 "no_mode",
                 f"no mode rises above the noise (noise std {noise_std:.3g}, "
-                f"{arr.size} samples): the record looks like noise",
+                f"{arr.size} samples): the record looks like noise"
+                + (" plus a slow trend (see the flag 'trend')" if trend_at else ""),
             )
         )
     flags += _record_flags(
-        modes, n=arr.size, dt=dt, spec=rec.spec, static=out.static, static_std=out.static_std
-    )
+        modes, n=arr.size, dt=dt, spec=rec.spec, static=out.static, static_std=out.static_std,
+        growth=growth, trend=trend_at,
+    )  # fmt: skip
     return Detection(
         modes=tuple(modes),
         fundamental=fund,

@@ -9,9 +9,11 @@ import numpy as np
 from service.analysis.common import Flag
 from service.analysis.detect._kernels import _ch_sh
 from service.analysis.detect._linalg import _pinv_psd, _solve_gram
+from service.analysis.detect._modes import _grows
 from service.analysis.detect._results import (
     ALIAS_FRACTION,
     FEW_PERIODS,
+    GROWTH_Z,
     LOW_SNR_DB,
     MIN_SAMPLES,
     NONLINEAR_Z,
@@ -120,7 +122,6 @@ def _linearity_flag(y: np.ndarray, fit: _Fit, dt: float, max_iter: int) -> Flag 
     return None
 
 
-
 def _record_flags(
     modes: list[Mode],
     *,
@@ -129,17 +130,45 @@ def _record_flags(
     spec: _Spectrum,
     static: float,
     static_std: float,
+    growth: list[tuple[float, float]] | None = None,
+    trend: frozenset[int] = frozenset(),
 ) -> list[Flag]:
     """The flags that read the final modes: few_periods, low_snr, unstable, overdamped,
-    combination_tone, aliasing and numerical (``modes[0]`` is the fundamental)."""
-    flags = _fundamental_flags(modes[0], n * dt) if modes else []
-    flags += _mode_flags(modes)
+    combination_tone, trend, aliasing and numerical.
+
+    ``modes[0]`` is the fundamental unless it is a trend (``0 in trend``: every mode is one);
+    ``growth`` holds each mode's envelope growth rate and its standard error (or None), and
+    ``trend`` the indices of the modes set aside as a slow trend.
+    """
+    flags = _fundamental_flags(modes[0], n * dt) if modes and 0 not in trend else []
+    flags += _mode_flags(modes, n * dt, growth=growth, trend=trend)
+    tr = _trend_flag(modes, trend, n * dt)
+    if tr is not None:
+        flags.append(tr)
     alias = _aliasing_flag(modes, dt, spec)
     if alias is not None:
         flags.append(alias)
     if not (math.isfinite(static) and math.isfinite(static_std)):
         flags.append(Flag("numerical", "the static level could not be estimated"))
     return flags
+
+
+def _trend_flag(modes: list[Mode], trend: frozenset[int], T: float) -> Flag | None:
+    """trend: the slow components set aside (never the fundamental)."""
+    if not trend:
+        return None
+    txt = ", ".join(
+        f"modes[{k}] (sigma^2 = {modes[k].sigma2:.4g}, sqrt|sigma^2| T = "
+        f"{math.sqrt(abs(modes[k].sigma2)) * T:.3g})"
+        for k in sorted(trend)
+    )
+    return Flag(
+        "trend",
+        f"{len(trend)} slow component(s) set aside as a trend: {txt}; slower than the record "
+        f"(T = {T:.4g}), they neither complete a cycle nor decay appreciably and cannot be "
+        "told from a quadratic drift (of the sensor or the equilibrium); never the "
+        "fundamental; record longer or remove the drift to resolve them",
+    )
 
 
 def _fundamental_flags(m0: Mode, T: float) -> list[Flag]:
@@ -167,21 +196,46 @@ def _fundamental_flags(m0: Mode, T: float) -> list[Flag]:
     return flags
 
 
-def _mode_flags(modes: list[Mode]) -> list[Flag]:
-    """unstable (sigma^2 > 3 standard errors above 0), overdamped (not counting decaying
-    offsets of a nonlinear response) and combination_tone."""
+def _mode_flags(
+    modes: list[Mode],
+    T: float = math.inf,
+    *,
+    growth: list[tuple[float, float]] | None = None,
+    trend: frozenset[int] = frozenset(),
+) -> list[Flag]:
+    """unstable, overdamped (neither counts trends; overdamped does not count decaying
+    offsets of a nonlinear response) and combination_tone.
+
+    unstable: a mode (not a trend) with a pole with a positive real part beyond
+    :data:`GROWTH_Z` standard errors: ``sigma^2 > 0`` (one growing real pole), or an envelope
+    that grows at least 2x over the record ``T`` (:func:`_grows`: a growing oscillation, or
+    growing real poles). Combination tones count through ``sigma^2`` only (their decay
+    follows their parents').
+    """
     flags = []
-    grow = [m for m in modes if m.sigma2 > 3.0 * m.sigma2_std]
+    grow = []
+    for k, m in enumerate(modes):
+        if k in trend:
+            continue
+        g = None if growth is None else growth[k]
+        if m.sigma2 > GROWTH_Z * m.sigma2_std or (m.combination is None and _grows(m, g, T)):
+            rate = -m.damping if g is None else max(g[0], -m.damping)
+            grow.append(f"modes[{k}] (sigma^2 = {m.sigma2:.4g} +- {m.sigma2_std:.2g}, "
+                        f"growth rate {rate:.4g})")  # fmt: skip
     if grow:
-        txt = ", ".join(f"{m.sigma2:.4g} +- {m.sigma2_std:.2g}" for m in grow)
         flags.append(
             Flag(
                 "unstable",
-                f"{len(grow)} mode(s) with sigma^2 > 0 ({txt}): a real pole grows, the "
-                "equilibrium is unstable",
+                f"{len(grow)} mode(s) grow ({', '.join(grow)}): a pole with a positive real "
+                "part, the record grows: the equilibrium is unstable (past the transition) "
+                "or the structure is driven",
             )
         )
-    od = [m for m in modes if m.regime == "overdamped" and m.real_poles and not m.combination]
+    od = [
+        m
+        for k, m in enumerate(modes)
+        if m.regime == "overdamped" and m.real_poles and not m.combination and k not in trend
+    ]
     if od:
         txt = ", ".join(
             f"sigma^2 = {m.sigma2:.4g} (poles {m.real_poles[0]:.4g}, {m.real_poles[1]:.4g})"

@@ -23,4 +23,3 @@ def _solve_gram(G: np.ndarray) -> tuple[np.ndarray, float]:
     c = _pinv_psd(Gpp) @ gy
     rss = float(G[-1, -1] - 2.0 * c @ gy + c @ Gpp @ c)
     return c, max(rss, 0.0)
-

@@ -16,7 +16,12 @@ import numpy as np
 from service.analysis.common import Flag
 from service.analysis.detect._flags import _linearity_flag
 from service.analysis.detect._kernels import model_values
-from service.analysis.detect._modes import _ambient_errors, _model_at_lag0, _modes_from_fit
+from service.analysis.detect._modes import (
+    _ambient_errors,
+    _model_at_lag0,
+    _modes_from_fit,
+    _pole_growth,
+)
 from service.analysis.detect._results import Mode
 from service.analysis.detect._spectral import (
     _fft_modes,
@@ -80,6 +85,9 @@ class Outcome:
     flags: list[Flag] = field(default_factory=list)
     iterations: int = 0
     ambient_var: float = 0.0
+    #: per mode, the growth rate of its envelope and its standard error (parametric impulse
+    #: fits; see :func:`service.analysis.detect._modes._pole_growth`), else None
+    growth: list[tuple[float, float]] | None = None
 
 
 def _fft(rec: Record, dt: float, opts: Options, *, parabolic: bool) -> Outcome:
@@ -109,10 +117,12 @@ def _parametric(rec: Record, dt: float, opts: Options, *, refine: bool) -> Outco
         m0 = _model_at_lag0(fit) * scale
         out.noise_std = math.sqrt(max(rec.acf0 - m0, 0.0))
         out.ambient_var = max(m0, 0.0)
-    elif opts.check_linearity and refine:
-        fl = _linearity_flag(y, fit, dt, opts.max_iter)
-        if fl is not None:
-            out.flags.append(fl)
+    else:
+        out.growth = _pole_growth(fit, dt, y)
+        if opts.check_linearity and refine:
+            fl = _linearity_flag(y, fit, dt, opts.max_iter)
+            if fl is not None:
+                out.flags.append(fl)
     return out
 
 
@@ -191,8 +201,6 @@ def _fit_parametric(
     if fit is not None:
         energy = _mode_energy(fit.ev) / max(fit.s2, 1e-300)
     return fit, energy
-
-
 
 
 def _residual_candidates(

@@ -14,10 +14,13 @@ from service.analysis.detect._results import (
     COMBINATION_REL,
     COMBINATION_WIDTH,
     COMBINATION_Z,
+    GROWTH_Z,
+    ORDER_PENALTY,
+    TREND_RADIANS,
     Fundamental,
     Mode,
 )
-from service.analysis.detect._varpro import _Fit, _levenberg_marquardt
+from service.analysis.detect._varpro import _evaluate, _Fit, _levenberg_marquardt
 
 
 def _modes_from_fit(
@@ -100,6 +103,80 @@ def _overdamped(
         real_amplitudes=(b1 * scale, b2 * scale),
         **common,
     )
+
+
+def _pole_growth(fit: _Fit, dt: float, y: np.ndarray) -> list[tuple[float, float]]:
+    """Growth rate of each mode's envelope and its standard error, per time unit of ``dt``.
+
+    The rate is the largest real part of the mode's poles (``-gamma`` when underdamped, the
+    slow real pole ``-p/2 + sqrt(p^2/4 - q)`` when overdamped); its standard error is the delta
+    method on the Gauss-Newton covariance of ``(p, q)``. Two close real poles that share one
+    growing exponential are not resolved one by one (their delta-method errors are large
+    while their weighted rate is sharp; the same near the real axis): when a positive slow pole,
+    or the real part of a pair with ``omega < |gamma|``, is not significant by the delta
+    method, the likelihood-ratio test of :func:`_stable_rss` decides, reported as the
+    standard error ``rate / z`` with ``z = sqrt(RSS rise / s^2)`` (so ``rate > 3 std`` iff
+    ``z > 3``, the same level).
+    """
+    ev, cov = fit.ev, fit.cov
+    out = []
+    for k in range(ev.p.shape[0]):
+        jp = 0 if fit.common else 2 * k
+        jq = 1 + k if fit.common else 2 * k + 1
+        p, q = float(ev.p[k]), float(ev.q[k])
+        D = 0.25 * p * p - q
+        if D > 0:
+            lam = math.sqrt(D)
+            rate, gp, gq = -0.5 * p + lam, -0.5 + 0.25 * p / lam, -0.5 / lam
+        else:
+            rate, gp, gq = -0.5 * p, -0.5, 0.0
+        var = gp * gp * cov[jp, jp] + gq * gq * cov[jq, jq] + 2.0 * gp * gq * cov[jp, jq]
+        std = math.sqrt(max(float(var), 0.0))
+        # near the real axis (overdamped, or omega < gamma) the delta method fails
+        if (D > 0 or -D < 0.25 * p * p) and rate > 0 and not rate > GROWTH_Z * std:
+            rise = _stable_rss(y, fit, k) - ev.rss
+            z = math.sqrt(max(rise, 0.0) / fit.s2)
+            std = rate / z if z > 0 else math.inf
+        out.append((rate / dt, std / dt))
+    return out
+
+
+def _stable_rss(y: np.ndarray, fit: _Fit, k: int) -> float:
+    """Least RSS with mode ``k`` held at the edge of stability (its slow pole at 0, ``q = 0``:
+    a constant, already in the model, plus ``exp(-p t)`` with ``p >= 0``; ``p = 0`` gives a
+    line), the other poles fixed: a log grid of ``p N`` from 1e-3 to 1e4 and ``p = 0``; and
+    the undamped pair at its fitted ``q`` (``p = 0``). The others are not refitted, so the rise
+    is an upper bound (a test at most slightly liberal towards the flag)."""
+    N = y.shape[0]
+    p, q = fit.ev.p.copy(), fit.ev.q.copy()
+    best = math.inf
+    if q[k] > 0:
+        p[k] = 0.0
+        ev = _evaluate(y, p, q)
+        if ev is not None:
+            best = ev.rss
+    q[k] = 0.0
+    for pn in np.concatenate(([0.0], np.logspace(-3.0, 4.0, 29))):
+        p[k] = pn / N
+        ev = _evaluate(y, p, q)
+        if ev is not None:
+            best = min(best, ev.rss)
+    return best
+
+
+def _grows(m: Mode, growth: tuple[float, float] | None, T: float) -> bool:
+    """Whether the mode's envelope grows: a pole with a positive real part beyond
+    :data:`GROWTH_Z` standard errors that at least doubles the envelope over the record
+    (``rate T > ln 2``). The rate is the mean real part ``-gamma`` (the envelope of an
+    oscillation, or both real poles growing) or the slow real pole ``growth = (rate, std)``
+    of :func:`_pole_growth`. The size condition keeps out the slow envelope drifts of weak
+    modes of a nonlinear response (energy exchanged between modes, a few standard errors on a
+    noise-free record); a growing real pole with a decaying partner is ``sigma^2 > 0``,
+    tested on its own."""
+    rates = [(-m.damping, m.damping_std)]
+    if growth is not None:
+        rates.append(growth)
+    return any(r > GROWTH_Z * sd and r * T > math.log(2.0) for r, sd in rates)
 
 
 def _model_at_lag0(fit: _Fit) -> float:
@@ -225,14 +302,35 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
     return out
 
 
-def _fundamental(modes: list[Mode], *, n: int, dt: float) -> list[Mode]:
-    """Mark combination tones and put the fundamental first: the first mode of the method's
-    order (by increasing ``|sigma^2|`` for the parametric methods) that is not a combination
-    tone; the others follow in that order."""
+def _fundamental(
+    modes: list[Mode], *, n: int, dt: float, trend: frozenset[int] = frozenset()
+) -> tuple[list[Mode], list[int]]:
+    """Mark combination tones and put the fundamental first.
+
+    Parameters
+    ----------
+    modes : list of Mode
+        The method's modes, in its order (by increasing ``|sigma^2|`` for the parametric
+        methods).
+    n, dt : int, float
+        Record length and sample step.
+    trend : frozenset of int
+        Indices of slow components set aside as a trend (see :func:`_trends`).
+
+    Returns
+    -------
+    modes : list of Mode
+        The fundamental first (the first mode of the method's order that is neither a
+        combination tone nor a trend; when every mode is one of those, the first mode is not a
+        fundamental), then the others in the method's order.
+    order : list of int
+        ``modes[i]`` is the input's ``modes[order[i]]``.
+    """
     if not modes:
-        return []
+        return [], []
     comb = _combinations(modes)
-    first = next(k for k in range(len(modes)) if k not in comb)
+    free = [k for k in range(len(modes)) if k not in comb and k not in trend]
+    first = free[0] if free else next((k for k in range(len(modes)) if k not in comb), 0)
     order = [first] + [k for k in range(len(modes)) if k != first]
     pos = {k: i for i, k in enumerate(order)}
     out = []
@@ -250,7 +348,63 @@ def _fundamental(modes: list[Mode], *, n: int, dt: float) -> list[Mode]:
                 txt = f"omega[{pos[i]}] {sign} omega[{pos[j]}]"
             m = replace(m, combination=txt)
         out.append(m)
-    return out
+    return out, order
+
+
+def _waveform(m: Mode, n: int, dt: float) -> np.ndarray:
+    """The mode's contribution at the samples ``0 .. n-1`` (record units)."""
+    u = np.arange(n, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        if m.regime == "overdamped" and m.real_poles is not None and m.real_amplitudes:
+            (s1, s2), (b1, b2) = m.real_poles, m.real_amplitudes
+            return b1 * np.exp(np.minimum(s1 * dt * u, 700.0)) + b2 * np.exp(
+                np.minimum(s2 * dt * u, 700.0)
+            )
+        env = np.exp(np.minimum(-m.damping * dt * u, 700.0))
+        return m.amplitude * env * np.cos(m.omega * dt * u + m.phase)
+
+
+def _trends(modes: list[Mode], *, n: int, dt: float, noise_std: float) -> frozenset[int]:
+    """Indices of the modes that the record cannot tell from a polynomial trend.
+
+    A component much slower than the record (undamped rate ``sqrt|sigma^2|`` times the record
+    length ``T = n dt`` small) neither completes a cycle nor decays (or grows) appreciably
+    over the record: over ``[0, T]`` it is its Taylor polynomial ``a + b t + c t^2 + ...``, and
+    a drift of the sensor or of the equilibrium is fitted by such a mode. Its poles then say
+    nothing about the structure, and it must not be taken for the fundamental (it would be the
+    slowest mode). The rule, from what the record resolves:
+
+    * candidate: ``sqrt|sigma^2| T <`` :data:`TREND_RADIANS` (``2 pi``: less than one cycle of
+      its undamped frequency; an overdamped pair counts its geometric mean rate);
+    * set aside when the part of its waveform (over the record's samples) that a quadratic
+      ``a + b t + c t^2`` cannot absorb has an energy below the detector's own threshold for a
+      mode, :data:`ORDER_PENALTY` ``ln n`` noise variances (MDL): a mode made of that part
+      alone would not be kept. A slow mode that decays (or grows) within the record, e.g. an
+      overdamped fundamental near the transition, or a growth ``exp(s t)`` with ``s T`` near 1
+      at a high SNR, leaves far more than that and stays a mode.
+
+    Quadratic, not linear: the curvature of a slowly decaying offset (``c t^2``) is still a
+    trend; the threshold is relative to the noise, so the test is equivariant under
+    ``w -> k w`` and ``t -> c t``.
+    """
+    if not (noise_std > 0 and math.isfinite(noise_std)) or n < 4:
+        return frozenset()
+    T = n * dt
+    slow = [k for k, m in enumerate(modes) if math.sqrt(abs(m.sigma2)) * T < TREND_RADIANS]
+    if not slow:
+        return frozenset()
+    thr = ORDER_PENALTY * math.log(n)
+    x = np.linspace(-1.0, 1.0, n)
+    Q, _ = np.linalg.qr(np.column_stack((np.ones(n), x, 1.5 * x * x - 0.5)))
+    out = set()
+    for k in slow:
+        v = _waveform(modes[k], n, dt) / noise_std
+        if not np.all(np.isfinite(v)):
+            continue
+        r = v - Q @ (Q.T @ v)
+        if float(r @ r) < thr:
+            out.add(k)
+    return frozenset(out)
 
 
 def _scaled(m: Mode, f: float) -> Mode:

@@ -20,6 +20,7 @@ FLAG_CODES = (
     "ambient",
     "numerical",
     "combination_tone",
+    "trend",
 )
 MIN_SAMPLES = 16
 
@@ -40,6 +41,14 @@ COMBINATION_WIDTH = 0.1
 #: An overdamped mode whose slow decay rate is gamma_i + gamma_j of two stronger modes within
 #: this relative tolerance is their zero-frequency difference tone (a decaying mean shift).
 COMBINATION_RATE_REL = 0.25
+#: Slow components (see :func:`service.analysis.detect._modes._trends`): a mode whose undamped
+#: rate ``sqrt|sigma^2|`` times the record length ``T`` is below this (less than one cycle of
+#: its undamped frequency, ``2 pi`` radians) is a candidate trend; it is set aside when what a
+#: quadratic trend ``a + b t + c t^2`` cannot absorb of it is below the detection threshold of a
+#: mode (``ORDER_PENALTY ln N`` noise variances).
+TREND_RADIANS = 2.0 * math.pi
+#: A pole grows significantly when its real part is above this many standard errors.
+GROWTH_Z = 3.0
 #: Relative numerical noise floor: the noise std is never taken below this fraction of the
 #: record's rms (float64 arithmetic on Gram matrices resolves residual energies to about
 #: ``1e-16 x`` the record's energy; a noise-free record must not make rounding significant).
@@ -120,8 +129,9 @@ class Mode:
 class Fundamental:
     """The fundamental: a :class:`Mode` of ``Detection.modes`` and its index there.
 
-    The fundamental is the significant mode with the smallest ``|sigma^2|`` that is not a
-    combination tone of stronger modes. Its attributes are those of the mode (read through).
+    The fundamental is the significant mode with the smallest ``|sigma^2|`` that is neither a
+    combination tone of stronger modes nor a slow trend (flag ``"trend"``). Its attributes are
+    those of the mode (read through).
 
     Attributes
     ----------
@@ -184,7 +194,8 @@ class Detection:
     Attributes
     ----------
     modes : tuple of Mode
-        Significant modes, sorted by increasing ``|sigma^2|`` (the fundamental first).
+        Significant modes, sorted by increasing ``|sigma^2|``, the fundamental first (a
+        slower trend, flag ``"trend"``, comes after it).
     fundamental : Fundamental or None
         ``None`` when no mode was found (flag ``"no_mode"``).
     static_level, static_level_std : float

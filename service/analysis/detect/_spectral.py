@@ -92,8 +92,18 @@ def _esprit(y: np.ndarray, spec: _Spectrum, max_poles: int) -> np.ndarray:
     return s[np.abs(s) * span >= 0.1]
 
 
-def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
-    """Group poles into modes ``(p, q)``: conjugate pairs, and real poles paired by rate."""
+#: Largest growth over the record (natural log) of a candidate pole when the record itself
+#: grows (its tail holds most of its power); otherwise e^5 (real) and e^10 (complex) poles.
+_GROWTH_LOG = 30.0
+
+
+def _candidates(s: np.ndarray, N: int, grows: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Group poles into modes ``(p, q)``: conjugate pairs, and real poles paired by rate.
+
+    Growing poles are artefacts of the Hankel window in a decaying record: a real pole growing
+    by more than ``e^5`` over the record, or a pair by more than ``e^10``, is dropped, unless
+    the record ``grows`` (then up to ``e^30``, :data:`_GROWTH_LOG`).
+    """
     ps: list[float] = []
     qs: list[float] = []
     reals: list[float] = []
@@ -111,7 +121,8 @@ def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
     if reals and abs(reals[0]) * N < 1.0:
         reals = reals[1:]
     # a real pole growing by more than e^5 over the record is an artefact of the window
-    reals = sorted(r for r in reals if r * N > -5.0)
+    real_max, pair_max = (_GROWTH_LOG, _GROWTH_LOG) if grows else (5.0, 10.0)
+    reals = sorted(r for r in reals if r * N > -real_max)
     while len(reals) >= 2:
         r1, r2 = reals.pop(0), reals.pop(0)
         ps.append(r1 + r2)
@@ -122,7 +133,7 @@ def _candidates(s: np.ndarray, N: int) -> tuple[np.ndarray, np.ndarray]:
         qs.append(r * r)
     p = np.asarray(ps, dtype=float)
     q = np.asarray(qs, dtype=float)
-    keep = np.isfinite(p) & np.isfinite(q) & (p < 1.0) & (p > -20.0 / N)
+    keep = np.isfinite(p) & np.isfinite(q) & (p < 1.0) & (p > -2.0 * pair_max / N)
     return p[keep], q[keep]
 
 
@@ -182,9 +193,12 @@ def _initial_candidates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Candidate modes ``(p, q)``: ESPRIT on the whole record, ESPRIT on its first eighth
     (fast-decaying modes live there and vanish in a whole-record covariance), and the
-    significant periodogram peaks that neither explains."""
+    significant periodogram peaks that neither explains. A record whose last eighth holds most
+    of its power grows: growing poles are then kept (see :func:`_candidates`)."""
     N = y.shape[0]
-    p, q = _candidates(_esprit(y, spec, 2 * max_modes + 1), N)
+    tail = y[N - N // 8 :]
+    grows = tail.size >= 2 and float(np.mean(tail * tail)) > 3.0 * float(np.mean(y * y))
+    p, q = _candidates(_esprit(y, spec, 2 * max_modes + 1), N, grows)
     head = y[: N // 8]
     # only when the response decays within the record (the head holds most of the power)
     if head.size >= 128 and float(np.mean(head * head)) > 3.0 * float(np.mean(y * y)):
@@ -292,7 +306,6 @@ def _fft_modes(
     first = min(strong, key=lambda m: m.omega) if strong else modes[0]
     others = [m for m in modes if m is not first]
     return [first] + sorted(others, key=lambda m: -m.sigma2), flags
-
 
 
 def _head_peaks(

@@ -407,4 +407,3 @@ def _order(fit: _Fit, energy: np.ndarray) -> tuple[_Fit, np.ndarray]:
     ev2 = _Eval(ev.p[order], ev.q[order], ev.G[np.ix_(gidx, gidx)], ev.c[cidx], ev.rss)
     cov = fit.cov[np.ix_(full, full)]
     return _Fit(ev2, cov, fit.ntheta, fit.s2, fit.iterations, fit.common), energy[order]
-
