@@ -82,6 +82,7 @@ from service.recordings._record import (
     uniform_rtol_from_env,
 )
 from service.recordings._table import Table, read_table
+from service.recordings._time_units import common_time_base, seconds_per
 from service.recordings._validate import from_arrays
 
 __all__ = [
@@ -94,11 +95,13 @@ __all__ = [
     "Table",
     "UnsupportedFormat",
     "check_finite",
+    "common_time_base",
     "from_arrays",
     "guess_format",
     "read_bytes",
     "read_file",
     "read_table",
+    "seconds_per",
     "split_unit",
     "time_axis",
     "to_csv",

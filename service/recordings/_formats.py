@@ -17,6 +17,7 @@ from service.recordings._errors import (
     UnsupportedFormat,
 )
 from service.recordings._record import FORMATS, Recording, _Raw, uniform_rtol_from_env
+from service.recordings._time_units import seconds_per
 from service.recordings._validate import _validate
 
 _TIME_NAMES = frozenset(
@@ -138,11 +139,15 @@ def _choose_columns(
 
 
 def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
+    """A number as a file writes it: ``1.5``, ``-2e-3``, or with a decimal comma (``0,0035``:
+    a spreadsheet's export under a ``;`` or tab separator)."""
+    for text in (s, s.replace(",", ".", 1)):
+        try:
+            float(text)
+        except ValueError:
+            continue
+        return True
+    return False
 
 
 def _decode(data: bytes) -> tuple[str, str]:
@@ -170,6 +175,15 @@ def _sep_hint(numbered: list[tuple[int, str]]) -> tuple[list[tuple[int, str]], s
     if numbered and (m := _SEP_LINE.match(numbered[0][1])):
         return numbered[1:], m.group(1)
     return numbered, None
+
+
+def _time_unit(name: str) -> str | None:
+    """The time column's unit: from the header (``t [ms]``, ``time_s``), or the name itself
+    when it is one (``ms``, ``seconds``)."""
+    base, unit = split_unit(name)
+    if unit is None and seconds_per(base) is not None:
+        return base.strip()
+    return unit
 
 
 def _is_units_row(cells: list[str]) -> bool:
@@ -242,7 +256,7 @@ def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_
     return _Raw(
         w=cols[wi],
         t=cols[ti] if ti is not None else None,
-        unit=split_unit(header[ti])[1] if ti is not None else None,
+        unit=_time_unit(header[ti]) if ti is not None else None,
         value_unit=split_unit(header[wi])[1],
         source="csv",
         t_cells=cells[ti] if ti is not None else None,
