@@ -85,6 +85,25 @@ def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
     return arr
 
 
+#: |sigma^2| at the sweep's first point below this fraction of its last, and the smallest of the
+#: sweep: the records slow down toward the first point (T there >= 1.4 T at the last one)
+_REVERSED_RATIO = 0.5
+
+
+def _check_direction(m: np.ndarray, y: np.ndarray) -> None:
+    """Refuse a sweep that slows down toward its lowest mu: the laws locate a transition beyond
+    the last point, and such a sweep approaches one from above (its fit would put mu* far
+    above the range, with no alarm). ``y = |sigma^2|`` (or omega^2), ``m`` increasing."""
+    if y[0] < _REVERSED_RATIO * y[-1] and y[0] <= np.min(y):
+        raise ParameterError(
+            "mu", float(m[0]),
+            f"the records slow down toward the lowest mu: T at mu={float(m[0])!r} is "
+            f"{math.sqrt(y[-1] / y[0]):.3g} times T at mu={float(m[-1])!r}; the sweep "
+            "approaches its transition from above (the control was lowered toward it): give "
+            "-mu, the control values negated (mu* is then minus the answer)",
+        )  # fmt: skip
+
+
 def prepare_sweep(
     mu: Sequence[float] | np.ndarray,
     sigma2: Sequence[float] | np.ndarray | None = None,
@@ -188,6 +207,7 @@ def prepare_sweep(
                     f"omega_std must be > 0, got omega_std[{i}]={float(om_sd[i])!r}",
                 )  # fmt: skip
             sd = np.sqrt((2 * om * om_sd) ** 2 + 2 * om_sd**4)
+    _check_direction(m, y)
     w = w_sd = None
     if w_static is not None:
         w = _as_1d("w_static", w_static, n)

@@ -249,6 +249,14 @@ def measure(
         raise ParameterError("control", control, f"control must be finite, got {control!r}")
     arr = np.asarray(w, dtype=float)
     det = detect(arr, dt=float(dt), method=method)
+    if "unstable" in det.flag_codes:  # the record grows: past the transition, not a point of it
+        return det, None, (
+            Flag(
+                "past_transition",
+                f"the record at control={c!r} grows (flag unstable): the strip is unstable "
+                "there, past its transition; it is left out of the fit",
+            ),
+        )
     try:
         m = measurement_from_detection(c, det, (arr.size - 1) * float(dt), float(dt))
     except ValueError as exc:
@@ -256,12 +264,22 @@ def measure(
     return det, m, ()
 
 
+def _past(records: Sequence[LiveRecord]) -> float:
+    """The lowest control of a record that grew (flag ``past_transition``); inf if none."""
+    return min(
+        (r.control for r in records if any(f.code == "past_transition" for f in r.flags)),
+        default=math.inf,
+    )
+
+
 def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
-    """Measurements of the fit: a fundamental, increasing control, first of repeated ones."""
+    """Measurements of the fit: a fundamental, increasing control, first of repeated ones,
+    below any record that grew (past the transition)."""
     seen: set[float] = set()
+    past = _past(records)
     out = []
     for r in records:
-        if r.measurement is None or r.control in seen:
+        if r.measurement is None or r.control in seen or r.control >= past:
             continue
         seen.add(r.control)
         out.append(r.measurement)
@@ -375,6 +393,13 @@ def assess(
         pred.mu_star if has_pred else math.nan,
         interval or (math.nan, math.nan),
     )
+    past = _past([*previous, provisional])
+    if math.isfinite(past):  # a record grew: the strip is past its transition there
+        alarm = Alarm(
+            "critical",
+            f"the record at mu={past:.6g} grows: the strip is past its transition there",
+            past, alarm.t_ratio, alarm.mu_star, alarm.mu_star_interval, math.nan,
+        )  # fmt: skip
     prev_interval = previous[-1].interval if previous else None
     trusted = bool(
         has_pred

@@ -135,8 +135,13 @@ class WarnResult:
     detections: tuple[tuple[Detection, float, str | None], ...] = field(default=(), repr=False)
 
 
-def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | None:
-    if len(ms) < 4:
+def _predict(
+    ms: Sequence[Measurement], damping: float | None, *, strict: bool = False, least: int = 4
+) -> Prediction | None:
+    """The prediction from the measurements (None with fewer than ``least``); a table the
+    predictor refuses gives None, or raises its ``ParameterError`` when ``strict`` (a lab's
+    records: the user must hear why)."""
+    if len(ms) < least:
         return None
     arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
     s2_std = arr("sigma2_std")
@@ -150,6 +155,8 @@ def _predict(ms: Sequence[Measurement], damping: float | None) -> Prediction | N
             damping=damping,
         )
     except ValueError:
+        if strict:
+            raise
         return None
 
 
@@ -346,29 +353,68 @@ def sweep_from_signals(
             "records", len(records), f"records must hold at least 3 signals, got {len(records)}"
         )
     order = np.argsort([float(r[2]) for r in records], kind="stable")
+    controls = [float(records[j][2]) for j in order]
+    if len(set(controls)) != len(controls):
+        raise ParameterError(
+            "control", controls, "control values must be distinct, got duplicates"
+        )
     ms: list[Measurement] = []
     dets: list[tuple[Detection, float, str | None]] = []
     flags: list[Flag] = []
+    past: list[float] = []  # controls of records that grow (the strip is unstable there)
     for i, j in enumerate(order):
         w, dt, control = records[j]
         w = np.asarray(w, dtype=float)
         det = detect(w, dt=float(dt), method=method)
         dets.append((det, float(control), names[j] if names is not None else None))
-        try:
-            ms.append(measurement_from_detection(float(control), det, (w.size - 1) * dt, dt))
-        except ValueError as exc:
-            flags.append(Flag("no_mode", str(exc)))
+        if any(f.code == "unstable" for f in det.flags):
+            past.append(float(control))
+        elif not past:  # records beyond a growing one are past the transition too
+            try:
+                ms.append(measurement_from_detection(float(control), det, (w.size - 1) * dt, dt))
+            except ValueError as exc:
+                flags.append(Flag("no_mode", str(exc)))
         if progress is not None:
             progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
-    mus = [m.mu for m in ms]
-    if len(set(mus)) != len(mus):
-        raise ParameterError("control", mus, "control values must be distinct, got duplicates")
-    pred = _predict(ms, None) if len(ms) >= 4 else None
-    if pred is None and len(ms) >= 3:
-        arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
-        pred = predict(arr("mu"), arr("sigma2"), w_static=arr("w_static"))
-    alarm = tuple(_alarm(ms[: k + 1], None) for k in range(len(ms)))
-    return WarnResult(None, None, tuple(ms), pred, alarm, "done", None, tuple(flags), tuple(dets))
+    pred = _predict(ms, None, strict=True, least=3)
+    if pred is None:
+        flags.append(
+            Flag(
+                "too_few_records",
+                f"{len(ms)} record(s) with a stable fundamental below the transition: a "
+                "prediction needs at least 3",
+            )
+        )
+    alarm = [_alarm(ms[: k + 1], None) for k in range(len(ms))]
+    if past:
+        flags.append(_past_flag(past, controls))
+        alarm.append(_past_alarm(past[0], ms, pred))
+    return WarnResult(None, None, tuple(ms), pred, tuple(alarm), "done", None, tuple(flags),
+                      tuple(dets))  # fmt: skip
+
+
+def _past_flag(past: Sequence[float], controls: Sequence[float]) -> Flag:
+    """The sweep's flag for records that grow: the strip is unstable there (past mu*)."""
+    beyond = [c for c in controls if c > past[0]]
+    return Flag(
+        "past_transition",
+        f"the record at control={past[0]:.6g} grows (flag unstable): the strip is unstable "
+        f"there, past its transition (mu* < {past[0]:.6g}); it"
+        + (f" and the {len(beyond)} record(s) beyond it are" if beyond else " is")
+        + " left out of the prediction",
+    )
+
+
+def _past_alarm(mu: float, ms: Sequence[Measurement], pred: Prediction | None) -> Alarm:
+    """The alarm at a record that grows: critical, whatever the slowdown says."""
+    t_ratio = _t_ratio(ms) if ms else math.nan  # (T has no meaning in a growing record)
+    mu_star = pred.mu_star if pred is not None else math.nan
+    interval = pred.mu_star_interval if pred is not None else (math.nan, math.nan)
+    return Alarm(
+        "critical",
+        f"the record at mu={mu:.6g} grows: the strip is past its transition there",
+        float(mu), float(t_ratio), float(mu_star), interval, math.nan,
+    )  # fmt: skip
 
 
 __all__ = ["Measurement", "WarnResult", "measurement_from_detection", "paper_rule",

@@ -334,7 +334,10 @@ def predict(
     sigma2_std : array_like, shape (n,), optional
         Its standard deviation (weights of the fit); estimated from the scatter when absent.
     omega, omega_std : array_like, shape (n,), optional
-        Observed rate (rad/time) instead of ``sigma2`` (see :func:`classify`).
+        Observed rate (rad/time) instead of ``sigma2`` (see :func:`classify`): the modulus
+        ``|s| = sqrt(omega_d^2 + (xi/2)^2)`` of the fundamental's poles ``s`` while it
+        oscillates (``omega_d`` its damped frequency; detect's ``sigma2`` is ``-|s|^2``), its
+        slow decay rate once over-damped.
     w_static, w_static_std : array_like, optional
         Static deflection at the probe (used by the classification).
     transition : str, optional
@@ -344,7 +347,8 @@ def predict(
         Time exponent of the law to fit (``|sigma^2| ~ x^(2a)``); with neither ``a`` nor
         ``transition`` the candidates are classified and averaged.
     damping : float, optional
-        Damping ``xi`` (1/time) when known.
+        Damping ``xi`` (1/time) when known: the records' envelope decays as
+        ``exp(-xi t / 2)`` (twice the decay rate that detect reports as ``damping``).
     level : float
         Confidence level of ``mu_star_interval`` (0.95).
     step_fraction, margin, max_step_growth : float

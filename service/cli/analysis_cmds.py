@@ -70,16 +70,22 @@ def _floats(table: Any, name: str, option: str, path: str) -> np.ndarray:
         raise err from None
 
 
-#: Units of a rate column read as cycles per time: ``omega [Hz]`` is ``2 pi f`` rad/s.
-_CYCLES = {"hz": 1.0, "khz": 1e3, "mhz": 1e6}
 
 
-def _rate_column(table: Any, name: str, option: str, path: str) -> np.ndarray:
-    """A rate column (omega, omega_std) in rad/time: a header unit Hz/kHz/MHz is converted
-    (``2 pi f``; the time unit is then the second)."""
+def _rate_column(
+    table: Any, name: str, option: str, path: str, like: str | None = None
+) -> np.ndarray:
+    """A rate column (omega, omega_std) in rad/time: a header unit Hz, kHz, MHz or rpm is
+    converted (``2 pi f``; the time unit is then the second), by the table the API's
+    ``omega_unit`` uses (:data:`service.schemas.predictions.OMEGA_UNIT_FACTORS`). A column
+    without a unit takes that of the column ``like`` (``omega_std`` is in the unit of ``omega``
+    unless its header says otherwise)."""
+    from service.schemas.predictions import OMEGA_UNIT_FACTORS
+
     v = _floats(table, name, option, path)
-    unit = (table.units.get(name) or "").lower()
-    return v * (2.0 * math.pi * _CYCLES[unit]) if unit in _CYCLES else v
+    unit = (table.units.get(name) or (table.units.get(like) if like else None) or "").lower()
+    factors = {u.lower(): f for u, f in OMEGA_UNIT_FACTORS.items()}
+    return v * factors[unit] if unit in factors else v
 
 
 # ------------------------------------------------------------------------------- commands
@@ -121,7 +127,9 @@ def _predict(args: argparse.Namespace) -> int:
     elif col["omega"]:
         kw["omega"] = _rate_column(table, col["omega"], "SWEEP", args.file)
         if col["omega_std"]:
-            kw["omega_std"] = _rate_column(table, col["omega_std"], "SWEEP", args.file)
+            kw["omega_std"] = _rate_column(
+                table, col["omega_std"], "SWEEP", args.file, like=col["omega"]
+            )
     else:
         raise bad("SWEEP", args.file, f"needs a column 'sigma2' or 'omega' (columns found: "
                   f"{table.names})")
@@ -208,6 +216,7 @@ def _warn_text(doc: Any) -> str:
 
 def _sweep(args: argparse.Namespace) -> int:
     from service.analysis.pipeline import sweep_from_signals
+    from service.recordings import RecordingError, common_time_base
 
     table = _read_table(args.manifest, "MANIFEST")
     path_col, control_col = table.find("path"), table.find("control")
@@ -219,17 +228,24 @@ def _sweep(args: argparse.Namespace) -> int:
     steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None
     paths = table.cells[path_col]
     base = Path(args.manifest).resolve().parent
-    records, names, time_units, notes = [], [], set(), {}
+    recs, names, notes = [], [], {}
     for k, (rel, c) in enumerate(zip(paths, control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
         dt = args.dt if steps is None else float(steps[k])
         rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample,
                           reader=_reader_options(args))  # fmt: skip
-        records.append((rec.w, rec.dt, float(c)))
+        recs.append((rec, float(c)))
         names.append(str(rel))
-        time_units.add(rec.unit)
         notes[str(rel)] = rec.flags
+    # records in different time units (one file in ms, another in s) are brought to seconds
+    try:
+        factors, time_unit = common_time_base([r.unit for r, _ in recs], names)
+    except RecordingError as exc:
+        err = error_from(exc, context=f"MANIFEST {args.manifest!r}")
+        assert err is not None
+        raise err from None
+    records = [(r.w, r.dt * f, c) for (r, c), f in zip(recs, factors)]
     cb = _progress_printer(not args.no_progress)
     try:
         res = sweep_from_signals(records, names=names, progress=cb)
@@ -243,7 +259,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if args.plot:
         plot_sweep(args.plot, doc, control_name=args.control_name,
                    control_unit=args.control_unit or table.units.get(control_col),
-                   time_unit=time_units.pop() if len(time_units) == 1 else None)  # fmt: skip
+                   time_unit=time_unit)  # fmt: skip
     p = doc.prediction
     text = (
         f"{p.transition}: mu* = {p.mu_star} {list(p.mu_star_interval)}"
@@ -388,8 +404,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--control-column", default=None, metavar="NAME",
                    help="the control's column when it is not named mu")  # fmt: skip
     p.add_argument("--damping", type=float, default=None, metavar="XI",
-                   help="damping xi (1/time) of the rates omega when known; without it a damping "
-                   "is inferred only on decisive evidence")  # fmt: skip
+                   help="damping xi (1/time) of the rates omega when known: twice the decay "
+                   "rate of the records' envelope exp(-xi t/2) (detect's 'damping' is xi/2); "
+                   "without it a damping is inferred only on decisive evidence")  # fmt: skip
     p.add_argument("--transition", default=None,
                    choices=("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork",
                             "pitchfork"))  # fmt: skip

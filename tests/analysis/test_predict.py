@@ -187,6 +187,12 @@ def test_never_nan_without_a_flag(n: int, seed: int, with_std: bool, a: float | 
     mu = np.cumsum(rng.uniform(1e-3, 1.0, n))
     s2 = -np.exp(rng.normal(0, 2, n))
     std = np.abs(s2) * rng.uniform(1e-4, 0.3, n) if with_std else None
+    y = -s2
+    if y[0] < 0.5 * y[-1] and y[0] <= y.min():  # slows down toward its first point
+        with pytest.raises(ValueError, match="from above") as ei:
+            predict(mu, s2, sigma2_std=std, a=a)
+        assert ei.value.parameter == "mu"  # type: ignore[attr-defined]
+        return
     p = predict(mu, s2, sigma2_std=std, a=a)
     nums = [p.mu_star, *p.mu_star_interval, p.mu_star_std, p.a, p.next_safe_mu,
             p.alarm.t_ratio, p.alarm.distance]  # fmt: skip

@@ -147,3 +147,22 @@ def test_optimistic_append_serialises_writers(tmp_path, db: str) -> None:  # noq
     assert sorted(r.control for r in recs) == sorted(float(k + 10 * j) for k in range(8)
                                                      for j in range(5))  # fmt: skip
     store.dispose()
+
+
+def test_a_record_that_grows_is_past_the_transition() -> None:
+    """A record beyond mu* grows: it is no point of the fit (before, a growing record was read
+    as a stable mode or dropped as no_mode, and the alarm followed the slowdown alone)."""
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65]
+    recs, ups = sweep(controls, live.LivePlan(step=0.3, margin=0.01))
+    assert ups[-1].alarm.level != "critical"
+    t = np.arange(4000) * DT
+    grow = 0.01 + 1e-3 * np.exp(0.5 * t) * np.sin(15.0 * t)
+    det, m, flags = live.measure(grow, dt=DT, control=1.9)
+    assert m is None and [f.code for f in flags] == ["past_transition"]
+    assert "unstable" in det.flag_codes
+    u = live.update(recs, grow, dt=DT, control=1.9, plan=live.LivePlan(step=0.3, margin=0.01))
+    assert u.alarm.level == "critical" and u.alarm.mu == 1.9
+    assert u.n_used == len(controls)  # the fit is the records below it
+    assert "past_transition" in [f.code for f in u.record.flags]
+    lo, hi = u.prediction.mu_star_interval
+    assert lo <= MU_STAR <= hi

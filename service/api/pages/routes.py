@@ -19,6 +19,7 @@ from fastapi import APIRouter, Form, Query, Request, Response
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
 from fastapi.templating import Jinja2Templates
 
+from service import recordings
 from service.api.auth import Caller, get_caller
 from service.api.pages import _work
 from service.api.problems import ApiProblem
@@ -319,6 +320,8 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
         names = {given["name"]}
     if given.get("unit"):
         cunits = {given["unit"]}
+    if len(tunits) > 1 and all(recordings.seconds_per(u) is not None for u in tunits):
+        tunits = {"s"}  # the analysis brought every record to seconds (common_time_base)
     mixed = [what for what, s in (("control name", names), ("control unit", cunits),
                                   ("time unit", tunits), ("value unit", vunits))
              if len(s) > 1]  # fmt: skip

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
 from pydantic import ValidationError
 
-from service import convert
+from service import convert, recordings
 from service.analysis.pipeline import sweep_from_signals, warn
 from service.api import limits, plots
 from service.api.auth import CallerDep
@@ -278,7 +278,7 @@ def run_simulated_sweep_job(ctx: JobContext) -> dict[str, Any]:
 def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     """A sweep of stored recordings: detect each, then classify and predict."""
     params, progress, store = ctx.params, ctx.progress, ctx.store
-    items, notes = [], {}
+    items, notes, units = [], {}, []
     for k, m in enumerate(params["measurements"]):
         sig = store.get_signal(m["signal_id"])
         if sig is None:
@@ -289,10 +289,17 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
                 value=m["signal_id"],
             )
         items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
+        units.append(sig.row.unit)
         notes[m["signal_id"]] = (sig.row.meta or {}).get("recording_flags") or []
         progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
     progress(0.1, f"analysing {len(items)} signals")
     names = [m["signal_id"] for m in params["measurements"]]
+    # signals stored in different time units (one in ms, another in s) are brought to seconds
+    try:
+        factors, _ = recordings.common_time_base(units, names)
+    except recordings.RecordingError as exc:
+        raise ApiProblem(422, str(exc), field="measurements", value=exc.value) from None
+    items = [(w, dt * f, c) for (w, dt, c), f in zip(items, factors)]
     with as_problems("measurements"):
         res = sweep_from_signals(
             items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg)
