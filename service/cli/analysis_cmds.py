@@ -219,10 +219,11 @@ def _sweep(args: argparse.Namespace) -> int:
     from service.recordings import RecordingError, common_time_base
 
     table = _read_table(args.manifest, "MANIFEST")
-    path_col, control_col = table.find("path"), table.find("control")
+    path_col, control_col = table.find("path"), table.find(args.control_column or "control")
     if path_col is None or control_col is None:
         raise bad("MANIFEST", args.manifest,
-                  f"needs the header 'path,control' (columns found: {table.names})")
+                  f"needs the header 'path,{args.control_column or 'control'}' (columns found: "
+                  f"{table.names}; name the control with --control-column)")
     control = _floats(table, control_col, "MANIFEST", args.manifest)
     dt_col = table.find("dt")
     steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None
@@ -439,6 +440,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sweep", help="detect recorded files then predict "
                        "(header path,control[,dt])")  # fmt: skip
     p.add_argument("manifest", metavar="MANIFEST")
+    p.add_argument("--control-column", default=None, metavar="NAME",
+                   help="the manifest's control column when it is not named control")  # fmt: skip
     p.add_argument("--dt", type=finite, default=None,
                    help="sample step of the files without times (a 'dt' column overrides)")
     _resample_flag(p)

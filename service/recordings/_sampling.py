@@ -77,10 +77,20 @@ def _uniform_grid(
     d = np.diff(t)
     if (d <= 0).any():
         i = int(np.argmax(d <= 0)) + 1
+        hint = ""
+        if d[i - 1] == 0 and (d > 0).any() and float(np.median(d[d > 0])) > 0:
+            # equal neighbours in a rising column: its digits are coarser than its step
+            hint = (
+                f"; the times repeat: they are written with too few digits (near "
+                f"{float(abs(t[i])):.4g} they move in steps of {float(np.median(d[d > 0])):.3g}, "
+                "coarser than the sampling, as '%.6g' writes them): write more digits, or "
+                "the sample step (dt) without a time column"
+            )
         raise RecordingError(
             f"{t_name}[{i}]",
             float(t[i]),
-            f"must be strictly increasing (previous {t_name}[{i - 1}] = {float(t[i - 1])!r})",
+            f"must be strictly increasing (previous {t_name}[{i - 1}] = {float(t[i - 1])!r})"
+            + hint,
         )
     n = t.size
     mean_step = (float(t[-1]) - float(t[0])) / (n - 1)

@@ -180,3 +180,25 @@ def test_too_few_stable_records_say_so(lab: Path) -> None:
     assert rc == 0, err
     assert doc["prediction"] is None
     assert {"no_mode", "too_few_records"} <= {f["code"] for f in doc["flags"]}
+
+
+def test_the_manifest_control_column_is_named_like_predicts(lab: Path) -> None:
+    p = lab / "theta.csv"
+    p.write_text("path,theta [rad]\n" + "".join(
+        f"ms{k}.csv,{float(np.radians(c))!r}\n" for k, c in enumerate(CONTROLS)))  # fmt: skip
+    rc, doc, err = _sweep(p)
+    assert rc == 2 and "--control-column" in err
+    rc, doc, err = run_cli("sweep", str(p), "--json", "--no-progress", "--control-column", "theta")
+    assert rc == 0, err
+    lo, hi = doc["prediction"]["mu_star_interval"]
+    assert lo <= np.radians(MU_STAR) <= hi
+
+
+def test_times_written_with_too_few_digits_say_so() -> None:
+    """`%.6g` of times near 1000 s with a 1 ms step repeat: the error says why."""
+    t = 1000.0 + DT * np.arange(400)
+    w = np.sin(60.0 * t)
+    text = "t,w\n" + "".join(f"{a:.6g},{b:.6f}\n" for a, b in zip(t, w))
+    with pytest.raises(R.RecordingError) as ei:
+        R.read_bytes(text.encode(), "csv")
+    assert "too few digits" in str(ei.value) and ei.value.field == "t[1]"
