@@ -85,6 +85,39 @@ def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
     return arr
 
 
+def drop_past(
+    mu: Any, sigma2: Any, *columns: Any
+) -> tuple[float | None, Any, Any, tuple[Any, ...]]:
+    """``(mu_past, mu, sigma2, columns)``: the rows from the first of a suffix with
+    ``sigma2 >= 0`` on (:func:`past_suffix`) cut from ``mu``, ``sigma2`` and every per-row
+    column (scalars and None kept), and the control of that first row (None: nothing cut)."""
+    k = past_suffix(mu, sigma2) if sigma2 is not None else None
+    if k is None:
+        return None, mu, sigma2, columns
+    n = len(mu)
+    cut = [v[:k] if v is not None and np.ndim(v) == 1 and len(v) == n else v
+           for v in (mu, sigma2, *columns)]  # fmt: skip
+    return float(np.asarray(mu, dtype=float)[k]), cut[0], cut[1], tuple(cut[2:])
+
+
+def past_suffix(mu: Any, sigma2: Any) -> int | None:
+    """Index of the first of the last rows with ``sigma2 >= 0`` when they, and only they,
+    have it (an upward sweep that stepped past its transition: the branch is unstable there);
+    None otherwise (invalid columns are left for :func:`prepare_sweep` to name)."""
+    try:
+        m = np.asarray(mu, dtype=float)
+        s2 = np.asarray(sigma2, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if m.ndim != 1 or s2.shape != m.shape or not np.all(np.isfinite(s2)):
+        return None
+    pos = s2 >= 0
+    if not pos.any() or not pos[-1]:
+        return None
+    k = int(np.flatnonzero(~pos)[-1]) + 1 if (~pos).any() else 0
+    return k if k > 0 and pos[k:].all() and not pos[:k].any() else None
+
+
 #: |sigma^2| at the sweep's first point below this fraction of its last, and the smallest of the
 #: sweep: the records slow down toward the first point (T there >= 1.4 T at the last one)
 _REVERSED_RATIO = 0.5

@@ -29,7 +29,7 @@ from scipy import optimize, stats
 
 from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
 from service.analysis._likelihood import profile_memo
-from service.analysis._sweep import Sweep, prepare_sweep
+from service.analysis._sweep import Sweep, drop_past, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
@@ -368,9 +368,13 @@ def predict(
     _check_policy(level, step_fraction, margin, max_step_growth)
     if a is not None:
         a = _check_a(a)
+    past = None  # the control of the first row past the transition (sigma2 >= 0 from there)
     if isinstance(mu, Sweep):
         sw0 = mu
     else:
+        past, mu, sigma2, (sigma2_std, w_static, w_static_std) = drop_past(
+            mu, sigma2, sigma2_std, w_static, w_static_std
+        )
         sw0 = prepare_sweep(
             mu, sigma2, sigma2_std=sigma2_std, omega=omega, omega_std=omega_std,
             w_static=w_static, w_static_std=w_static_std, damping=damping,
@@ -382,6 +386,9 @@ def predict(
     # T/T0 as sqrt(y0) / sqrt(y): the same float as the pipeline's omega0 / omega
     t_ratio = float(math.sqrt(sw0.y[0]) / math.sqrt(sw0.y[-1]))
     alarm = alarm_for(last, t_ratio, m, (lo, hi))
+    if past is not None:  # stepped past the transition: it lies below that row
+        hi = min(hi, past)
+        alarm = _past_alarm(past, t_ratio, m, lo, hi, flags)
     if t_ratio < 2.0:
         flags.append(
             Flag(
@@ -450,6 +457,21 @@ def predict(
         baseline=baseline,
         classification=cls,
     )
+
+
+def _past_alarm(
+    past: float, t_ratio: float, m: float, lo: float, hi: float, flags: list[Flag]
+) -> Alarm:
+    """The critical alarm (and flag) of a table whose last rows are past the transition."""
+    flags.append(
+        Flag(
+            "past_transition",
+            f"sigma2 >= 0 from mu={past:.6g} on: the strip is unstable there, past its "
+            "transition; those rows are left out of the fit",
+        )
+    )
+    reason = f"sigma2 >= 0 at mu={past:.6g}: past the transition there"
+    return Alarm("critical", reason, past, t_ratio, m, (lo, hi), math.nan)
 
 
 def _check_policy(level: float, step_fraction: float, margin: float, growth: float) -> None:

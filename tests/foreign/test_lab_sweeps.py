@@ -202,3 +202,29 @@ def test_times_written_with_too_few_digits_say_so() -> None:
     with pytest.raises(R.RecordingError) as ei:
         R.read_bytes(text.encode(), "csv")
     assert "too few digits" in str(ei.value) and ei.value.field == "t[1]"
+
+
+def test_a_table_whose_last_rows_are_past_the_transition(tmp_path: Path) -> None:
+    """sigma2 >= 0 on the last rows (stepped past mu*): those rows are left out, flagged, and
+    the alarm is critical there (before: the whole table was refused). A positive row inside
+    the table is still an error naming it."""
+    ms, mu, s2, sd = beam_grid("asymmetric", 0.05, 0.01)
+    mu2 = np.append(mu, [ms + 0.02, ms + 0.05])
+    s22 = np.append(s2, [40.0, 90.0])
+    sd2 = np.append(sd, [1.0, 1.0])
+    p = tmp_path / "past.csv"
+    p.write_text(table("mu,sigma2,sigma2_std", [mu2, s22, sd2], ["%.17g"] * 3))
+    ref = tmp_path / "ref.csv"
+    ref.write_text(table("mu,sigma2,sigma2_std", [mu, s2, sd], ["%.17g"] * 3))
+    rc, doc, err = run_cli("predict", str(p), "--json")
+    assert rc == 0, err
+    base = run_cli("predict", str(ref), "--json")[1]
+    assert doc["mu_star"] == base["mu_star"]
+    assert "past_transition" in [f["code"] for f in doc["flags"]]
+    assert doc["alarm"]["level"] == "critical" and doc["alarm"]["mu"] == pytest.approx(ms + 0.02)
+    lo, hi = doc["mu_star_interval"]
+    assert lo <= ms <= hi <= ms + 0.02
+    s2[3] = 5.0  # inside the table: an error
+    ref.write_text(table("mu,sigma2,sigma2_std", [mu, s2, sd], ["%.17g"] * 3))
+    rc, doc, err = run_cli("predict", str(ref), "--json")
+    assert rc == 2 and doc["field"] == "sigma2"
