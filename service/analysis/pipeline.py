@@ -365,8 +365,13 @@ def sweep_from_signals(
     for i, j in enumerate(order):
         w, dt, control = records[j]
         w = np.asarray(w, dtype=float)
-        det = detect(w, dt=float(dt), method=method)
-        dets.append((det, float(control), names[j] if names is not None else None))
+        name = names[j] if names is not None else None
+        try:
+            det = detect(w, dt=float(dt), method=method)
+        except ParameterError as exc:  # say which record
+            label = f"{name} (control {control!r})" if name else f"at control {control!r}"
+            raise ParameterError(exc.parameter, exc.value, f"record {label}: {exc}") from None
+        dets.append((det, float(control), name))
         if any(f.code == "unstable" for f in det.flags):
             past.append(float(control))
         elif not past:  # records beyond a growing one are past the transition too

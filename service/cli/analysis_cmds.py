@@ -93,7 +93,13 @@ def _detect(args: argparse.Namespace) -> int:
     from service.analysis.detect import detect
 
     rec = read_record(args.file, dt=args.dt, resample=args.resample, reader=_reader_options(args))
-    det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
+    try:
+        det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
+    except ValueError as exc:
+        err = error_from(exc, f"FILE {args.file!r}")
+        if err is None:
+            raise
+        raise err from None
     doc = convert.detection(det, extra_flags=rec.flags)
     if args.plot:
         plot_detection(args.plot, rec.w, rec.dt, doc, time_unit=rec.unit,

@@ -228,3 +228,13 @@ def test_a_table_whose_last_rows_are_past_the_transition(tmp_path: Path) -> None
     ref.write_text(table("mu,sigma2,sigma2_std", [mu, s2, sd], ["%.17g"] * 3))
     rc, doc, err = run_cli("predict", str(ref), "--json")
     assert rc == 2 and doc["field"] == "sigma2"
+
+
+def test_a_record_too_short_to_analyse_is_named(lab: Path) -> None:
+    (lab / "short.csv").write_text("t [ms],w\n0,1\n1,2\n2,1\n")
+    rows = [("ms0.csv", 0.0), ("ms1.csv", 8.0), ("short.csv", 15.0), ("ms3.csv", 20.0)]
+    rc, doc, err = _sweep(_manifest(lab, rows, "short.manifest"))
+    assert rc == 2 and doc["field"] == "w"
+    assert "short.csv (control 15.0)" in err and "too short" in err
+    rc, doc, err = run_cli("detect", str(lab / "short.csv"), "--json")
+    assert rc == 2 and "short.csv" in err and doc["field"] == "w"
