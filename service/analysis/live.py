@@ -154,6 +154,9 @@ class LiveRecord:
         update's trust test compares its interval with it.
     next_control : float
         The control advised after this record (NaN: none).
+    time_unit : str or None
+        The time unit its measurement is in: the sweep's (its first record's), a record
+        written in another known unit being converted to it.
     """
 
     seq: int
@@ -162,6 +165,7 @@ class LiveRecord:
     flags: tuple[Flag, ...] = ()
     interval: tuple[float, float] | None = None
     next_control: float = math.nan
+    time_unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -350,6 +354,7 @@ def assess(
     plan: LivePlan | None = None,
     detection_flags: tuple[Flag, ...] = (),
     timings: dict[str, tuple[float, float]] | None = None,
+    time_unit: str | None = None,
 ) -> LiveUpdate:
     """The warning after adding one measured record to ``previous`` (in arrival order).
 
@@ -368,6 +373,8 @@ def assess(
     timings : dict, optional
         Gets ``"predict"``: the (wall, CPU) seconds of the classification and prediction (the
         rest is the alarm, the advice and the sampling policy).
+    time_unit : str, optional
+        The time unit of the record's measurement (kept with it, :class:`LiveRecord`).
 
     Returns
     -------
@@ -420,8 +427,9 @@ def assess(
         uflags.extend(pred.flags)
     duration, dt = _record_advice(last, nxt, pred)
     record = LiveRecord(
-        seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan
-    )
+        seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan,
+        time_unit,
+    )  # fmt: skip
     return LiveUpdate(
         record=record,
         detection=detection,
@@ -591,6 +599,7 @@ def record_to_dict(r: LiveRecord) -> dict[str, Any]:
         "flags": [asdict(f) for f in r.flags],
         "interval": list(r.interval) if r.interval is not None else None,
         "next_control": r.next_control,
+        "time_unit": r.time_unit,
     }
 
 
@@ -608,4 +617,5 @@ def record_from_dict(d: dict[str, Any]) -> LiveRecord:
         flags=tuple(Flag(f["code"], f["message"]) for f in d.get("flags") or ()),
         interval=interval,
         next_control=math.nan if nxt is None else float(nxt),
+        time_unit=d.get("time_unit"),
     )

@@ -108,7 +108,8 @@ def test_flags_out_of_order_repeated_and_past_the_safe_value(client: Client) -> 
 def test_stored_signal_and_multipart_file(client: Client, tmp_path) -> None:  # noqa: ANN001
     live = client.live_sweep("doors", control="load", unit="N", step=0.3)
     t, w = record(0.0)
-    sig = client.upload_signal(w, dt=DT, control={"name": "load", "value": 0.0, "unit": "N"})
+    sig = client.upload_signal(w, dt=DT, unit="s",
+                               control={"name": "load", "value": 0.0, "unit": "N"})  # fmt: skip
     u1 = live.add(signal_id=sig.id, control=None)
     assert u1.control == 0.0 and u1.signal_id == sig.id
     # a lab file: CSV with a header and rounded timestamps, time in milliseconds
@@ -118,10 +119,15 @@ def test_stored_signal_and_multipart_file(client: Client, tmp_path) -> None:  # 
     path.write_text("\n".join(lines) + "\n")
     u2 = live.add(path, control=0.3)
     assert u2.seq == 2
-    # the same eigenvalue in 1/ms^2
-    assert u2.detection.fundamental.sigma2 == pytest.approx(sigma2_of(0.3) * 1e-6, rel=1e-4)
+    # the same eigenvalue in the sweep's unit (1/s^2, its first record's): the ms file converted
+    assert u2.detection.fundamental.sigma2 == pytest.approx(sigma2_of(0.3), rel=1e-4)
     stored = client.get_signal(u2.signal_id)
     assert stored.control.value == 0.3 and stored.control.unit == "N"
+    # a record without a time unit in a sweep in seconds: refused, naming the field
+    t, w = record(0.6)
+    with pytest.raises(InvalidInput) as err:
+        live.add(t=t, w=w, control=0.6)
+    assert err.value.field == "unit"
     live.close()
 
 

@@ -65,7 +65,7 @@ async def record_from_json(request: Request, state: AppState, caller: Caller) ->
         if value is None:
             raise invalid("control", None, "is required: the signal has no control value")
         return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
-                "signal_id": sig.row.id}  # fmt: skip
+                "signal_id": sig.row.id, "unit": sig.row.unit}  # fmt: skip
     if doc.w is None:
         raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
     if doc.control is None:

@@ -26,7 +26,7 @@ from anyio import to_thread
 from fastapi import APIRouter, Header, Path, Query, Request
 from fastapi.responses import JSONResponse, Response, StreamingResponse
 
-from service import convert
+from service import convert, recordings
 from service.analysis import live as numerics
 from service.api.auth import Caller, CallerDep
 from service.api.problems import ApiProblem, invalid, not_found
@@ -150,6 +150,7 @@ async def add_record(
     if "recording" in item:  # stored while the numerics run (the update names its id)
         stored = asyncio.ensure_future(_live_input.store_recording(state, item, st.row, caller))
         item["w"], item["dt"] = item["recording"].w, item["recording"].dt
+        item["unit"] = item["recording"].unit
     timing["read"] = time.perf_counter() - t0
     try:
         doc = await _append(state, st, item, stored, timing)
@@ -277,14 +278,19 @@ async def _append(
     sweep_id = st.row.id
     plan = _plan(st.row.options)
     measured = None
+    dt0, unit0 = item["dt"], item.get("unit")
+    base = None  # the sweep's time unit the detection was made in
     for _ in range(MAX_ATTEMPTS):
         if st.row.status != store_live.OPEN:
             raise _conflict(sweep_id, st.row.status)
+        factor, unit = _time_factor(st.records, unit0)
+        if unit != base:  # (another first record came first: detect in its unit)
+            measured, base, item["dt"] = None, unit, dt0 * factor
         budget = st.row.options.get("budget")
         finishing = budget is not None and len(st.records) + 1 >= int(budget)
         t0 = time.perf_counter()
         job = partial(_update, st.records, item if measured is None else None, measured,
-                      item["control"], plan, finishing, sweep_id)  # fmt: skip
+                      item["control"], plan, finishing, sweep_id, base)  # fmt: skip
         try:
             out = await state.run(job)
         except ValueError as exc:  # the detector's validation of the record
@@ -326,9 +332,28 @@ def _since(t: tuple[float, float]) -> tuple[float, float]:
     return time.perf_counter() - t[0], time.process_time() - t[1]
 
 
+def _time_factor(records: list[numerics.LiveRecord], unit: str | None) -> tuple[float, Any]:
+    """``(factor, sweep unit)``: a record written in another known time unit than the sweep's
+    (its first record's) has its step converted to the sweep's; 422 when either is missing or
+    unknown (:func:`service.recordings.common_time_base`, as a batch sweep)."""
+    base = records[0].time_unit if records else unit
+    if unit == base:
+        return 1.0, base
+    a, b = recordings.seconds_per(unit), recordings.seconds_per(base)
+    if a is None or b is None:
+        raise invalid(
+            "unit", unit,
+            f"is not the time unit of the sweep's records ({base or 'none given'}), and one of "
+            "them is missing or not a known time unit: write the record in the sweep's unit, "
+            "or name its unit (e.g. 't [ms]')",
+        )  # fmt: skip
+    return a / b, base
+
+
 def _update(
     previous: list[numerics.LiveRecord], item: dict[str, Any] | None, measured: Any,
     control: float, plan: numerics.LivePlan, finishing: bool, sweep_id: str,
+    time_unit: str | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """One update in the analysis pool: detect the record (unless ``measured`` already holds
     its detection), assess the sweep with it, and build the wire document, the stored record
@@ -344,7 +369,7 @@ def _update(
     split: dict[str, float] = {}
     t = _clock()
     u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags,
-                        timings=split)  # fmt: skip
+                        timings=split, time_unit=time_unit)  # fmt: skip
     whole = _since(t)
     pred = split.get("predict", (0.0, 0.0))
     timing["classify_predict"] = pred
