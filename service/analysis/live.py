@@ -46,7 +46,7 @@ from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.pipeline import Measurement, WarnResult, measurement_from_detection
-from service.analysis.predict import Prediction, predict
+from service.analysis.predict import Prediction, bounded_by, predict
 from service.analysis.sampling import next_record_sampling
 
 __all__ = [
@@ -401,11 +401,15 @@ def assess(
         interval or (math.nan, math.nan),
     )
     past = _past([*previous, provisional])
+    if math.isfinite(past) and pred is not None:  # mu* lies below the record that grew
+        pred = bounded_by(pred, past)
+        interval = tuple(pred.mu_star_interval) if has_pred else None
     if math.isfinite(past):  # a record grew: the strip is past its transition there
         alarm = Alarm(
             "critical",
             f"the record at mu={past:.6g} grows: the strip is past its transition there",
-            past, alarm.t_ratio, alarm.mu_star, alarm.mu_star_interval, math.nan,
+            past, alarm.t_ratio, pred.mu_star if has_pred else math.nan,
+            interval or (math.nan, math.nan), math.nan,
         )  # fmt: skip
     prev_interval = previous[-1].interval if previous else None
     trusted = bool(

@@ -28,7 +28,7 @@ from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_meas
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
-from service.analysis.predict import Prediction, paper_rule, predict
+from service.analysis.predict import Prediction, bounded_by, paper_rule, predict
 from service.analysis.sampling import (  # noqa: F401 - PERIODS etc. stay importable from here
     MAX_SAMPLES,
     PERIODS,
@@ -390,8 +390,12 @@ def sweep_from_signals(
                 "prediction needs at least 3",
             )
         )
-    alarm = [_alarm(ms[: k + 1], None) for k in range(len(ms))]
+    # after each record its slowdown; after the last, the final prediction as well (the
+    # alarm a user reads is the one of warn and of a live sweep fed the same records)
+    alarm = [_alarm(ms[: k + 1], pred if k == len(ms) - 1 else None) for k in range(len(ms))]
     if past:
+        if pred is not None:
+            pred = bounded_by(pred, past[0])
         flags.append(_past_flag(past, controls))
         alarm.append(_past_alarm(past[0], ms, pred))
     return WarnResult(None, None, tuple(ms), pred, tuple(alarm), "done", None, tuple(flags),

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,7 +35,7 @@ from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
 
-__all__ = ["PaperRule", "Prediction", "paper_rule", "predict"]
+__all__ = ["PaperRule", "Prediction", "bounded_by", "paper_rule", "predict"]
 
 _PAPER_FACTOR = 10.0
 _FLOOR = 0.05  # least weight of a candidate while the type is not named for lack of slowdown
@@ -387,7 +387,7 @@ def predict(
     t_ratio = float(math.sqrt(sw0.y[0]) / math.sqrt(sw0.y[-1]))
     alarm = alarm_for(last, t_ratio, m, (lo, hi))
     if past is not None:  # stepped past the transition: it lies below that row
-        hi = min(hi, past)
+        m, lo, hi = min(m, past), min(lo, past), min(hi, past)
         alarm = _past_alarm(past, t_ratio, m, lo, hi, flags)
     if t_ratio < 2.0:
         flags.append(
@@ -459,6 +459,16 @@ def predict(
     )
 
 
+def bounded_by(pred: Prediction, past: float) -> Prediction:
+    """``pred`` with mu* and its interval ended at ``past``, the control of a record that grew
+    (the strip was unstable there: mu* lies below it)."""
+    lo, hi = pred.mu_star_interval
+    if not (pred.mu_star > past or hi > past):
+        return pred
+    return replace(pred, mu_star=min(pred.mu_star, past),
+                   mu_star_interval=(min(lo, past), min(hi, past)))  # fmt: skip
+
+
 def _past_alarm(
     past: float, t_ratio: float, m: float, lo: float, hi: float, flags: list[Flag]
 ) -> Alarm:
@@ -467,7 +477,8 @@ def _past_alarm(
         Flag(
             "past_transition",
             f"sigma2 >= 0 from mu={past:.6g} on: the strip is unstable there, past its "
-            "transition; those rows are left out of the fit",
+            "transition; those rows are left out of the fit, and mu* and its interval end "
+            "there",
         )
     )
     reason = f"sigma2 >= 0 at mu={past:.6g}: past the transition there"

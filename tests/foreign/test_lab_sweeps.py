@@ -78,6 +78,10 @@ def test_records_in_different_time_units_are_brought_to_seconds(lab: Path) -> No
     lo, hi = pb["mu_star_interval"]
     assert lo <= MU_STAR <= hi
     assert pb["mu_star"] == pytest.approx(pa["mu_star"], abs=1e-6)
+    # the sweep's last alarm is the prediction's (it read the slowdown alone: 'none' by T/T0
+    # where the prediction, a live sweep and warn said 'critical')
+    for doc in (a, b):
+        assert doc["alarm"][-1] == doc["prediction"]["alarm"]
     # sigma^2 per second^2 in both (the one-unit sweep in ms^-2 is 1e-6 of it)
     s_ms = [m["sigma2"] for m in a["measurements"]]
     s_s = [m["sigma2"] for m in b["measurements"]]
@@ -238,3 +242,15 @@ def test_a_record_too_short_to_analyse_is_named(lab: Path) -> None:
     assert "short.csv (control 15.0)" in err and "too short" in err
     rc, doc, err = run_cli("detect", str(lab / "short.csv"), "--json")
     assert rc == 2 and "short.csv" in err and doc["field"] == "w"
+
+
+def test_mu_star_never_lies_beyond_a_row_past_the_transition(tmp_path: Path) -> None:
+    """The rows below extrapolate to 27.5, the row at 25.5 is already unstable: mu* and its
+    interval end there (mu* came out at 27.5, outside its own interval [24.0, 25.5])."""
+    p = tmp_path / "t.csv"
+    p.write_text("mu,sigma2\n0,-3\n10,-2\n18.5,-1\n23,-0.5\n25.5,0.2\n")
+    rc, doc, err = run_cli("predict", str(p), "--json")
+    assert rc == 0, err
+    lo, hi = doc["mu_star_interval"]
+    assert lo <= doc["mu_star"] <= hi <= 25.5
+    assert doc["alarm"]["level"] == "critical"
