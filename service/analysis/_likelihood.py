@@ -411,12 +411,13 @@ def _free_exponent(
             j += sign
         if not 0 <= j < grid.size:
             return math.inf
-        return abs(
-            optimize.brentq(
+        try:
+            root = optimize.brentq(
                 lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j]), xtol=1e-5
             )
-            - eh
-        )
+        except ValueError:  # a profile value not finite inside the bracket: not bounded there
+            return math.inf
+        return abs(root - eh)
 
     up, dn = cross(+1), cross(-1)
     se = 0.5 * (up + dn) if math.isfinite(up) and math.isfinite(dn) else min(up, dn)

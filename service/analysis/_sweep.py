@@ -253,6 +253,10 @@ def prepare_sweep(
                     "w_static_std", float(w_sd[i]),
                     f"w_static_std must be > 0, got w_static_std[{i}]={float(w_sd[i])!r}",
                 )  # fmt: skip
+        elif np.ptp(w) == 0:
+            # all equal and no noise given: nothing to learn about b (and a fit whose noise
+            # is read from its own scatter would be exact, its -2 log L unbounded)
+            w = None
     elif w_static_std is not None:
         raise ParameterError("w_static_std", "given", "w_static_std=... was given without w_static")
     if damping is not None:

@@ -258,7 +258,11 @@ def classify_sweep(
             flags.append(Flag("b_not_estimated", f"only {n_w} informative points for b"))
     else:
         flags.append(
-            Flag("no_static_data", "no w_static: b and the criticality of a pitchfork unknown")
+            Flag(
+                "no_static_data",
+                "no w_static (or one that never varies, without its std): b and the "
+                "criticality of a pitchfork unknown",
+            )
         )
 
     # decision

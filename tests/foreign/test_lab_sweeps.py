@@ -254,3 +254,16 @@ def test_mu_star_never_lies_beyond_a_row_past_the_transition(tmp_path: Path) -> 
     lo, hi = doc["mu_star_interval"]
     assert lo <= doc["mu_star"] <= hi <= 25.5
     assert doc["alarm"]["level"] == "critical"
+
+
+def test_a_static_deflection_that_never_varies(tmp_path: Path) -> None:
+    """w_static = 0 on every row (the trivial branch before a pitchfork, written as measured
+    zero) without its std: no information on b, flagged, never a solver's NaN message."""
+    p = tmp_path / "w0.csv"
+    p.write_text("mu,sigma2,w_static\n0,-1968,0\n0.5,-1696,0\n1.0,-1193,0\n1.3,-827,0\n"
+                 "1.5,-564,0\n1.6,-420,0\n")  # fmt: skip
+    rc, doc, err = run_cli("predict", str(p), "--json")
+    assert rc == 0, err
+    q = tmp_path / "plain.csv"
+    q.write_text("mu,sigma2\n0,-1968\n0.5,-1696\n1.0,-1193\n1.3,-827\n1.5,-564\n1.6,-420\n")
+    assert doc == run_cli("predict", str(q), "--json")[1]
