@@ -65,7 +65,8 @@ async def record_from_json(request: Request, state: AppState, caller: Caller) ->
         if value is None:
             raise invalid("control", None, "is required: the signal has no control value")
         return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
-                "signal_id": sig.row.id, "unit": sig.row.unit}  # fmt: skip
+                "signal_id": sig.row.id, "unit": sig.row.unit,
+                "control_unit": sig.row.control_unit if doc.control is None else None}  # fmt: skip
     if doc.w is None:
         raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
     if doc.control is None:
@@ -124,6 +125,8 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
     except recordings.RecordingError as exc:
         raise _recording_problem(exc) from None
     unit = _form_text(form, "unit", 100)
+    if unit and rec.unit and unit != rec.unit:  # a unit the file states is not overridden
+        raise invalid("unit", unit, f"contradicts the file's own time unit {rec.unit!r}")
     if unit:
         rec = recordings.Recording(rec.w, rec.t, rec.dt, rec.t0, unit, rec.value_unit,
                                    rec.source, rec.flags, rec.metadata)  # fmt: skip

@@ -146,6 +146,14 @@ async def add_record(
     else:
         raise ApiProblem(415, f"send application/json or multipart/form-data, not {ctype!r}",
                          field="content-type", value=ctype)  # fmt: skip
+    unit = item.get("control_unit")  # the unit of a control value read from a stored signal
+    if unit is not None and st.row.control_unit is not None and unit != st.row.control_unit:
+        raise invalid(
+            "control", None,
+            f"is required: signal {item['signal_id']!r} stored its control value in {unit!r}, "
+            f"the sweep's control is in {st.row.control_unit!r}; give control in "
+            f"{st.row.control_unit!r}",
+        )  # fmt: skip
     stored = None
     if "recording" in item:  # stored while the numerics run (the update names its id)
         stored = asyncio.ensure_future(_live_input.store_recording(state, item, st.row, caller))

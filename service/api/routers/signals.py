@@ -152,8 +152,11 @@ async def _from_form(request: Request, state: AppState) -> CleanSignal:
         )  # fmt: skip
 
     clean = CleanSignal.of(await to_thread.run_sync(work), {})
-    clean.unit = _form_str(form, "unit") or clean.unit
-    clean.value_unit = _form_str(form, "value_unit") or clean.value_unit
+    for name in ("unit", "value_unit"):  # a unit the file states is not overridden
+        given, read = _form_str(form, name), getattr(clean, name)
+        if given and read and given != read:
+            raise invalid(name, given, f"contradicts the file's own {name} {read!r}")
+        setattr(clean, name, given or read)
     notes = clean.metadata.pop("recording_flags", None)
     file_meta = {"filename": upload.filename, **clean.metadata}
     clean.metadata = {**metadata, "file": file_meta}

@@ -80,6 +80,27 @@ def _unit_conflict(req: SweepRequest, k: int, given: Any, row: Any) -> None:
     )  # fmt: skip
 
 
+def _check_units(req: SweepRequest, rows: list[Any]) -> None:
+    """422 at the door for signals whose units cannot go in one sweep: control values read from
+    the signals in different units (and no ``control.unit`` to give them in), or records in
+    different time units of which one is missing or unknown (known ones are brought to
+    seconds: :func:`service.recordings.common_time_base`)."""
+    ms = req.measurements or []
+    given = req.control.unit if req.control is not None else None
+    cunits = [given if m.control_value is not None else r.control_unit for m, r in zip(ms, rows)]
+    if given is None and len(set(cunits)) > 1:
+        listing = ", ".join(f"measurements[{k}]: {u or 'none given'}" for k, u in enumerate(cunits))
+        raise invalid(
+            "measurements", listing,
+            "hold control values stored in different units: give each one's control_value in "
+            "one unit and name it in control.unit",
+        )  # fmt: skip
+    try:
+        recordings.common_time_base([r.unit for r in rows], [r.id for r in rows])
+    except recordings.RecordingError as exc:
+        raise invalid("measurements", exc.value, str(exc)) from None
+
+
 async def _resolve_measurements(
     req: SweepRequest, state: AppState, scope: str | None
 ) -> list[dict[str, Any]]:
@@ -95,12 +116,13 @@ async def _resolve_measurements(
             f"{len(ms)} measurements exceed the limit of "
             f"{limit} (setting SNAPWARN_MAX_SWEEP_SIGNALS)",
         )
-    out = []
+    out, rows = [], []
     for k, m in enumerate(ms):
         row = await to_thread.run_sync(state.store.get_signal_meta, m.signal_id, scope)
         if row is None:
             raise invalid(f"measurements[{k}].signal_id", m.signal_id, "is not a stored signal")
         _unit_conflict(req, k, m.control_value, row)
+        rows.append(row)
         value = m.control_value if m.control_value is not None else row.control_value
         if value is None:
             raise invalid(
@@ -111,6 +133,7 @@ async def _resolve_measurements(
         if not math.isfinite(value):
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
         out.append({"signal_id": m.signal_id, "control_value": float(value)})
+    _check_units(req, rows)
     seen: dict[float, int] = {}
     for k, m in enumerate(out):
         j = seen.setdefault(m["control_value"], k)
