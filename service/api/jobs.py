@@ -186,9 +186,19 @@ def _diagnostic_sleep(ctx: JobContext) -> dict[str, Any]:
     steps = max(1, int(params.get("steps", 10)))
     if params.get("fail"):
         raise ApiProblem(422, "asked to fail", field="fail", value=True)
+    child = None
+    if params.get("child"):  # a process of its own, as an atlas starts dask's (tests)
+        import subprocess
+        import sys
+
+        child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+        progress(0.0, f"child {child.pid}")
     for k in range(steps):
         time.sleep(seconds / steps)
         progress((k + 1) / steps, f"step {k + 1} of {steps}")
+    if child is not None:
+        child.kill()
+        child.wait()
     return {"slept": seconds, "pid": os.getpid(), "echo": params.get("echo")}
 
 
@@ -230,6 +240,9 @@ def _job_process(db_url: str, job_id: str, attempt: int, parent: int) -> None:
         os.environ.setdefault(var, "1")
     os.environ.setdefault("MPLBACKEND", "Agg")
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # its own process group: the runner stops the job with every process it started (an
+    # atlas's dask scheduler and workers), none left behind when the job is killed
+    os.setpgrp()
 
     def watch() -> None:  # our parent is the fork server: watch the runner's process itself
         while True:
@@ -237,12 +250,22 @@ def _job_process(db_url: str, job_id: str, attempt: int, parent: int) -> None:
             try:
                 os.kill(parent, 0)
             except ProcessLookupError:
-                os._exit(70)
+                os.killpg(0, signal.SIGKILL)  # the job and its children
             except PermissionError:
                 pass
 
     threading.Thread(target=watch, name="snapwarn-parent-watch", daemon=True).start()
     run_job(db_url, job_id, attempt)
+
+
+def _kill_group(proc: Any) -> None:
+    """Kill a job's process and the processes it started (its process group)."""
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError, OSError):
+        proc.kill()  # not (yet) a group leader: the process alone
 
 
 _MP_CONTEXT: Any = None
@@ -333,7 +356,7 @@ class JobRunner:
             running = dict(self._running)
         for r in running.values():
             if r.proc is not None and r.proc.is_alive():
-                r.proc.kill()
+                _kill_group(r.proc)
         try:
             n = self.store.release_jobs(list(running), self.owner)
             if n:
@@ -389,7 +412,7 @@ class JobRunner:
                 r = self._running.get(job_id)
             if r is not None and r.proc is not None:
                 log.info("job %s is no longer ours (cancelled?): stopping its process", job_id)
-                r.proc.kill()
+                _kill_group(r.proc)
 
     def _reap(self, now: float) -> None:
         """Collect ended job processes; stop the ones past their time limit."""
@@ -400,7 +423,7 @@ class JobRunner:
                 continue
             if r.proc.is_alive():
                 if r.deadline is not None and now >= r.deadline:
-                    r.proc.kill()
+                    _kill_group(r.proc)
                     r.proc.join(2.0)
                     elapsed = r.run_s + (r.time_limit_s or 0.0) - max(0.0, r.deadline - now)
                     job = self.store.get_job(job_id)

@@ -81,6 +81,35 @@ async def test_cancel_stops_a_running_job(runner_app) -> None:  # noqa: ANN001
     assert r.status_code == 409 and r.json()["errors"][0]["field"] == "status"
 
 
+async def test_a_stopped_job_leaves_no_process_behind(runner_app) -> None:  # noqa: ANN001
+    """A job's own processes (an atlas's dask scheduler and workers) stop with it: cancelled,
+    its child was left running (parent pid 1) when only the job's process was killed."""
+    import os
+
+    app, c = runner_app
+    store: Store = app.state.snapwarn.store
+    job = store.create_job("diagnostic-sleep", {"seconds": 60, "steps": 1, "child": True},
+                           time_limit_s=120)  # fmt: skip
+    app.state.snapwarn.runner.wake()
+    end = time.monotonic() + 60
+    while not (
+        msg := (await c.get(f"/v1/jobs/{job.id}")).json()["progress"]["message"] or ""
+    ).startswith("child"):
+        assert time.monotonic() < end
+        await asyncio.sleep(0.05)
+    pid = int(msg.split()[-1])
+    os.kill(pid, 0)  # alive
+    assert (await c.post(f"/v1/jobs/{job.id}/cancel")).status_code == 200
+    end = time.monotonic() + 20
+    while True:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        assert time.monotonic() < end, "the job's child process outlived it"
+        await asyncio.sleep(0.05)
+
+
 async def test_progress_moves_with_the_work(runner_app) -> None:  # noqa: ANN001
     app, c = runner_app
     store: Store = app.state.snapwarn.store
