@@ -6,21 +6,40 @@ Each failing check is a problem naming the field, the value and the setting that
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
-from service.api.problems import ApiProblem, invalid
+from service.api.problems import ApiProblem, as_problems, invalid
 from service.api.settings import Settings
 from service.api.storage import Store
 
-#: Models whose cost grows with the number of elements (the others ignore ``elements``).
-DISCRETISED = ("euler-beam", "cosserat", "auto")
+#: Backends whose cost grows with the number of elements: the Cosserat rod (time steps x
+#: elements). The Euler beam (a fixed Galerkin basis) and the normal form ignore ``elements``:
+#: their cost is bounded by the duration and the samples.
+DISCRETISED = ("cosserat",)
 
 
-def check_simulation(scene: dict[str, Any], model: str | None, settings: Settings) -> None:
+@dataclass(frozen=True)
+class Plan:
+    """What a scene will run: the backend (``model="auto"`` resolved) and, for the rod, the
+    elements it will use and the request field that set them (``elements`` or ``rtol``)."""
+
+    model: str
+    elements: int | None = None
+    field: str = "elements"
+    rtol: float | None = None
+
+
+def check_simulation(scene: dict[str, Any], model: str | None, settings: Settings,
+                     plan: Plan | None = None) -> None:
     """422 when a scene would cost more than the settings allow.
 
     Bounds: ``elements <= max_elements``, ``duration <= max_sim_duration``, ``duration / dt <=
-    max_samples`` and, for discretised models, ``duration x elements <= max_sim_work``.
+    max_samples`` and, for the rod (``plan.model`` in DISCRETISED), ``duration x elements <=
+    max_sim_work`` with the elements it will use (``plan``, see :func:`plan_scene`: the
+    elements given, or those the resolution policy chooses from ``rtol``). Without a plan
+    (the cheap checks before any numerics) the budget is checked only where the request
+    itself names the rod and its elements.
     """
     elements = scene.get("elements")
     if elements is not None and elements > settings.max_elements:
@@ -29,6 +48,8 @@ def check_simulation(scene: dict[str, Any], model: str | None, settings: Setting
             elements,
             f"exceeds the limit of {settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)",
         )
+    if plan is None and model in DISCRETISED and elements is not None:
+        plan = Plan(model, int(elements))
     duration = scene.get("duration")
     dt = scene.get("dt")
     if duration is not None:
@@ -46,14 +67,87 @@ def check_simulation(scene: dict[str, Any], model: str | None, settings: Setting
                 f"gives {duration / dt:.3g} samples over duration={duration:g}, more than "
                 f"{settings.max_samples} (setting SNAPWARN_MAX_SAMPLES)",
             )
-        work = duration * float(elements or 50)
-        if (model or "auto") in DISCRETISED and work > settings.max_sim_work:
-            raise invalid(
-                "duration",
-                duration,
-                f"x elements={elements} = {work:.3g} exceeds the simulation budget "
-                f"{settings.max_sim_work:g} (setting SNAPWARN_MAX_SIM_WORK)",
-            )
+        if plan is not None and plan.model in DISCRETISED and plan.elements is not None:
+            work = duration * float(plan.elements)
+            if work > settings.max_sim_work:
+                how = "" if plan.field == "elements" else f" (chosen from rtol={plan.rtol:g})"
+                raise invalid(
+                    "duration",
+                    duration,
+                    f"x elements={plan.elements}{how} = {work:.3g} exceeds the simulation "
+                    f"budget {settings.max_sim_work:g} of the {plan.model} backend (setting "
+                    "SNAPWARN_MAX_SIM_WORK)",
+                )
+
+
+def plan_scene(scene: dict[str, Any], model: str) -> Plan:
+    """Validate ``scene`` with ``sim.Scene`` (422 naming the field) and find what it will run:
+    the backend ``model="auto"`` picks (``sim.select.choose_model``) and, for the rod, its
+    elements (``sim.resolution``: the elements given, or those chosen from ``rtol``; an rtol
+    beyond the policy's cap is a 422 naming rtol). Blocking (numerics, cached per strip):
+    call it in a thread."""
+    import sim
+
+    try:
+        with as_problems("scene"):
+            s = sim.Scene(**scene)
+            backend = model
+            if model == "auto":
+                from sim.select import choose_model
+
+                backend = choose_model(s).model
+            if backend not in DISCRETISED:
+                return Plan(backend)
+            from sim.backends import BACKENDS
+
+            res = BACKENDS[backend].resolution(s)
+    except TypeError as exc:  # a field the scene does not have
+        raise ApiProblem(422, str(exc), field="scene", value=sorted(scene)) from None
+    given = s.elements is not None
+    return Plan(backend, int(res.size), "elements" if given else "rtol",
+                None if given else float(s.rtol))  # fmt: skip
+
+
+def check_scene(scene: dict[str, Any], model: str, settings: Settings) -> Plan:
+    """Everything a scene is checked for at the door of every route that runs one
+    (``POST /v1/simulations``, ``POST /v1/snaps``): the settings' bounds, the scene's own
+    rules and the budget of the backend that will run it with the elements it will use.
+    Blocking (see :func:`plan_scene`): call it in a thread. Returns the plan."""
+    check_simulation(scene, model, settings)  # the cheap bounds first: no numerics for them
+    try:
+        plan = plan_scene(scene, model)
+    except ApiProblem as exc:  # an rtol beyond the resolution policy's own cap
+        if scene.get("elements") is not None or [e.get("field") for e in exc.errors] != ["rtol"]:
+            raise
+        plan = Plan("cosserat", None, "rtol", scene.get("rtol"))
+    if plan.field == "rtol" and (plan.elements is None
+                                 or plan.elements > settings.max_elements):
+        need = (f"needs {plan.elements} elements of the rod, more than" if plan.elements
+                else "needs more elements of the rod than")
+        raise invalid("rtol", plan.rtol, (
+            f"{need} the limit of {settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)"
+            + _rtol_hint(scene, settings.max_elements) + " or give elements"))
+    check_simulation(scene, model, settings, plan)
+    return plan
+
+
+def _rtol_hint(scene: dict[str, Any], elements: int) -> str:
+    """``: ask for rtol >= X`` where X is the accuracy the rod reaches at ``elements`` (the
+    resolution policy's estimate), or a plainer hint where there is none."""
+    from sim.resolution import rod_error_constant, rod_resolution
+    from sim.scene import Scene
+
+    try:
+        s = Scene(**scene)
+        strip = {"end_shortening": s.end_shortening, "slenderness": s.slenderness,
+                 "poisson": s.poisson}  # fmt: skip
+        err = rod_resolution(s.actuation, elements=elements, **strip).mu_star_error
+        mu = rod_error_constant(s.actuation, s.end_shortening, s.slenderness, s.poisson)[1]
+        x = 2.0 * err / abs(mu)
+        step = 10.0 ** (math.floor(math.log10(x)) - 1)  # two digits, rounded up: enough
+        return f": ask for rtol >= {math.ceil(x / step) * step:.2g}"
+    except Exception:  # noqa: BLE001 - only a hint
+        return ": ask for a larger rtol"
 
 
 def check_queue(store: Store, owner: str, settings: Settings) -> None:

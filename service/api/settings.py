@@ -97,15 +97,21 @@ class Settings(BaseSettings):
         description="JSON bodies larger than this are parsed as they arrive, their sample "
         "arrays straight into float64 (bounded memory); smaller ones in one piece (faster).",
     )
-    max_elements: int = Field(default=400, ge=4, description="Most rod elements of a scene.")
+    max_elements: int = Field(
+        default=400,
+        ge=4,
+        description="Most rod elements of a scene (simulations, snaps, atlas cells), given or "
+        "chosen from rtol.",
+    )
     max_sim_duration: float = Field(
         default=500.0, gt=0, description="Longest simulated duration (time units)."
     )
     max_sim_work: float = Field(
         default=10_000.0,
         gt=0,
-        description="Largest duration x elements of a discretised simulation (its cost: time "
-        "steps per unit time x elements).",
+        description="Largest duration x elements of a Cosserat-rod simulation, with the "
+        "elements given or chosen from rtol (its cost: time steps per unit time x elements; "
+        "the Euler beam and the normal form are not charged for elements).",
     )
     max_active_jobs_per_owner: int = Field(
         default=16, ge=1, description="Queued + running jobs one owner may have (429 beyond)."

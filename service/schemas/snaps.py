@@ -8,27 +8,41 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.jobs import Job
 from service.schemas.sim import Resolution
-from service.schemas.simulations import Actuation
+from service.schemas.simulations import (
+    Actuation,
+    Damping,
+    Elements,
+    EndShortening,
+    Poisson,
+    Rtol,
+    Slenderness,
+)
 
 SnapModel = Literal["normal-form", "euler-beam", "cosserat"]
 
 
 class SnapRequest(BaseModel):
-    """The strip, the backend and the distance from mu* (see ``sim.snap``)."""
+    """The strip, the backend and the distance from mu* (see ``sim.snap``).
 
-    model_config = ConfigDict(extra="forbid")
+    The strip, damping and resolution fields have the bounds of ``SimulationRequest``'s (one
+    definition) and are checked at the door as a simulation's are (the settings'
+    SNAPWARN_MAX_ELEMENTS, elements chosen from rtol included).
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     model: SnapModel = "euler-beam"
     actuation: Actuation = "asymmetric"
     dmu: float = Field(gt=0.0, lt=0.5, description="Distance from mu*: to the right "
                        "(asymmetric, symmetric, from U_A), to the left (antisymmetric, from S_B).")
     duration: float | None = Field(default=None, ge=1e-3, le=500.0)
-    damping: float = Field(default=2e-4, ge=0.0)
-    end_shortening: float = 1e-2
-    slenderness: float = 1e-3
-    poisson: float = 0.5
-    rtol: float | None = None
-    elements: int | None = None
+    damping: Damping = 2e-4
+    end_shortening: EndShortening = 1e-2
+    slenderness: Slenderness = 1e-3
+    poisson: Poisson = 0.5
+    rtol: Rtol | None = Field(default=None, description="As a simulation's rtol; null: the "
+                              "default 2e-4.")
+    elements: Elements = None
 
 
 class SnapResult(BaseModel):

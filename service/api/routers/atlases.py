@@ -65,6 +65,24 @@ def _parse(doc: dict[str, Any]) -> Any:
         raise invalid(f"spec.{exc.parameter}", exc.value, str(exc)) from None
 
 
+def _check_elements(doc: Any, limit: int) -> None:
+    """422 for an ``elements`` anywhere in the spec (fixed, an axis, a cell) beyond the
+    server's limit, before the spec's own (wider, the CLI's) bound speaks."""
+    stack = [doc]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            for k, v in node.items():
+                vals = v if isinstance(v, list) else [v]
+                for x in vals if k == "elements" else ():
+                    if isinstance(x, (int, float)) and not isinstance(x, bool) and x > limit:
+                        raise invalid("spec.elements", x, f"exceeds the limit of {limit} "
+                                      "(setting SNAPWARN_MAX_ELEMENTS)")  # fmt: skip
+                stack.append(v)
+        elif isinstance(node, list):
+            stack.extend(node)
+
+
 @router.post(
     "",
     status_code=202,
@@ -79,6 +97,7 @@ async def create_atlas(req: AtlasRequest, state: StateDep, caller: CallerDep) ->
     if raw["kind"] not in API_KINDS:
         raise invalid("spec.kind", raw["kind"], f"runs from the CLI only (manifests are files "
                       f"of the client); the API runs {list(API_KINDS)}")  # fmt: skip
+    _check_elements(raw, state.settings.max_elements)
     spec = await to_thread.run_sync(_parse, raw)
     if len(spec.cells) > max_cells():
         raise too_large("spec", len(spec.cells), f"{len(spec.cells)} cells exceed the limit of "

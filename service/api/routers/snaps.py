@@ -4,6 +4,13 @@ The normal form answers at once (200, the ``snap``); the nonlinear backends (eul
 cosserat) become a job (202, ``job``; ``GET /v1/jobs/{id}`` holds the snap document as its
 result). Bounded: at most 4001 samples over at most 500 time units, and dmu >= 1e-4 for the
 nonlinear backends, whose slow passage would need a long integration (the CLI has no bound).
+
+The strip, damping and resolution are checked at the door exactly as a simulation's
+(``service.api.limits.check_scene``: the wire bounds, ``sim.Scene``'s rules, elements <=
+SNAPWARN_MAX_ELEMENTS whether given or chosen from rtol) and the duration against
+SNAPWARN_MAX_SIM_DURATION. A snap's record is a fixed number of steps (``sim.snap``: dt =
+duration / 4000), so its cost is elements x 4000 steps whatever the duration: the elements
+bound bounds it (below a simulation's budget, duration x elements <= SNAPWARN_MAX_SIM_WORK).
 """
 
 from __future__ import annotations
@@ -28,6 +35,19 @@ router = APIRouter(prefix="/v1/snaps", tags=["snaps"])
 MIN_DMU_NONLINEAR = 1e-4
 
 
+def scene_of(params: dict[str, Any]) -> dict[str, Any]:
+    """The ``sim.Scene`` fields of a snap request (null: the scene's default)."""
+    return {k: v for k, v in params.items()
+            if k not in ("model", "dmu", "duration") and v is not None}  # fmt: skip
+
+
+def check_snap(params: dict[str, Any], settings: Any) -> None:
+    """The door's checks of a snap (blocking: numerics for the rod's elements; see the module
+    docstring): 422 naming the field and the value."""
+    limits.check_scene(scene_of(params), params["model"], settings)
+    limits.check_simulation({"duration": params.get("duration")}, params["model"], settings)
+
+
 def run_snap(params: dict[str, Any]) -> dict[str, Any]:
     """Run ``sim.snap.snap`` for a validated request's fields (the snap document, a
     :class:`~service.schemas.snaps.SnapResult` dumped)."""
@@ -41,9 +61,7 @@ def run_snap(params: dict[str, Any]) -> dict[str, Any]:
         if model != "normal-form" and dmu < MIN_DMU_NONLINEAR:
             raise ParameterError("dmu", dmu, f"dmu must be >= {MIN_DMU_NONLINEAR:g} for "
                                  f"model={model!r} over the API, got {dmu!r}")
-        scene = {k: v for k, v in params.items()
-                 if k not in ("model", "dmu", "duration") and v is not None}  # fmt: skip
-        r = snap(Scene(**scene), model, dmu, duration=params.get("duration"))
+        r = snap(Scene(**scene_of(params)), model, dmu, duration=params.get("duration"))
     return convert.snap(r).model_dump(mode="json")
 
 
@@ -54,6 +72,7 @@ def run_snap(params: dict[str, Any]) -> dict[str, Any]:
 async def create_snap(req: SnapRequest, state: StateDep, caller: CallerDep) -> JSONResponse:
     """200 with the snap (normal form), or 202 with the job that computes it."""
     params = req.model_dump()
+    await to_thread.run_sync(check_snap, params, state.settings)
     if req.model == "normal-form":  # in the analysis pool, within the request time limit
         doc = await state.run(run_snap, params)
         answer = SnapAnswer(snap=SnapResult.model_validate(doc))
