@@ -6,6 +6,13 @@ stores its answer when it succeeded (2xx); a failed first request releases the k
 with the same key and the same request (method, path, body: SHA-256) gets the stored status and
 body with ``Idempotent-Replayed: true``; the same key on a different request is a 422; while the
 first is still running a retry gets 409. The body is hashed as it streams (never buffered).
+
+A multipart body is fingerprinted by what it says, not by its bytes: HTTP clients pick a new
+boundary for each request, so a retry of the same upload differs in its raw body. Its parts
+(name, file name, content type and content, in order) are hashed as python-multipart's
+streaming parser finds them (part headers bounded by the parser, contents hashed, never kept);
+a body that does not parse as multipart (or has more than ``MAX_PARTS`` parts) falls back to
+its raw bytes (a retry of it then has to be byte-identical).
 """
 
 from __future__ import annotations
@@ -23,13 +30,110 @@ from service.api.errors import problem_response
 from service.api.problems import ApiProblem
 from service.api.storage import IdempotencyRow
 
+try:  # python-multipart (Starlette's parser); named ``multipart`` before 0.0.13
+    from python_multipart.multipart import MultipartParser, parse_options_header
+except ImportError:  # pragma: no cover
+    from multipart.multipart import MultipartParser, parse_options_header  # type: ignore
+
 HEADER = "idempotency-key"
 PENDING = 0  # status of a claimed key whose first request is still running
 MAX_STORED = 1 << 20  # answers larger than this are not replayed (creation answers are small)
+MAX_PARTS = 1000  # multipart bodies with more parts are fingerprinted by their raw bytes
 
 
 def _problem(status: int, detail: str, value: Any) -> ApiProblem:
     return ApiProblem(status, detail, field="idempotency-key", value=value)
+
+
+def _latin(b: bytes) -> str:
+    """Bytes as sent, as text (reversibly)."""
+    return b.decode("latin-1")
+
+
+class Fingerprint:
+    """SHA-256 of a request (method, path, body), fed with the body's chunks as they arrive.
+
+    A JSON (or any non-multipart) body is hashed as its bytes. A ``multipart/form-data`` body
+    with a boundary is hashed in a canonical form that does not depend on the boundary: each
+    part's name, file name and content type (parameters sorted) and the SHA-256 of its
+    content, in order. If it does not parse (or ends early), the raw bytes are used instead.
+    """
+
+    def __init__(self, method: str, path: str, content_type: str | None) -> None:
+        head = f"{method} {path}\n".encode()
+        self._raw = hashlib.sha256(head)
+        self._parser: MultipartParser | None = None
+        ctype, params = parse_options_header(content_type) if content_type else (b"", {})
+        boundary = params.get(b"boundary")
+        if ctype == b"multipart/form-data" and boundary:
+            try:
+                self._parser = MultipartParser(boundary, self._callbacks())
+            except ValueError:  # a boundary python-multipart refuses (too long)
+                self._parser = None
+        self._canon = hashlib.sha256(head + b"multipart/form-data\n")
+        self._part: Any = None  # the SHA-256 of the current part's content
+        self._header: list[bytearray] = [bytearray(), bytearray()]
+        self._headers: dict[bytes, bytes] = {}
+        self._parts = 0
+        self._ended = False
+
+    # --- python-multipart callbacks (see MultipartParser) ---
+    def _callbacks(self) -> dict[str, Any]:
+        return {
+            "on_part_begin": self._on_part_begin,
+            "on_header_field": lambda d, a, b: self._header[0].extend(memoryview(d)[a:b]),
+            "on_header_value": lambda d, a, b: self._header[1].extend(memoryview(d)[a:b]),
+            "on_header_end": self._on_header_end,
+            "on_part_data": lambda d, a, b: self._part.update(memoryview(d)[a:b]),
+            "on_part_end": self._on_part_end,
+            "on_end": self._on_end,
+        }
+
+    def _on_part_begin(self) -> None:
+        if self._parts >= MAX_PARTS:  # no route takes that many (bounds the parsing time)
+            raise ValueError("too many parts")
+        self._part = hashlib.sha256()
+        self._headers = {}
+
+    def _on_header_end(self) -> None:
+        name = bytes(self._header[0]).strip().lower()
+        if name in (b"content-disposition", b"content-type"):
+            self._headers[name] = bytes(self._header[1])
+        self._header = [bytearray(), bytearray()]
+
+    def _on_part_end(self) -> None:
+        _, disp = parse_options_header(self._headers.get(b"content-disposition", b""))
+        ctype, params = parse_options_header(self._headers.get(b"content-type", b""))
+        record = [
+            _latin(disp.get(b"name", b"")),
+            None if b"filename" not in disp else _latin(disp[b"filename"]),
+            _latin(ctype),
+            sorted((_latin(k).lower(), _latin(v)) for k, v in params.items()),
+            self._part.hexdigest() if self._part is not None else "",
+        ]
+        self._canon.update(json.dumps(record).encode() + b"\n")
+        self._parts += 1
+        self._part = None
+
+    def _on_end(self) -> None:
+        self._ended = True
+
+    def update(self, chunk: bytes) -> None:
+        """Feed the next piece of the body."""
+        if not chunk:
+            return
+        self._raw.update(chunk)
+        if self._parser is not None:
+            try:
+                self._parser.write(chunk)
+            except ValueError:  # python-multipart's parse errors are ValueErrors
+                self._parser = None
+
+    def hexdigest(self) -> str:
+        """The fingerprint of the whole body fed so far."""
+        if self._parser is not None and self._ended and self._parts:
+            return self._canon.hexdigest()
+        return self._raw.hexdigest()
 
 
 class IdempotencyMiddleware:
@@ -62,7 +166,11 @@ class IdempotencyMiddleware:
     async def _run(
         self, scope: Scope, receive: Receive, send: Send, store: Any, owner: str, key: str
     ) -> None:
-        digest = hashlib.sha256(f"{scope['method']} {scope['path']}\n".encode())
+        ctype = None
+        for k, v in scope["headers"]:
+            if k == b"content-type":
+                ctype = v.decode("latin-1")
+        digest = Fingerprint(scope["method"], scope["path"], ctype)
         first = await to_thread.run_sync(store.get_idempotent, owner, key)
         if first is None and not await to_thread.run_sync(store.claim_idempotent, owner, key):
             first = await to_thread.run_sync(store.get_idempotent, owner, key)
@@ -84,6 +192,27 @@ class IdempotencyMiddleware:
         status = [500]
         chunks: list[bytes] = []
         size = [0]
+        settled = [False]
+
+        async def settle(ok: bool) -> None:
+            """Store the answer (a success) or release the key (anything else), once."""
+            if settled[0]:
+                return
+            settled[0] = True
+            if ok:
+                try:
+                    body = json.loads(b"".join(chunks) or b"null")
+                except ValueError:
+                    body = None
+                try:
+                    await to_thread.run_sync(
+                        store.complete_idempotent, owner, key, digest.hexdigest(), status[0], body
+                    )
+                except Exception:
+                    await to_thread.run_sync(store.release_idempotent, owner, key)
+                    raise
+            else:
+                await to_thread.run_sync(store.release_idempotent, owner, key)
 
         async def capture(msg: Message) -> None:
             if msg["type"] == "http.response.start":
@@ -92,23 +221,16 @@ class IdempotencyMiddleware:
                 size[0] += len(msg.get("body", b""))
                 if size[0] <= MAX_STORED:
                     chunks.append(msg.get("body", b""))
+                if not msg.get("more_body", False):
+                    # settled before the answer's end leaves: a client that retries as soon as
+                    # it has the answer finds the key stored (or free), not still running (409)
+                    await settle(200 <= status[0] < 300 and size[0] <= MAX_STORED)
             await send(msg)
 
-        ok = False
         try:
             await self.app(scope, hashing, capture)
-            ok = 200 <= status[0] < 300 and size[0] <= MAX_STORED
         finally:
-            if ok:
-                try:
-                    body = json.loads(b"".join(chunks) or b"null")
-                except ValueError:
-                    body = None
-                await to_thread.run_sync(
-                    store.complete_idempotent, owner, key, digest.hexdigest(), status[0], body
-                )
-            else:
-                await to_thread.run_sync(store.release_idempotent, owner, key)
+            await settle(False)  # no complete answer was sent (an error): the key is free
 
     async def _replay(
         self, first: IdempotencyRow, fingerprint: str, scope: Scope, receive: Receive, send: Send
