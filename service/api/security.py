@@ -7,16 +7,29 @@ without a CORS preflight; the server must refuse them itself:
   (the ``Host`` it was sent to) nor one of ``SNAPWARN_CORS_ORIGINS`` is refused (403), and so is
   one marked ``Sec-Fetch-Site: cross-site`` by the browser;
 - request bodies on /v1 must be JSON or multipart (``text/plain`` and url-encoded forms: 415);
-- on a server that needs no key (loopback), a browser request (it carries ``Origin`` or
-  ``Sec-Fetch-*``) must name a loopback ``Host``: a DNS-rebinding page cannot reach the API.
+- DNS rebinding: on a loopback server that needs no key, every request must name a loopback
+  ``Host`` (``localhost``, ``127.0.0.1``, ``[::1]``, any port) or one of
+  ``SNAPWARN_ALLOWED_HOSTS`` (403 naming ``host``): a page of ``evil.example`` whose name
+  was rebound to 127.0.0.1 sends ``Host: evil.example``, with or without ``Origin`` and
+  ``Sec-Fetch-*`` (older browsers send neither on a GET). A request without ``Host`` (HTTP/1.0,
+  never a browser) passes. On a keyless server beyond loopback (``SNAPWARN_AUTH=off``) only
+  browser requests (``Origin`` or ``Sec-Fetch-*``) are held to this; a server that needs keys
+  (``SNAPWARN_AUTH=on``, ``SNAPWARN_API_KEY``, or listening beyond loopback), e.g. behind a
+  reverse proxy (``SNAPWARN_FORWARDED_ALLOW_IPS``) under a public name, takes any ``Host``.
+  In-process clients (Starlette's ``TestClient``, httpx's ``ASGITransport``) have no socket:
+  their ASGI ``server`` is the URL's own name (``testserver``), which their ``Host`` names and
+  which is accepted; a real server (uvicorn) reports its socket's IP address there instead,
+  so no ``Host`` a browser sends can match it.
 
 CORS answers are added only for the configured origins (Starlette's ``CORSMiddleware``).
 """
 
 from __future__ import annotations
 
+import ipaddress
 from urllib.parse import urlsplit
 
+from starlette.requests import Request
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from service.api.auth import is_loopback, keys_required
@@ -33,7 +46,16 @@ def _host_of(value: str) -> str:
     v = value.strip().lower()
     if v.startswith("["):
         return v[1:].split("]", 1)[0]
-    return v.rsplit(":", 1)[0] if v.count(":") == 1 else v
+    v = v.rsplit(":", 1)[0] if v.count(":") == 1 else v
+    return v[:-1] if v.endswith(".") else v  # "localhost." is "localhost"
+
+
+def _is_ip(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
 
 
 def _origin_key(origin: str) -> str:
@@ -55,6 +77,17 @@ class SecurityMiddleware:
         self.settings = settings
         self.allowed = {_origin_key(o) for o in settings.cors_origins if o != "*"}
         self.any_origin = "*" in settings.cors_origins
+        self.allowed_hosts = {_host_of(h) for h in settings.allowed_hosts if h.strip()}
+        self.loopback_bound = is_loopback(settings.host)
+
+    def _host_ok(self, host: str, scope: Scope) -> bool:
+        """Whether ``host`` names this keyless server (see the module's DNS rebinding)."""
+        name = _host_of(host)
+        if is_loopback(name) or name in self.allowed_hosts:
+            return True
+        server = scope.get("server")  # an in-process client's own name (no socket)
+        own = str(server[0]).lower() if server else None
+        return bool(own) and name == own and not _is_ip(own)
 
     def _check(self, scope: Scope) -> ApiProblem | None:
         headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
@@ -84,18 +117,21 @@ class SecurityMiddleware:
                         field="content-type",
                         value=ctype,
                     )
-        if browser and not keys_required(self.settings):
-            name = _host_of(host)
-            if not (is_loopback(name) or name in self.settings.allowed_hosts):
-                return ApiProblem(
-                    403,
-                    f"Host {host!r} is not this loopback server's: a browser request must "
-                    "name localhost or 127.0.0.1 (setting SNAPWARN_ALLOWED_HOSTS)",
-                    title="Forbidden",
-                    slug="forbidden",
-                    field="host",
-                    value=host,
-                )
+        if (
+            "host" in headers
+            and (browser or self.loopback_bound)
+            and not self._host_ok(host, scope)
+            and not keys_required(self.settings, Request(scope))
+        ):
+            return ApiProblem(
+                403,
+                f"Host {host!r} is not this keyless loopback server's (DNS rebinding?): name "
+                "localhost, 127.0.0.1 or [::1] (setting SNAPWARN_ALLOWED_HOSTS adds names)",
+                title="Forbidden",
+                slug="forbidden",
+                field="host",
+                value=host,
+            )
         return _nul_check(scope)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:

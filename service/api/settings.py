@@ -62,8 +62,9 @@ class Settings(BaseSettings):
     )
     allowed_hosts: list[str] = Field(
         default_factory=list,
-        description="Host names a browser may use to reach a loopback server without keys "
-        "(besides localhost and loopback addresses; DNS-rebinding defence).",
+        description="Host names a request may name to reach a loopback server without keys "
+        "(besides localhost and loopback addresses; any other Host is refused: DNS-rebinding "
+        "defence).",
     )
 
     hot_path: bool = Field(
