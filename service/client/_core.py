@@ -63,7 +63,8 @@ Flow = Generator["Call | Sleep", Any, R]
 
 def request_args(call: Call) -> dict[str, Any]:
     """The keyword arguments of ``httpx2.Client.request`` (or ``AsyncClient.request``)."""
-    return {"method": call.method, "url": call.path, "params": call.params,
+    params = None if call.params is None else {k: plain(v) for k, v in call.params.items()}
+    return {"method": call.method, "url": call.path, "params": params,
             "content": call.content, "files": call.files, "data": call.data,
             "headers": call.headers or None}  # fmt: skip
 
@@ -85,9 +86,47 @@ def as_list(values: Any, name: str) -> list[float] | None:
     return out
 
 
+def plain(value: Any) -> Any:
+    """A numpy scalar or 0-d array as the Python number it holds (``np.float32(0.5)`` -> 0.5,
+    ``np.int64(3)`` -> 3, ``np.bool_`` -> bool), an array as nested lists; anything else as
+    it is. Every value the SDK sends (JSON, form fields, query) goes through this."""
+    if type(value).__module__ == "numpy":  # numpy is not imported for this
+        if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):
+            return value.item()
+        if hasattr(value, "tolist"):
+            return value.tolist()
+    return value
+
+
+def _json_default(value: Any) -> Any:
+    out = plain(value)
+    if out is value:
+        raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+    return out
+
+
 def dumps(doc: Any) -> bytes:
-    """JSON with NaN/inf written as literals, so the server can name them in its 422."""
-    return json.dumps(doc, allow_nan=True, separators=(",", ":")).encode()
+    """JSON with NaN/inf written as literals, so the server can name them in its 422; numpy
+    scalars and arrays anywhere in ``doc`` are written as numbers and lists (:func:`plain`)."""
+    return json.dumps(doc, allow_nan=True, separators=(",", ":"), default=_json_default).encode()
+
+
+def form_text(value: Any) -> str:
+    """A multipart form field's text: numbers as Python writes them (numpy scalars too, see
+    :func:`plain`), booleans as ``true``/``false``, mappings and lists as JSON."""
+    v = plain(value)
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(float(v))
+    if isinstance(v, (Mapping, list, tuple)):
+        return dumps(v).decode()
+    return str(v)
+
+
+def form_fields(fields: Mapping[str, Any]) -> dict[str, str]:
+    """The multipart form fields of ``fields`` that are not None (:func:`form_text`)."""
+    return {k: form_text(v) for k, v in fields.items() if v is not None}
 
 
 def raise_for_problem(response: Any) -> None:
@@ -193,18 +232,7 @@ def upload_file(
         with open(file, "rb") as fh:
             data = fh.read()
         fname = filename or os.path.basename(os.fspath(file))
-    form: dict[str, Any] = {}
-    if format is not None:
-        form["format"] = format
-    for k, v in fields.items():
-        if v is None:
-            continue
-        if k == "metadata":
-            form[k] = json.dumps(v)
-        elif isinstance(v, bool):
-            form[k] = "true" if v else "false"
-        else:
-            form[k] = repr(v) if isinstance(v, float) else str(v)
+    form = form_fields({"format": format, **fields})
     return Call(
         "POST", "/v1/signals", files={"file": (fname, data)}, data=form, parse=_model(SignalMeta)
     )
@@ -438,6 +466,8 @@ def wait_flow(
 ) -> Flow[Any]:
     """Poll a job until it ends (the clients' ``wait``)."""
     jid = job_id_of(job)
+    poll = float(poll)  # time.sleep refuses numpy scalars
+    timeout = None if timeout is None else float(timeout)
     bar = Bar(progress, f"job {jid[:8]}")
     deadline = None if timeout is None else time.monotonic() + timeout
     try:

@@ -76,8 +76,7 @@ def add_record(
             with open(file, "rb") as fh:
                 data = fh.read()
             fname = filename or os.path.basename(os.fspath(file))
-        form = {k: str(v) for k, v in {"control": control, "dt": dt, **fields}.items()
-                if v is not None}  # fmt: skip
+        form = core.form_fields({"control": control, "dt": dt, **fields})
         return core.Call("POST", path, files={"file": (fname, data)}, data=form, parse=parse)
     doc: dict[str, Any] = {}
     for k, v in (("control", control), ("signal_id", signal_id), ("w", core.as_list(w, "w")),
