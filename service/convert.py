@@ -200,9 +200,7 @@ def detection(
     if det.fundamental is not None:
         i = int(det.fundamental.index)
         fund = wire.Fundamental(**modes[i].model_dump(), index=i)
-    doc.update(
-        modes=modes, fundamental=fund, flags=flags([*extra_flags, *det.flags])
-    )
+    doc.update(modes=modes, fundamental=fund, flags=flags([*extra_flags, *det.flags]))
     if control is not None or name is not None:
         return wire.RecordDetection(**doc, control=plain(control), name=name)
     return wire.Detection(**doc)
@@ -254,7 +252,9 @@ def alarm(a: Any) -> wire.Alarm:
 
 
 def prediction(p: Any) -> wire.Prediction:
-    """A ``Prediction``, with its alarm, the paper's rule and the classification."""
+    """A ``Prediction``, with its alarm, the paper's rule and the classification (a law of the
+    caller's own exponent, ``predict(a=...)`` neither 1/4 nor 1/2: ``transition`` "custom",
+    the exponent in ``a``)."""
     doc = _fields(p, skip=("alarm", "baseline", "classification", "flags"))
     return wire.Prediction(
         **doc,

@@ -29,7 +29,7 @@ from scipy import optimize, stats
 
 from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
 from service.analysis._likelihood import profile_memo
-from service.analysis._sweep import Sweep, drop_past, prepare_sweep
+from service.analysis._sweep import Sweep, _as_1d, drop_past, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
@@ -39,6 +39,12 @@ __all__ = ["PaperRule", "Prediction", "bounded_by", "paper_rule", "predict"]
 
 _PAPER_FACTOR = 10.0
 _FLOOR = 0.05  # least weight of a candidate while the type is not named for lack of slowdown
+#: A table with both ``sigma2`` and ``omega``: the |sigma^2| they tell may differ by this many
+#: standard deviations of their difference (the noises given, ``sigma2_std`` and ``omega_std``)
+_AGREE_Z = 5.0
+#: ... and always by this relative amount: the digits a table keeps (six significant digits
+#: round omega^2 and sigma2 by up to 1.5e-5 together), the whole tolerance when no std is given
+_AGREE_RTOL = 1e-4
 
 
 # --------------------------------------------------------------------------------------------
@@ -330,22 +336,30 @@ def predict(
         Control parameter, strictly increasing, n >= 3, any unit; or a sweep prepared by
         :func:`service.analysis.classify.prepare_sweep` (the data arguments are then ignored).
     sigma2 : array_like, shape (n,), optional
-        Undamped eigenvalue of the fundamental (1/time^2), negative. Give this or ``omega``.
+        Undamped eigenvalue of the fundamental (1/time^2), negative. Give this or ``omega``
+        (or both when they agree: see ``omega``).
     sigma2_std : array_like, shape (n,), optional
         Its standard deviation (weights of the fit); estimated from the scatter when absent.
     omega, omega_std : array_like, shape (n,), optional
         Observed rate (rad/time) instead of ``sigma2`` (see :func:`classify`): the modulus
         ``|s| = sqrt(omega_d^2 + (xi/2)^2)`` of the fundamental's poles ``s`` while it
         oscillates (``omega_d`` its damped frequency; detect's ``sigma2`` is ``-|s|^2``), its
-        slow decay rate once over-damped.
+        slow decay rate once over-damped. Given with ``sigma2``, the two must tell the same
+        ``|sigma^2|`` on every row (``omega^2``, or ``omega (xi - omega)`` below ``xi/2`` with
+        ``damping`` given; within :data:`_AGREE_Z` standard deviations of the noises given,
+        and the relative :data:`_AGREE_RTOL`): ``sigma2`` is then used; else
+        :class:`ParameterError` naming ``omega`` and the worst row.
     w_static, w_static_std : array_like, optional
         Static deflection at the probe (used by the classification).
     transition : str, optional
         ``"saddle-node"``, ``"subcritical-pitchfork"``, ``"supercritical-pitchfork"`` or
         ``"pitchfork"``: fit that law only.
     a : float, optional
-        Time exponent of the law to fit (``|sigma^2| ~ x^(2a)``); with neither ``a`` nor
-        ``transition`` the candidates are classified and averaged.
+        Time exponent of the law to fit (``|sigma^2| ~ x^(2a)``), > 0; with neither ``a`` nor
+        ``transition`` the candidates are classified and averaged. Alone it fits that exponent
+        (``transition`` of the result ``"saddle-node"`` for 1/4, ``"pitchfork"`` for 1/2,
+        else ``"custom"``); with a named ``transition`` it must be that law's ``a`` or its
+        over-damped double (any ``a`` with ``"pitchfork"``).
     damping : float, optional
         Damping ``xi`` (1/time) when known: the records' envelope decays as
         ``exp(-xi t / 2)`` (twice the decay rate that detect reports as ``damping``).
@@ -362,8 +376,9 @@ def predict(
     Raises
     ------
     ParameterError
-        (a ValueError) Invalid measurements (see :func:`classify`), ``a <= 0``, unknown
-        ``transition``, ``level`` or ``step_fraction`` outside (0, 1), ``margin < 0``.
+        (a ValueError) Invalid measurements (see :func:`classify`), ``sigma2`` and ``omega``
+        that disagree (``.parameter == "omega"``), ``a <= 0``, unknown ``transition``,
+        ``level`` or ``step_fraction`` outside (0, 1), ``margin < 0``.
     """
     _check_policy(level, step_fraction, margin, max_step_growth)
     if a is not None:
@@ -372,13 +387,17 @@ def predict(
     if isinstance(mu, Sweep):
         sw0 = mu
     else:
-        past, mu, sigma2, (sigma2_std, w_static, w_static_std) = drop_past(
-            mu, sigma2, sigma2_std, w_static, w_static_std
+        past, mu, sigma2, (sigma2_std, w_static, w_static_std, omega, omega_std) = drop_past(
+            mu, sigma2, sigma2_std, w_static, w_static_std, omega, omega_std
         )
+        both = sigma2 is not None and omega is not None  # sigma2 is used once omega agrees
         sw0 = prepare_sweep(
-            mu, sigma2, sigma2_std=sigma2_std, omega=omega, omega_std=omega_std,
-            w_static=w_static, w_static_std=w_static_std, damping=damping,
+            mu, sigma2, sigma2_std=sigma2_std, omega=None if both else omega,
+            omega_std=None if both else omega_std, w_static=w_static,
+            w_static_std=w_static_std, damping=damping,
         )  # fmt: skip
+        if both:
+            _check_rates_agree(sw0, omega, omega_std)
     fit = _fit(sw0, transition, a, level)
     flags = list(fit.flags)
     m, std, lo, hi = _interval(sw0, fit, level, flags)
@@ -483,6 +502,85 @@ def _past_alarm(
     )
     reason = f"sigma2 >= 0 at mu={past:.6g}: past the transition there"
     return Alarm("critical", reason, past, t_ratio, m, (lo, hi), math.nan)
+
+
+def _check_rates_agree(sw: Sweep, omega: Any, omega_std: Any) -> None:
+    """Refuse rates ``omega`` given beside ``sigma2`` (the sweep ``sw``) that tell another
+    ``|sigma^2|`` on some row.
+
+    The relation is the one the predictor reads rates by (:func:`prepare_sweep`; with a damping
+    ``xi``, ``service.analysis._windows._with_damping``): while the fundamental oscillates its
+    poles ``s1, s2`` are complex conjugates and ``omega = |s|`` gives ``|sigma^2| = s1 s2 =
+    omega^2`` whatever the damping; with ``damping`` given, a rate below ``xi/2`` is the slow
+    over-damped pole, ``|sigma^2| = omega (xi - omega)``. Without ``damping`` every rate is read
+    as ``omega^2`` (a damping is not inferred from ``sigma2`` data). The two may differ by
+    ``_AGREE_Z`` standard deviations of their difference (``sigma2_std`` and ``omega_std`` as
+    given, a missing one counting as none) and, always, by the relative ``_AGREE_RTOL``.
+
+    Parameters
+    ----------
+    sw : Sweep
+        The validated ``sigma2`` sweep (rows past the transition already cut).
+    omega, omega_std : array_like, shape (n,) or None
+        The rates (rad/time, > 0) and their standard deviations (> 0).
+
+    Raises
+    ------
+    ParameterError
+        ``omega`` or ``omega_std`` invalid (not finite, <= 0, another length), or ``omega`` at
+        odds with ``sigma2``: ``.parameter == "omega"``, ``.value`` the rate of the worst row.
+    """
+    n = sw.mu.size
+    om = _as_1d("omega", omega, n)
+    if np.any(om <= 0):
+        i = int(np.flatnonzero(om <= 0)[0])
+        raise ParameterError(
+            "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={float(om[i])!r}"
+        )
+    om_sd = None
+    if omega_std is not None:
+        om_sd = _as_1d("omega_std", omega_std, n)
+        if np.any(om_sd <= 0):
+            i = int(np.flatnonzero(om_sd <= 0)[0])
+            raise ParameterError(
+                "omega_std", float(om_sd[i]),
+                f"omega_std must be > 0, got omega_std[{i}]={float(om_sd[i])!r}",
+            )  # fmt: skip
+    xi = sw.damping
+    over = om < xi / 2 if xi is not None else np.zeros(n, dtype=bool)
+    with np.errstate(over="ignore", invalid="ignore"):
+        y_om = np.where(over, om * ((xi or 0.0) - om), om**2)
+        var = sw.sd**2 if sw.noise_given else np.zeros(n)
+        if om_sd is not None:
+            slope = np.where(over, np.abs((xi or 0.0) - 2 * om), 2 * om)
+            var = var + (slope * om_sd) ** 2 + 2 * om_sd**4
+        allowed = np.maximum(_AGREE_Z * np.sqrt(var), _AGREE_RTOL * np.maximum(sw.y, y_om))
+        allowed = np.maximum(allowed, np.finfo(float).tiny)  # below it floats cannot differ
+        excess = np.abs(sw.y - y_om) / allowed
+    excess = np.where(np.isnan(excess), np.inf, excess)  # omega^2 overflowed: no agreement
+    if not np.any(excess > 1):
+        return
+    i = int(np.argmax(excess))
+    tol = (
+        f"{_AGREE_Z:g} standard deviations of sigma2_std and omega_std (and {_AGREE_RTOL:g} "
+        "relative)"
+        if sw.noise_given or om_sd is not None
+        else f"the relative tolerance {_AGREE_RTOL:g} (no sigma2_std or omega_std given)"
+    )
+    law = (
+        f"-omega (xi - omega) = {-float(y_om[i])!r} (over-damped: omega < xi/2 = {xi / 2:g})"
+        if over[i] and xi is not None
+        else f"-omega^2 = {-float(y_om[i])!r}"
+    )
+    raise ParameterError(
+        "omega", float(om[i]),
+        f"sigma2 and omega disagree: at row {i} (mu={float(sw.mu[i])!r}) sigma2[{i}]="
+        f"{-float(sw.y[i])!r} but omega[{i}]={float(om[i])!r} gives sigma2 = {law}, beyond "
+        f"{tol}; {int(np.sum(excess > 1))} of {n} rows disagree. Give one of the two columns, "
+        "or columns that agree: omega is the modulus sqrt(omega_d^2 + gamma^2) of the "
+        "fundamental's poles (not the damped frequency omega_d alone), and its slow decay rate "
+        "once over-damped" + (" (then give the damping xi)" if xi is None else ""),
+    )  # fmt: skip
 
 
 def _check_policy(level: float, step_fraction: float, margin: float, growth: float) -> None:

@@ -15,6 +15,7 @@ from service import convert
 from service.charts.cli import add_plot_flag, plot_detection, plot_prediction_table, plot_sweep
 from service.cli._common import CliError, add_json_flag, bad, emit, error_from, finite
 from service.cli._progress import Progress, warm_kernels
+from service.schemas.predictions import PREDICT_TRANSITIONS
 
 
 # ------------------------------------------------------------------------------- file readers
@@ -70,8 +71,6 @@ def _floats(table: Any, name: str, option: str, path: str) -> np.ndarray:
         raise err from None
 
 
-
-
 def _rate_column(
     table: Any, name: str, option: str, path: str, like: str | None = None
 ) -> np.ndarray:
@@ -121,24 +120,27 @@ def _predict(args: argparse.Namespace) -> int:
     mu_name = table.find(args.control_column or "mu")
     if mu_name is None:
         raise bad("SWEEP", args.file, f"needs a column {args.control_column or 'mu'!r} "
-                  f"(columns found: {table.names}; name the control with --control-column)")
+                  f"(columns found: {table.names}; name the control with "
+                  "--control-column)")  # fmt: skip
     mu = _floats(table, mu_name, "SWEEP", args.file)
     kw: dict[str, Any] = {}
     col = {c: table.find(c) for c in ("sigma2", "sigma2_std", "omega", "omega_std",
                                       "w_static", "w_static_std")}  # fmt: skip
+    # both columns go to the numerics, which use sigma2 once omega agrees with it (else they
+    # name omega and the worst row)
     if col["sigma2"]:
         kw["sigma2"] = _floats(table, col["sigma2"], "SWEEP", args.file)
         if col["sigma2_std"]:
             kw["sigma2_std"] = _floats(table, col["sigma2_std"], "SWEEP", args.file)
-    elif col["omega"]:
+    if col["omega"]:
         kw["omega"] = _rate_column(table, col["omega"], "SWEEP", args.file)
         if col["omega_std"]:
             kw["omega_std"] = _rate_column(
                 table, col["omega_std"], "SWEEP", args.file, like=col["omega"]
             )
-    else:
+    if not (col["sigma2"] or col["omega"]):
         raise bad("SWEEP", args.file, f"needs a column 'sigma2' or 'omega' (columns found: "
-                  f"{table.names})")
+                  f"{table.names})")  # fmt: skip
     if col["w_static"]:
         kw["w_static"] = _floats(table, col["w_static"], "SWEEP", args.file)
         if col["w_static_std"]:
@@ -147,16 +149,19 @@ def _predict(args: argparse.Namespace) -> int:
         kw["damping"] = args.damping
     if args.transition:
         kw["transition"] = args.transition
+    if args.a is not None:
+        kw["a"] = args.a
     try:
         pred = predict(mu, **kw)
     except ValueError as exc:
-        raise error_from(exc, f"SWEEP {args.file!r}") or CliError(f"SWEEP {args.file!r}: {exc}",
-                                                                   field="SWEEP") from None
+        raise error_from(exc, f"SWEEP {args.file!r}") or CliError(
+            f"SWEEP {args.file!r}: {exc}", field="SWEEP"
+        ) from None
     doc = convert.prediction(pred)
     if args.plot:
         plot_prediction_table(args.plot, mu, kw, doc, control_name=args.control_name,
                               control_unit=args.control_unit or table.units.get(mu_name),
-                              time_unit=args.time_unit)
+                              time_unit=args.time_unit)  # fmt: skip
     lo, hi = doc.mu_star_interval
     emit(doc, json_mode=args.json,
          text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
@@ -229,7 +234,7 @@ def _sweep(args: argparse.Namespace) -> int:
     if path_col is None or control_col is None:
         raise bad("MANIFEST", args.manifest,
                   f"needs the header 'path,{args.control_column or 'control'}' (columns found: "
-                  f"{table.names}; name the control with --control-column)")
+                  f"{table.names}; name the control with --control-column)")  # fmt: skip
     control = _floats(table, control_col, "MANIFEST", args.manifest)
     dt_col = table.find("dt")
     steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None
@@ -335,13 +340,15 @@ def _demo(args: argparse.Namespace) -> int:
         sys.stdout.write(beam_summary_text(summary) + "\n\n")
         sys.stdout.flush()
     runs = _run_demo_sweeps(args.seed, not args.no_progress)
-    doc = Demo.model_validate({"beam": summary, "warn": runs,
-                               "seconds": time.perf_counter() - t0}).model_dump(mode="json")
+    doc = Demo.model_validate(
+        {"beam": summary, "warn": runs, "seconds": time.perf_counter() - t0}
+    ).model_dump(mode="json")
     rows = [
         "Early warning (Euler beam, xi = 2e-4, 40 dB): true mu*, the paper's rule, ours",
         f"{'actuation':14} {'type found':24} {'true mu*':>12} {'paper rule':>12} {'ours':>14} "
         f"{'95% interval':>29} {'error':>9} {'N':>3}",
     ]
+
     def num(x: float | None) -> float:
         return math.nan if x is None else x
 
@@ -373,9 +380,9 @@ def _reader_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", default=None, choices=FORMATS,
                    help="the file's format when its extension does not say it")  # fmt: skip
     p.add_argument("--column", default=None, metavar="NAME",
-                   help="the column (CSV) or variable (NPZ, MAT) holding the signal")
+                   help="the column (CSV) or variable (NPZ, MAT) holding the signal")  # fmt: skip
     p.add_argument("--time-column", default=None, metavar="NAME",
-                   help="the column or variable holding the time")
+                   help="the column or variable holding the time")  # fmt: skip
     p.add_argument("--channel", type=int, default=None, help="WAV channel (default 0)")
 
 
@@ -414,9 +421,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="damping xi (1/time) of the rates omega when known: twice the decay "
                    "rate of the records' envelope exp(-xi t/2) (detect's 'damping' is xi/2); "
                    "without it a damping is inferred only on decisive evidence")  # fmt: skip
-    p.add_argument("--transition", default=None,
-                   choices=("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork",
-                            "pitchfork"))  # fmt: skip
+    p.add_argument("--transition", default=None, choices=PREDICT_TRANSITIONS,
+                   help="fit this law only (its exponent a: 1/4 saddle-node, 1/2 "
+                   "pitchforks)")  # fmt: skip
+    p.add_argument("--a", type=float, default=None, metavar="A",
+                   help="time exponent of the law to fit, > 0 (|sigma2| ~ (mu* - mu)^(2a)): "
+                   "alone, that exponent (a custom law); with --transition, that law's a or "
+                   "its over-damped double (any a with 'pitchfork')")  # fmt: skip
     add_json_flag(p)
     add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
     p.add_argument("--control-name", default="mu", help="the control's name on the chart")
@@ -437,7 +448,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--slenderness", type=finite, default=None)
     p.add_argument("--elements", type=int, default=None)
     p.add_argument("--rtol", type=finite, default=None,
-                   help="simulator accuracy (resolution; backend for --model auto)")
+                   help="simulator accuracy (resolution; backend for --model auto)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
     add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
@@ -449,7 +460,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--control-column", default=None, metavar="NAME",
                    help="the manifest's control column when it is not named control")  # fmt: skip
     p.add_argument("--dt", type=finite, default=None,
-                   help="sample step of the files without times (a 'dt' column overrides)")
+                   help="sample step of the files without times (a 'dt' column "
+                   "overrides)")  # fmt: skip
     _resample_flag(p)
     _reader_flags(p)
     p.add_argument("--no-progress", action="store_true")

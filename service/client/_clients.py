@@ -193,13 +193,16 @@ class Api(AtlasOperations):
         w_static_std: Any = None,
         damping: float | None = None,
         transition: str | None = None,
+        a: float | None = None,
         level: float | None = None,
     ) -> Flow[Prediction]:
         """``POST /v1/predictions``: mu* from a sweep table measured elsewhere.
 
-        ``mu`` (increasing) with ``sigma2`` or ``omega`` (exactly one; lists or numpy arrays),
-        their standard deviations, ``w_static``; the options of ``snapwarn predict``
-        (``damping``, ``transition``) and the interval's ``level`` (0.95). ``omega_unit``
+        ``mu`` (increasing) with ``sigma2`` or ``omega`` (lists or numpy arrays; both only
+        when they agree row by row, ``sigma2`` is then used, else :class:`InvalidInput` naming
+        ``omega``), their standard deviations, ``w_static``; the options of ``snapwarn
+        predict`` (``damping``, ``transition``, ``a``: the time exponent of the law to fit,
+        > 0, alone or with ``transition``) and the interval's ``level`` (0.95). ``omega_unit``
         ``"Hz"``, ``"kHz"``, ``"MHz"`` or ``"rpm"`` reads the rates as ``2 pi f`` rad/s (the
         CLI's ``omega [Hz]`` header). Returns the typed document that ``snapwarn predict
         --json`` prints: ``p.mu_star``, ``p.mu_star_interval``, ``p.transition``, ``p.flags``.
@@ -207,7 +210,7 @@ class Api(AtlasOperations):
         return (yield core.predict(
             mu, sigma2, sigma2_std=sigma2_std, omega=omega, omega_std=omega_std,
             omega_unit=omega_unit, w_static=w_static, w_static_std=w_static_std,
-            damping=damping, transition=transition, level=level,
+            damping=damping, transition=transition, a=a, level=level,
         ))  # fmt: skip
 
     @operation

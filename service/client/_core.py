@@ -339,8 +339,11 @@ def predict(
     w_static_std: Any = None,
     damping: float | None = None,
     transition: str | None = None,
+    a: float | None = None,
     level: float | None = None,
 ) -> Call:
+    """The ``POST /v1/predictions`` call of :meth:`Client.predict` (columns as lists, the
+    options present only when given)."""
     doc: dict[str, Any] = {"mu": as_list(mu, "mu")}
     for k, v in (
         ("sigma2", as_list(sigma2, "sigma2")),
@@ -353,6 +356,7 @@ def predict(
                                                                             "w_static_std")),
         ("damping", damping),
         ("transition", transition),
+        ("a", a),
         ("level", level),
     ):  # fmt: skip
         if v is not None:

@@ -27,6 +27,7 @@ Transition = Literal[
     "supercritical-pitchfork",
     "pitchfork",
     "undetermined",
+    "custom",  # a prediction with the caller's own exponent a (neither 1/4 nor 1/2)
 ]
 AlarmLevel = Literal["none", "watch", "warning", "critical"]
 

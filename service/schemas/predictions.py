@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, StrictFloat, field_validator
 
@@ -13,9 +13,12 @@ from service.schemas.analysis import Prediction
 #: A number of a table: finite (``NaN`` and ``Infinity`` are refused naming the item, ``mu[3]``).
 Finite = Annotated[StrictFloat, Field(allow_inf_nan=False)]
 
+#: The laws a caller may name (``transition``, the CLI's ``--transition``); a custom exponent
+#: is ``a`` (``--a``), alone or with one of them.
 PredictTransition = Literal[
     "saddle-node", "subcritical-pitchfork", "supercritical-pitchfork", "pitchfork"
 ]
+PREDICT_TRANSITIONS: tuple[str, ...] = get_args(PredictTransition)
 
 #: Units of ``omega`` (and ``omega_std``): the header units ``snapwarn predict`` converts
 #: (``omega [Hz]``). Hz, kHz, MHz and rpm are cycles per second or per minute, read as
@@ -36,11 +39,13 @@ TABLE_FIELDS = ("mu", "sigma2", "sigma2_std", "omega", "omega_std", "w_static", 
 
 
 class PredictionRequest(BaseModel):
-    """A sweep table measured elsewhere: ``mu`` with ``sigma2`` or ``omega`` (exactly one).
+    """A sweep table measured elsewhere: ``mu`` with ``sigma2`` or ``omega``.
 
     The columns of ``snapwarn predict TABLE``: the same numbers give the same document.
     ``mu`` is strictly increasing, in any unit (mu* comes in that unit); ``sigma2`` in 1/time^2
-    (negative on the stable branch), ``omega`` in rad/time (or see ``omega_unit``).
+    (negative on the stable branch), ``omega`` in rad/time (or see ``omega_unit``). Both
+    ``sigma2`` and ``omega`` may be given when they agree (``sigma2`` is then used); rows where
+    they disagree are a 422 naming ``omega`` (the numerics judge, as for the CLI's table).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -58,7 +63,10 @@ class PredictionRequest(BaseModel):
         default=None,
         description="Observed rate of the fundamental instead of sigma2, > 0: the modulus "
         "sqrt(omega_d^2 + (xi/2)^2) of its poles while it oscillates (omega_d the damped "
-        "frequency), its slow decay rate once over-damped.",
+        "frequency), its slow decay rate once over-damped. Given with sigma2 it must agree "
+        "with it on every row (sigma2 = -omega^2, or -omega (xi - omega) below xi/2 with "
+        "damping given; within 5 standard deviations of sigma2_std and omega_std and 1e-4 "
+        "relative): sigma2 is then used, else a 422 naming omega and the worst row.",
     )
     omega_std: list[Finite] | None = Field(
         default=None, description="Standard deviations of omega (> 0), in omega's unit."
@@ -84,6 +92,14 @@ class PredictionRequest(BaseModel):
     transition: PredictTransition | None = Field(
         default=None, description="Fit this law only (the CLI's --transition)."
     )
+    a: Finite | None = Field(
+        default=None,
+        description="Time exponent of the law to fit, > 0: |sigma2| ~ (mu* - mu)^(2a) (the "
+        "CLI's --a). Alone it fits that exponent (the document's transition is then "
+        "'saddle-node' for 0.25, 'pitchfork' for 0.5, else 'undetermined' with the law "
+        "named 'custom' in probabilities); with transition it must be that law's a or its "
+        "over-damped double (any a with 'pitchfork').",
+    )
     level: Finite = Field(
         default=0.95, description="Confidence level of mu_star_interval, in (0, 1)."
     )
@@ -98,6 +114,7 @@ class PredictionRequest(BaseModel):
 __all__ = [
     "OMEGA_UNIT_FACTORS",
     "OmegaUnit",
+    "PREDICT_TRANSITIONS",
     "Prediction",
     "PredictionRequest",
     "PredictTransition",

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from test_classify import BEAM_KIND, KINDS, beam_sweeps, law, sweep  # noqa: F401
 
 from service import convert
+from service.analysis.errors import ParameterError
 from service.analysis.predict import PaperRule, Prediction, paper_rule, predict
 
 # --------------------------------------------------------------------------------------------
@@ -293,3 +294,119 @@ def test_synthetic_coverage_over_seeds(kind: str) -> None:
         lo, hi = p.mu_star_interval
         hits += lo <= 1.78 <= hi
     assert hits >= 89
+
+
+# --------------------------------------------------------------------------------------------
+# sigma2 and omega in one table; a law of the caller's own exponent
+# --------------------------------------------------------------------------------------------
+
+
+def _doc(p: Prediction) -> dict:
+    """A prediction as its JSON document (NaN as None: comparable with ``==``)."""
+    return convert.prediction(p).model_dump(mode="json")
+
+
+def test_sigma2_and_omega_that_agree_give_the_sigma2_prediction() -> None:
+    """Both columns, telling the same |sigma^2| (omega = sqrt|sigma2|, the poles' modulus):
+    the document of sigma2 alone (before: refused, 'give exactly one of sigma2 and omega')."""
+    d = sweep("saddle-node", seed=14)
+    om = np.sqrt(-d["sigma2"])
+    ref = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
+    both = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], omega=om,
+                   omega_std=d["sigma2_std"] / (2 * om))  # fmt: skip
+    assert _doc(both) == _doc(ref)
+    # written with six significant digits and no std: the same quantity still
+    s6 = np.array([float(f"{v:.6g}") for v in d["sigma2"]])
+    o6 = np.array([float(f"{v:.6g}") for v in om])
+    assert _doc(predict(d["mu"], s6, omega=o6)) == _doc(predict(d["mu"], s6))
+
+
+def test_sigma2_and_omega_that_disagree_name_omega_and_the_worst_row() -> None:
+    d = sweep("saddle-node", seed=14)
+    om = np.sqrt(-d["sigma2"])
+    bad = om.copy()
+    bad[3] *= 1.002  # 4 standard deviations of sigma2_std (1e-3 relative): within the noise
+    bad[7] *= 1.01  # 20 standard deviations
+    with pytest.raises(ParameterError) as e:
+        predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], omega=bad)
+    assert (e.value.parameter, e.value.value) == ("omega", float(bad[7]))
+    msg = str(e.value)
+    for w in ("sigma2 and omega disagree", "at row 7", f"sigma2[7]={float(d['sigma2'][7])!r}",
+              f"omega[7]={float(bad[7])!r}", "5 standard deviations", "1 of 20 rows"):  # fmt: skip
+        assert w in msg, (w, msg)
+    # without any std: the relative tolerance; rates in Hz read as rad/s disagree everywhere
+    with pytest.raises(ParameterError) as e:
+        predict(d["mu"], d["sigma2"], omega=om / (2 * np.pi))
+    assert e.value.parameter == "omega"
+    assert "relative tolerance 0.0001" in str(e.value) and "20 of 20 rows" in str(e.value)
+    # a disagreement of 1e-3 relative is beyond 1e-4 without std, within 5 sd of 1e-3 with it
+    near = om * (1 + 5e-4)
+    with pytest.raises(ParameterError, match="disagree"):
+        predict(d["mu"], d["sigma2"], omega=near)
+    p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], omega=near)
+    assert _doc(p) == _doc(predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"]))
+
+
+def test_overdamped_rates_agree_with_sigma2_through_the_damping() -> None:
+    """Below xi/2 a rate is the slow over-damped pole r, |sigma2| = r (xi - r) (not r^2): with
+    ``damping`` given such a table agrees; without it the rows near mu* disagree."""
+    xi = 2.0
+    d = sweep("saddle-node", seed=3, xmin=1e-5)
+    y = -d["sigma2"]
+    r = np.where(y >= xi**2 / 4, np.sqrt(y), xi / 2 - np.sqrt(np.maximum(xi**2 / 4 - y, 0.0)))
+    over = r < xi / 2
+    assert 2 <= over.sum() < over.size
+    kw = {"sigma2_std": d["sigma2_std"], "damping": xi}
+    ref = predict(d["mu"], d["sigma2"], **kw)
+    assert _doc(predict(d["mu"], d["sigma2"], omega=r, **kw)) == _doc(ref)
+    with pytest.raises(ParameterError) as e:
+        predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], omega=r)
+    assert e.value.parameter == "omega" and e.value.value in r[over]
+    assert "damping" in str(e.value)
+
+
+def test_rows_past_the_transition_leave_both_columns() -> None:
+    """sigma2 >= 0 on the last rows: those rows are cut from omega too (an unstable row's rate
+    says nothing of |sigma^2|), and the rest must agree."""
+    d = sweep("saddle-node", seed=14)
+    mu = np.append(d["mu"], [1.79, 1.80])
+    s2 = np.append(d["sigma2"], [0.5, 1.0])
+    om = np.append(np.sqrt(-d["sigma2"]), [0.3, 9.0])
+    p = predict(mu, s2, omega=om)
+    assert "past_transition" in [f.code for f in p.flags]
+    assert _doc(p) == _doc(predict(mu, s2))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "parameter", "value"),
+    [
+        ({"omega": [2.0, math.nan, 0.6, 0.2]}, "omega", math.nan),
+        ({"omega": [2.0, -1.4, 0.6, 0.2]}, "omega", -1.4),
+        ({"omega": [2.0, 1.4, 0.6]}, "omega", 3),
+        ({"omega": [2.0, 1.4, 0.6, 0.2], "omega_std": [1e-3, 0.0, 1e-3, 1e-3]}, "omega_std", 0.0),
+        ({"omega": [2.0, 1.4, 0.6, 0.3]}, "omega", 0.3),
+    ],
+)
+def test_omega_beside_sigma2_is_validated(kwargs: dict, parameter: str, value: object) -> None:
+    with pytest.raises(ParameterError) as e:
+        predict([0.0, 0.5, 0.9, 0.99], [-4.0, -2.0, -0.36, -0.04], **kwargs)
+    assert e.value.parameter == parameter, str(e.value)
+    assert e.value.value == value or (value != value and e.value.value != e.value.value)
+
+
+def test_a_custom_exponent_is_fitted_and_its_document_says_custom() -> None:
+    """``a`` alone, neither 1/4 nor 1/2: that law is fitted (named "custom"), and its document
+    says ``transition: custom`` with the exponent in ``a`` (before: the conversion to the wire
+    document raised)."""
+    x = np.geomspace(1.0, 1e-3, 14)
+    rng = np.random.default_rng(5)
+    s = 12.0 * x**0.7 * (1 + 0.3 * x)
+    s2 = -s * (1 + 1e-4 * rng.standard_normal(x.size))
+    p = predict(1.78 - x, s2, sigma2_std=1e-4 * s, a=0.35)
+    assert (p.transition, p.a, p.probabilities) == ("custom", 0.35, {"custom": 1.0})
+    lo, hi = p.mu_star_interval
+    assert lo <= 1.78 <= hi and abs(p.mu_star - 1.78) < 1e-5
+    doc = _doc(p)
+    assert (doc["transition"], doc["a"], doc["probabilities"]) == ("custom", 0.35,
+                                                                  {"custom": 1.0})  # fmt: skip
+    assert doc["mu_star"] == p.mu_star

@@ -157,6 +157,109 @@ def test_numerics_refusals_name_the_same_field_and_value_as_the_cli(live_server,
         assert (err["field"], err["value"]) == (cli_doc["field"], cli_doc["value"]), name
 
 
+def _custom_table() -> dict[str, Any]:
+    """A law of exponent a = 0.35 (|sigma2| ~ x^0.7, with a correction) at 14 points
+    approaching mu* = 1.78, 1e-4 relative noise."""
+    x = np.geomspace(1.0, 1e-3, 14)
+    s = 12.0 * x**0.7 * (1 + 0.3 * x)
+    rng = np.random.default_rng(5)
+    return {"mu": 1.78 - x, "sigma2": -s * (1 + NOISE * rng.standard_normal(x.size)),
+            "sigma2_std": NOISE * s}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "options", [{"a": 0.35}, {"transition": "pitchfork", "a": 0.35}], ids=["a", "pitchfork-a"]
+)
+def test_a_custom_exponent_gives_one_mu_star_through_cli_api_and_sdk(
+    live_server, tmp_path, options
+) -> None:  # noqa: ANN001
+    """``--a``, ``"a"`` and ``a=``: the same law, the same document (before: the CLI had no
+    --a, the body refused the field, the SDK had no argument, and the numerics' law named
+    "custom" could not be written as a document)."""
+    from service.client import Client
+
+    t = _custom_table()
+    path = _write(tmp_path / "custom.csv", t)
+    argv = [f"--{k}={v}" for k, v in options.items()]
+    rc, cli_doc = _cli("predict", str(path), "--json", *argv)
+    assert rc == 0, cli_doc
+    r = _post(live_server.url, {**_lists(t, "mu", "sigma2", "sigma2_std"), **options})
+    assert r.status_code == 200, r.text
+    with Client(live_server.url) as sdk:
+        pred = sdk.predict(t["mu"], t["sigma2"], sigma2_std=t["sigma2_std"], **options)
+    assert cli_doc == r.json() == json.loads(pred.model_dump_json())
+    assert cli_doc["a"] == 0.35 and cli_doc["method"] == "profile-likelihood"
+    lo, hi = cli_doc["mu_star_interval"]
+    assert lo <= 1.78 <= hi and abs(cli_doc["mu_star"] - 1.78) < 1e-5
+    if "transition" in options:
+        assert cli_doc["transition"] == "pitchfork"
+    else:
+        assert cli_doc["transition"] == "custom"
+        assert cli_doc["probabilities"] == {"custom": 1.0}
+    # the exponent matters: the classified law is another document
+    assert _cli("predict", str(path), "--json")[1]["a"] != 0.35
+
+
+@pytest.mark.parametrize(
+    "options, value",
+    [({"a": -0.5}, -0.5), ({"a": 0.0}, 0.0), ({"transition": "saddle-node", "a": 0.3}, 0.3)],
+)
+def test_a_bad_exponent_is_named_alike_by_the_three_doors(
+    live_server, tmp_path, options, value
+) -> None:  # noqa: ANN001
+    from service.client import Client, InvalidInput
+
+    t = _custom_table()
+    path = _write(tmp_path / "custom.csv", t)
+    rc, cli_doc = _cli("predict", str(path), "--json", *[f"--{k}={v}" for k, v in options.items()])
+    assert rc == 2 and (cli_doc["field"], cli_doc["value"]) == ("a", value), cli_doc
+    r = _post(live_server.url, {**_lists(t, "mu", "sigma2"), **options})
+    assert r.status_code == 422, r.text
+    err = r.json()["errors"][0]
+    assert (err["field"], err["value"]) == ("a", value)
+    assert f"a={value!r}" in err["message"]
+    with Client(live_server.url) as sdk, pytest.raises(InvalidInput) as e:
+        sdk.predict(t["mu"], t["sigma2"], **options)
+    assert (e.value.field, e.value.value) == ("a", value)
+
+
+def test_sigma2_and_omega_together_through_the_three_doors(beam, live_server, tmp_path) -> None:  # noqa: ANN001
+    """A table with both columns: the sigma2 document when they agree; a refusal naming
+    ``omega``, the worst row and its rate when they do not (before: the CLI used sigma2 and
+    ignored omega, the API refused both columns naming sigma2)."""
+    from service.client import Client, InvalidInput
+
+    om = np.sqrt(-beam["sigma2"])
+    cols = {"mu": beam["mu"], "sigma2": beam["sigma2"], "sigma2_std": beam["sigma2_std"],
+            "omega": om, "omega_std": beam["sigma2_std"] / (2 * om)}  # fmt: skip
+    ref = _cli("predict", str(_write(tmp_path / "s2.csv", {k: cols[k] for k in
+                                                           ("mu", "sigma2", "sigma2_std")})),
+               "--json")[1]  # fmt: skip
+    rc, cli_doc = _cli("predict", str(_write(tmp_path / "both.csv", cols)), "--json")
+    assert rc == 0, cli_doc
+    r = _post(live_server.url, _lists(cols, *cols))
+    assert r.status_code == 200, r.text
+    with Client(live_server.url) as sdk:
+        pred = sdk.predict(cols["mu"], cols["sigma2"], sigma2_std=cols["sigma2_std"],
+                           omega=cols["omega"], omega_std=cols["omega_std"])  # fmt: skip
+    assert cli_doc == r.json() == json.loads(pred.model_dump_json()) == ref
+    # frequencies in Hz written as rad/s: every row disagrees
+    bad = {"mu": beam["mu"], "sigma2": beam["sigma2"], "omega": om / (2 * math.pi)}
+    path = _write(tmp_path / "bad.csv", bad)
+    rc, cli_doc = _cli("predict", str(path), "--json")
+    assert rc == 2 and cli_doc["field"] == "omega", cli_doc
+    assert cli_doc["detail"].startswith(f"SWEEP {str(path)!r}: sigma2 and omega disagree")
+    assert cli_doc["value"] in list(bad["omega"])
+    r = _post(live_server.url, _lists(bad, *bad))
+    assert r.status_code == 422, r.text
+    err = r.json()["errors"][0]
+    assert (err["field"], err["value"]) == ("omega", cli_doc["value"])
+    assert "sigma2 and omega disagree" in err["message"]
+    with Client(live_server.url) as sdk, pytest.raises(InvalidInput) as e:
+        sdk.predict(bad["mu"], bad["sigma2"], omega=bad["omega"])
+    assert (e.value.field, e.value.value) == ("omega", cli_doc["value"])
+
+
 # --- bad bodies -------------------------------------------------------------------------------
 MU = [0.0, 0.5, 0.8, 0.9]
 S2 = [-4.0, -2.8, -1.8, -1.3]
@@ -166,7 +269,14 @@ BAD: list[tuple[str, dict[str, Any], str, Any]] = [
     ("NaN mu", {"mu": [0.0, 0.5, math.nan, 0.9], "sigma2": S2}, "mu[2]", "NaN"),
     ("inf sigma2", {"mu": MU, "sigma2": [-4.0, -math.inf, -1.8, -1.3]}, "sigma2[1]", "-Infinity"),
     ("NaN damping", {"mu": MU, "sigma2": S2, "damping": math.nan}, "damping", "NaN"),
-    ("both", {"mu": MU, "sigma2": S2, "omega": [2.0, 1.7, 1.3, 1.1]}, "sigma2", "both"),
+    # both columns, disagreeing (|sigma2| 1.3 against omega^2 1.21 on the worst row)
+    ("both", {"mu": MU, "sigma2": S2, "omega": [2.0, 1.7, 1.3, 1.1]}, "omega", 1.1),
+    (
+        "omega_std beside disagreeing columns",
+        {"mu": MU, "sigma2": S2, "omega": [2.0, 1.7, 1.3, 1.1], "omega_std": [1e-3, 0.0, 1, 1]},
+        "omega_std",
+        0.0,
+    ),  # fmt: skip
     ("neither", {"mu": MU}, "sigma2", "neither"),
     ("no mu", {"sigma2": S2}, "mu", None),
     ("decreasing mu", {"mu": MU[::-1], "sigma2": S2}, "mu", 0.8),
@@ -187,7 +297,16 @@ BAD: list[tuple[str, dict[str, Any], str, Any]] = [
         "deg",
     ),  # fmt: skip
     ("transition", {"mu": MU, "sigma2": S2, "transition": "fold"}, "transition", "fold"),
-    ("a", {"mu": MU, "sigma2": S2, "a": 0.3}, "a", 0.3),  # not an option of the CLI
+    ("a negative", {"mu": MU, "sigma2": S2, "a": -0.3}, "a", -0.3),
+    ("a zero", {"mu": MU, "sigma2": S2, "a": 0.0}, "a", 0.0),
+    ("a NaN", {"mu": MU, "sigma2": S2, "a": math.nan}, "a", "NaN"),
+    ("a text", {"mu": MU, "sigma2": S2, "a": "x"}, "a", "x"),
+    (
+        "a against transition",
+        {"mu": MU, "sigma2": S2, "transition": "saddle-node", "a": 0.3},
+        "a",
+        0.3,
+    ),  # fmt: skip
     ("level", {"mu": MU, "sigma2": S2, "level": 1.5}, "level", 1.5),
     ("negative damping", {"mu": MU, "sigma2": S2, "damping": -1.0}, "damping", -1.0),
     ("unknown field", {"mu": MU, "sigma2": S2, "mu_unit": "deg"}, "mu_unit", "deg"),
@@ -322,6 +441,6 @@ def test_the_route_is_in_the_openapi_document() -> None:
     }
     assert {"401", "413", "422"} <= set(op["responses"])
     req = doc["components"]["schemas"]["PredictionRequest"]
-    assert {"mu", "sigma2", "omega", "omega_unit", "damping", "transition"} <= set(
+    assert {"mu", "sigma2", "omega", "omega_unit", "damping", "transition", "a"} <= set(
         req["properties"]
     )

@@ -47,12 +47,13 @@ _SPARE_VALUES = 1000
     },
 )
 async def create_prediction(request: Request, state: StateDep) -> Any:
-    """Give ``mu`` with ``sigma2`` or ``omega`` (exactly one), their standard deviations, the
-    static deflection and the options of ``snapwarn predict``; at most
-    ``SNAPWARN_MAX_PREDICTION_POINTS`` points.
+    """Give ``mu`` with ``sigma2`` or ``omega`` (or both, when they agree: ``sigma2`` is
+    used), their standard deviations, the static deflection and the options of ``snapwarn
+    predict`` (``damping``, ``transition``, ``a``); at most ``SNAPWARN_MAX_PREDICTION_POINTS``
+    points.
 
-    Invalid tables are 422 problems naming the field and the value (``mu[3]``, ``sigma2``...),
-    as the numerics name them.
+    Invalid tables are 422 problems naming the field and the value (``mu[3]``, ``sigma2``,
+    ``omega`` where it contradicts ``sigma2``, ``a``...), as the numerics name them.
     """
     s = state.settings
     body = await _read_body(request, s.max_prediction_points)
@@ -125,7 +126,7 @@ def table_arguments(req: PredictionRequest, max_points: int) -> tuple[np.ndarray
             continue
         arr = np.asarray(v, dtype=np.float64)
         kw[name] = arr * factor if factor is not None and name in ("omega", "omega_std") else arr
-    for name in ("damping", "transition"):
+    for name in ("damping", "transition", "a"):
         if getattr(req, name) is not None:
             kw[name] = getattr(req, name)
     kw["level"] = req.level
