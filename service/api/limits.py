@@ -22,24 +22,34 @@ DISCRETISED = ("cosserat",)
 @dataclass(frozen=True)
 class Plan:
     """What a scene will run: the backend (``model="auto"`` resolved) and, for the rod, the
-    elements it will use and the request field that set them (``elements`` or ``rtol``)."""
+    elements it will use, the request field that set them (``elements`` or ``rtol``) and its
+    time grid (``cost``: a ``sim.resolution.RodCost``; None where it is not known)."""
 
     model: str
     elements: int | None = None
     field: str = "elements"
     rtol: float | None = None
+    cost: Any = None
+
+    @property
+    def steps(self) -> int | None:
+        """The rod's time steps (None: not known)."""
+        return None if self.cost is None else int(self.cost.steps)
 
 
-def check_simulation(scene: dict[str, Any], model: str | None, settings: Settings,
-                     plan: Plan | None = None) -> None:
+def check_simulation(
+    scene: dict[str, Any], model: str | None, settings: Settings, plan: Plan | None = None
+) -> None:
     """422 when a scene would cost more than the settings allow.
 
     Bounds: ``elements <= max_elements``, ``duration <= max_sim_duration``, ``duration / dt <=
-    max_samples`` and, for the rod (``plan.model`` in DISCRETISED), ``duration x elements <=
-    max_sim_work`` with the elements it will use (``plan``, see :func:`plan_scene`: the
-    elements given, or those the resolution policy chooses from ``rtol``). Without a plan
-    (the cheap checks before any numerics) the budget is checked only where the request
-    itself names the rod and its elements.
+    max_samples`` and, for the rod (``plan.model`` in DISCRETISED), ``elements x time steps <=
+    max_sim_work`` with what it will run (``plan``, see :func:`plan_scene`: the elements given
+    or chosen from ``rtol``, and the steps of ``sim.resolution.rod_cost``: the duration given
+    or the default 40 fundamental periods, at ~rtol^-1/2 steps per period, or one per sample
+    where dt is finer). Without a plan (the cheap checks before any numerics) the budget is
+    checked only where the request itself names the rod, its elements, duration and dt: one
+    step per sample at least.
     """
     elements = scene.get("elements")
     if elements is not None and elements > settings.max_elements:
@@ -67,25 +77,84 @@ def check_simulation(scene: dict[str, Any], model: str | None, settings: Setting
                 f"gives {duration / dt:.3g} samples over duration={duration:g}, more than "
                 f"{settings.max_samples} (setting SNAPWARN_MAX_SAMPLES)",
             )
-        if plan is not None and plan.model in DISCRETISED and plan.elements is not None:
-            work = duration * float(plan.elements)
-            if work > settings.max_sim_work:
-                how = "" if plan.field == "elements" else f" (chosen from rtol={plan.rtol:g})"
-                raise invalid(
-                    "duration",
-                    duration,
-                    f"x elements={plan.elements}{how} = {work:.3g} exceeds the simulation "
-                    f"budget {settings.max_sim_work:g} of the {plan.model} backend (setting "
-                    "SNAPWARN_MAX_SIM_WORK)",
-                )
+    if plan is not None and plan.model in DISCRETISED and plan.elements is not None:
+        _check_work(scene, plan, settings)
 
 
-def plan_scene(scene: dict[str, Any], model: str) -> Plan:
+def _check_work(scene: dict[str, Any], plan: Plan, settings: Settings) -> None:
+    """422 when the rod's elements x time steps exceed ``max_sim_work``, naming the field
+    that drives the steps: ``dt`` where the sampling is finer than the rod's own step, ``rtol``
+    where it is below the default and the default's steps would fit, else ``duration`` (the
+    default when none is given)."""
+    from sim.resolution import rod_time_grid
+    from sim.scene import DEFAULT_RTOL
+
+    duration, dt = scene.get("duration"), scene.get("dt")
+    rtol = scene.get("rtol")
+    rtol = DEFAULT_RTOL if rtol is None else float(rtol)
+    cost, budget = plan.cost, settings.max_sim_work
+    if cost is None:  # before the numerics (or no equilibrium to run from): one step a sample
+        if duration is None or dt is None or not dt > 0:
+            return
+        steps = math.floor(duration / dt + 1e-9)
+    else:
+        steps = int(cost.steps)
+    work = plan.elements * steps
+    if work <= budget:
+        return
+    how = "" if plan.field == "elements" else f" (chosen from rtol={plan.rtol:g})"
+    charge = (
+        f"x elements={plan.elements}{how} = {work:.3g} element-steps, more than the "
+        f"budget {budget:.3g} of the {plan.model} backend (setting SNAPWARN_MAX_SIM_WORK)"
+    )
+    if cost is None:
+        raise invalid(
+            "dt",
+            dt,
+            f"gives at least {steps} time steps (one per sample) over "
+            f"duration={duration:g} {charge}",
+        )
+    g, period = cost.grid, cost.period
+    per = f"at least {g.steps_per_period} steps per fundamental period ({period:.3g})"
+    over = f"{steps} time steps over duration={g.duration:.3g}"
+    if dt is not None and g.every == 1 and g.sample_dt < period / g.steps_per_period:
+        raise invalid(
+            "dt",
+            dt,
+            f"is finer than the rod's own step ({per} for rtol={rtol:g}): "
+            f"{over} {charge}; ask for a larger dt",
+        )
+    if rtol < DEFAULT_RTOL:
+        base = rod_time_grid(period, DEFAULT_RTOL, duration, dt)
+        if plan.elements * base.steps <= budget:
+            raise invalid(
+                "rtol",
+                rtol,
+                f"asks for {per}: {over} {charge}; the default "
+                f"rtol={DEFAULT_RTOL:g} ({base.steps} steps) fits",
+            )
+    fits = math.floor(budget / plan.elements / g.every) * g.sample_dt
+    what = (
+        ""
+        if duration is not None
+        else f"(the default: {g.duration / period:g} fundamental periods of {period:.3g}) "
+    )
+    raise invalid(
+        "duration",
+        duration,
+        f"{what}gives {steps} time steps ({per} for "
+        f"rtol={rtol:g}) {charge}; ask for duration <= {fits:.3g}",
+    )
+
+
+def plan_scene(scene: dict[str, Any], model: str, *, timed: bool = True) -> Plan:
     """Validate ``scene`` with ``sim.Scene`` (422 naming the field) and find what it will run:
     the backend ``model="auto"`` picks (``sim.select.choose_model``) and, for the rod, its
     elements (``sim.resolution``: the elements given, or those chosen from ``rtol``; an rtol
-    beyond the policy's cap is a 422 naming rtol). Blocking (numerics, cached per strip):
-    call it in a thread."""
+    beyond the policy's cap is a 422 naming rtol) and its time steps
+    (``sim.resolution.rod_cost``: the grid the simulation will run about the scene's
+    equilibrium; ``timed=False``: not looked for, a route whose steps are its own).
+    Blocking (numerics, cached per strip and equilibrium): call it in a thread."""
     import sim
 
     try:
@@ -99,35 +168,51 @@ def plan_scene(scene: dict[str, Any], model: str) -> Plan:
             if backend not in DISCRETISED:
                 return Plan(backend)
             from sim.backends import BACKENDS
+            from sim.resolution import rod_cost
 
             res = BACKENDS[backend].resolution(s)
+            cost = rod_cost(s, int(res.size)) if timed else None
     except TypeError as exc:  # a field the scene does not have
         raise ApiProblem(422, str(exc), field="scene", value=sorted(scene)) from None
     given = s.elements is not None
     return Plan(backend, int(res.size), "elements" if given else "rtol",
-                None if given else float(s.rtol))  # fmt: skip
+                None if given else float(s.rtol), cost)  # fmt: skip
 
 
-def check_scene(scene: dict[str, Any], model: str, settings: Settings) -> Plan:
+def check_scene(
+    scene: dict[str, Any], model: str, settings: Settings, *, timed: bool = True
+) -> Plan:
     """Everything a scene is checked for at the door of every route that runs one
     (``POST /v1/simulations``, ``POST /v1/snaps``): the settings' bounds, the scene's own
     rules and the budget of the backend that will run it with the elements it will use.
-    Blocking (see :func:`plan_scene`): call it in a thread. Returns the plan."""
+    ``timed=False``: a route that runs its own fixed number of steps (a snap: 4000, so its
+    cost is bounded by the elements' limit), whose scene's ``duration`` is not a simulation's
+    and is not charged. Blocking (see :func:`plan_scene`): call it in a thread. Returns the
+    plan."""
     check_simulation(scene, model, settings)  # the cheap bounds first: no numerics for them
     try:
-        plan = plan_scene(scene, model)
+        plan = plan_scene(scene, model, timed=timed)
     except ApiProblem as exc:  # an rtol beyond the resolution policy's own cap
         if scene.get("elements") is not None or [e.get("field") for e in exc.errors] != ["rtol"]:
             raise
         plan = Plan("cosserat", None, "rtol", scene.get("rtol"))
-    if plan.field == "rtol" and (plan.elements is None
-                                 or plan.elements > settings.max_elements):
-        need = (f"needs {plan.elements} elements of the rod, more than" if plan.elements
-                else "needs more elements of the rod than")
-        raise invalid("rtol", plan.rtol, (
-            f"{need} the limit of {settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)"
-            + _rtol_hint(scene, settings.max_elements) + " or give elements"))
-    check_simulation(scene, model, settings, plan)
+    if plan.field == "rtol" and (plan.elements is None or plan.elements > settings.max_elements):
+        need = (
+            f"needs {plan.elements} elements of the rod, more than"
+            if plan.elements
+            else "needs more elements of the rod than"
+        )
+        raise invalid(
+            "rtol",
+            plan.rtol,
+            (
+                f"{need} the limit of {settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)"
+                + _rtol_hint(scene, settings.max_elements)
+                + " or give elements"
+            ),
+        )
+    if timed:
+        check_simulation(scene, model, settings, plan)
     return plan
 
 
@@ -238,8 +323,11 @@ def loads_bounded(text: str, field: str, max_depth: int) -> Any:
             depth += 1
             deepest = max(deepest, depth)
             if deepest > max_depth:
-                raise invalid(field, f"<nested over {max_depth} deep>",
-                              f"nests deeper than {max_depth} levels")
+                raise invalid(
+                    field,
+                    f"<nested over {max_depth} deep>",
+                    f"nests deeper than {max_depth} levels",
+                )
         elif ch in "]}":
             depth -= 1
     try:

@@ -108,11 +108,15 @@ class Settings(BaseSettings):
         default=500.0, gt=0, description="Longest simulated duration (time units)."
     )
     max_sim_work: float = Field(
-        default=10_000.0,
+        default=25_000_000.0,
         gt=0,
-        description="Largest duration x elements of a Cosserat-rod simulation, with the "
-        "elements given or chosen from rtol (its cost: time steps per unit time x elements; "
-        "the Euler beam and the normal form are not charged for elements).",
+        description="Largest work of a Cosserat-rod simulation in element-steps: its elements "
+        "(given or chosen from rtol) x the time steps it will run (sim.resolution.rod_cost: "
+        "the duration given or the default 40 fundamental periods, at ~3.6 / sqrt(rtol) steps "
+        "per period, or one per sample where dt is finer). About 0.4 us of one core per "
+        "element-step: the default is ~10 s (290 elements at the default rtol over ~44 time "
+        "units; the default duration is 12 000 steps). The Euler beam and the normal form are "
+        "not charged.",
     )
     max_active_jobs_per_owner: int = Field(
         default=16, ge=1, description="Queued + running jobs one owner may have (429 beyond)."

@@ -25,6 +25,12 @@ from typing import Any
 import numpy as np
 
 from sim.errors import ParameterError, SimulationError
+from sim.resolution import (
+    DEFAULT_PERIODS,
+    SAMPLES_PER_PERIOD,
+    rod_steps_per_period,
+    rod_time_grid,
+)
 from sim.scene import Scene, Signal, add_noise
 
 from . import _kernels as K
@@ -66,10 +72,24 @@ class Run:
 Probe = tuple[tuple[int, int], tuple[float, float]]
 
 
-def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float, dt: float,
-              nsteps: int, every: int = 1, probes: list[Probe] | None = None,
-              rho_inf: float = 0.8, tol: float = 1e-13, maxit: int = 12, full_its: int = 99,
-              fixed_extra: list[int] | None = None, retries: int = 3) -> Run:
+def integrate(
+    rod: Rod,
+    z0: np.ndarray,
+    v0: np.ndarray,
+    mu: float,
+    *,
+    xi: float,
+    dt: float,
+    nsteps: int,
+    every: int = 1,
+    probes: list[Probe] | None = None,
+    rho_inf: float = 0.8,
+    tol: float = 1e-13,
+    maxit: int = 12,
+    full_its: int = 99,
+    fixed_extra: list[int] | None = None,
+    retries: int = 3,
+) -> Run:
     """Integrate the rod from (z0, v0) at fixed mu.
 
     Parameters
@@ -132,10 +152,34 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
     stats = np.zeros(3)
     c0 = time.process_time()
     for attempt in range(retries + 1):
-        K.integrate(z, v, a, mass, fixed.astype(np.uint8), rod.n, rod.ds, rod.EA, rod.GA, 1.0,
-                    rod.k_clamp, rod.k_clamp, aL, aR, float(xi), float(dt), int(nsteps),
-                    int(every), pidx, pw, float(rho_inf), float(tol), int(maxit),
-                    int(full_its), rec, stats)
+        K.integrate(
+            z,
+            v,
+            a,
+            mass,
+            fixed.astype(np.uint8),
+            rod.n,
+            rod.ds,
+            rod.EA,
+            rod.GA,
+            1.0,
+            rod.k_clamp,
+            rod.k_clamp,
+            aL,
+            aR,
+            float(xi),
+            float(dt),
+            int(nsteps),
+            int(every),
+            pidx,
+            pw,
+            float(rho_inf),
+            float(tol),
+            int(maxit),
+            int(full_its),
+            rec,
+            stats,
+        )
         if not stats[2] or attempt == retries:
             break
         dt, nsteps, every = 0.5 * dt, 2 * nsteps, 2 * every
@@ -145,8 +189,17 @@ def integrate(rod: Rod, z0: np.ndarray, v0: np.ndarray, mu: float, *, xi: float,
     steps = int(stats[0])
     stop = "diverged" if stats[2] else "done"
     m = steps // every + 1
-    return Run(t=np.arange(m) * every * dt, rec=rec[:m], z=z, v=v, steps=steps,
-               newton_iterations=int(stats[1]), stop=stop, cpu_s=cpu, dt=dt)
+    return Run(
+        t=np.arange(m) * every * dt,
+        rec=rec[:m],
+        z=z,
+        v=v,
+        steps=steps,
+        newton_iterations=int(stats[1]),
+        stop=stop,
+        cpu_s=cpu,
+        dt=dt,
+    )
 
 
 def kick_velocity(rod: Rod, X: float, kick: float) -> np.ndarray:
@@ -165,19 +218,32 @@ def rod_for(scene: Scene, clamp: str = "node"):
     ``scene.rtol``."""
     from .api import make_rod
 
-    return make_rod(scene.actuation, end_shortening=scene.end_shortening,
-                    slenderness=scene.slenderness, elements=scene.elements, rtol=scene.rtol,
-                    poisson=scene.poisson, clamp=clamp)
+    return make_rod(
+        scene.actuation,
+        end_shortening=scene.end_shortening,
+        slenderness=scene.slenderness,
+        elements=scene.elements,
+        rtol=scene.rtol,
+        poisson=scene.poisson,
+        clamp=clamp,
+    )
 
 
 def steps_for(rtol: float) -> int:
     """Time steps per fundamental period for a relative frequency error (omega dt)^2 / 12
-    below rtol / 4 (at least 50)."""
-    return max(50, math.ceil(2.0 * math.pi / math.sqrt(3.0 * rtol)))
+    below rtol / 4 (at least 50): ``sim.resolution.rod_steps_per_period``."""
+    return rod_steps_per_period(rtol)
 
 
-def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: float = 40.0,
-             samples_per_period: int = 50, rho_inf: float = 0.8, clamp: str = "node") -> Signal:
+def simulate(
+    scene: Scene,
+    *,
+    steps_per_period: int | None = None,
+    periods: float = DEFAULT_PERIODS,
+    samples_per_period: int = SAMPLES_PER_PERIOD,
+    rho_inf: float = 0.8,
+    clamp: str = "node",
+) -> Signal:
     """The paper's impulse-response protocol on the discrete Cosserat rod.
 
     The rod is brought to end-to-end distance L - dL on ``scene.branch`` (U_A: buckled to
@@ -226,17 +292,31 @@ def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: floa
     k_mid = 3 * (rod.n // 2) + 1
     if lam <= 0.0:
         raise SimulationError(
-            "mu", scene.mu, f"the {scene.branch} equilibrium of the rod ({rod.n} elements) at "
+            "mu",
+            scene.mu,
+            f"the {scene.branch} equilibrium of the rod ({rod.n} elements) at "
             f"mu={scene.mu!r} is unstable (smallest Hessian eigenvalue {lam:.3e}): past its "
-            "transition, the strip would snap (see `snapwarn bifurcation --model cosserat`)")
-    if (scene.actuation == "antisymmetric" and scene.branch in ("U_A", "U_B")
-            and abs(z_eq[k_mid]) < 1e-9 * math.sqrt(rod.end_shortening)):
+            "transition, the strip would snap (see `snapwarn bifurcation --model cosserat`)",
+        )
+    if (
+        scene.actuation == "antisymmetric"
+        and scene.branch in ("U_A", "U_B")
+        and abs(z_eq[k_mid]) < 1e-9 * math.sqrt(rod.end_shortening)
+    ):
         raise SimulationError(
-            "mu", scene.mu, f"{scene.branch} does not exist at mu={scene.mu!r}: past the rod's "
-            f"supercritical pitchfork ({rod.n} elements) it has merged with S_B")
-    half = Rod(elements=max(4, 2 * (rod.n // 4)), end_shortening=rod.end_shortening,
-               slenderness=rod.slenderness, actuation=rod.actuation, clamp=clamp,
-               poisson=rod.poisson)
+            "mu",
+            scene.mu,
+            f"{scene.branch} does not exist at mu={scene.mu!r}: past the rod's "
+            f"supercritical pitchfork ({rod.n} elements) it has merged with S_B",
+        )
+    half = Rod(
+        elements=max(4, 2 * (rod.n // 4)),
+        end_shortening=rod.end_shortening,
+        slenderness=rod.slenderness,
+        actuation=rod.actuation,
+        clamp=clamp,
+        poisson=rod.poisson,
+    )
     try:
         s2_half = S.sigma2(half, S.branch_state(half, scene.mu, scene.branch), 1)[0][0]
         s2_err = abs(s2[0] - s2_half) / (2.0 ** (2 if clamp == "node" else 1) - 1.0)
@@ -247,17 +327,31 @@ def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: floa
         steps_per_period = steps_for(scene.rtol)
     omega1 = math.sqrt(abs(s2[0]))
     period = 2.0 * math.pi / omega1
-    sample_dt = scene.dt if scene.dt is not None else period / samples_per_period
-    duration = scene.duration if scene.duration is not None else periods * period
-    every = max(1, int(math.ceil(sample_dt / (period / steps_per_period))))
-    dt = sample_dt / every
-    n_samples = int(math.floor(duration / sample_dt + 1e-9))
+    grid = rod_time_grid(
+        period,
+        scene.rtol,
+        scene.duration,
+        scene.dt,  # its cost: rod_cost
+        steps_per_period=steps_per_period,
+        periods=periods,
+        samples_per_period=samples_per_period,
+    )
+    every, dt, n_samples = grid.every, grid.dt, grid.samples
     v0 = kick_velocity(rod, scene.kick_position, scene.kick)
     probe = rod.interp_weights(scene.probe)
     r = math.sqrt(rod.end_shortening)
-    run = integrate(rod, z_eq, v0, scene.mu, xi=scene.damping, dt=dt,
-                    nsteps=n_samples * every, every=every,
-                    probes=[(probe[0], (probe[1][0] / r, probe[1][1] / r))], rho_inf=rho_inf)
+    run = integrate(
+        rod,
+        z_eq,
+        v0,
+        scene.mu,
+        xi=scene.damping,
+        dt=dt,
+        nsteps=n_samples * every,
+        every=every,
+        probes=[(probe[0], (probe[1][0] / r, probe[1][1] / r))],
+        rho_inf=rho_inf,
+    )
     w_static = rod.w_at(z_eq, scene.probe)
     w = add_noise(run.rec[:, 0].copy(), w_static, scene.snr_db, scene.seed)
     info: dict[str, Any] = {
@@ -278,10 +372,12 @@ def simulate(scene: Scene, *, steps_per_period: int | None = None, periods: floa
         "time_error": (2.0 * math.pi / steps_per_period) ** 2 / 12.0,
     }
     if run.stop != "done":
-        warnings.warn(f"time stepping stopped early ({run.stop}) at step {run.steps}",
-                      CosseratWarning, stacklevel=2)
-    return Signal(t=run.t, w=w, w_static=float(w_static), model="cosserat", scene=scene,
-                  info=info)
+        warnings.warn(
+            f"time stepping stopped early ({run.stop}) at step {run.steps}",
+            CosseratWarning,
+            stacklevel=2,
+        )
+    return Signal(t=run.t, w=w, w_static=float(w_static), model="cosserat", scene=scene, info=info)
 
 
 @dataclass(frozen=True)
@@ -313,9 +409,17 @@ class SnapThrough:
     info: dict = field(default_factory=dict)
 
 
-def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float = 1e-3,
-                 elements: int = 50, damping: float = 6e-4, duration: float = 5.0,
-                 dt: float = 1e-3, mu_star: float | None = None) -> SnapThrough:
+def snap_through(
+    dmu: float,
+    *,
+    end_shortening: float = 1e-2,
+    slenderness: float = 1e-3,
+    elements: int = 50,
+    damping: float = 6e-4,
+    duration: float = 5.0,
+    dt: float = 1e-3,
+    mu_star: float | None = None,
+) -> SnapThrough:
     """The paper's released-indenter experiment, asymmetric actuation.
 
     Start from the rod's equilibrium at its fold mu*; hold the midpoint's transverse position
@@ -338,8 +442,12 @@ def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float
 
     if not (dmu > 0 and math.isfinite(dmu)):
         raise ParameterError("dmu", dmu, f"dmu must be > 0, got {dmu!r}")
-    rod = Rod(elements=elements, end_shortening=end_shortening, slenderness=slenderness,
-              actuation="asymmetric")
+    rod = Rod(
+        elements=elements,
+        end_shortening=end_shortening,
+        slenderness=slenderness,
+        actuation="asymmetric",
+    )
     ms = find_bifurcation(rod).mu_star if mu_star is None else float(mu_star)
     k = 3 * (rod.n // 2) + 1
     z = S.branch_state(rod, ms - 1e-6)  # U_A at the fold (to 1e-6)
@@ -348,22 +456,32 @@ def snap_through(dmu: float, *, end_shortening: float = 1e-2, slenderness: float
     zB = S.branch_state(rod, ms + dmu, "U_B")
     nsteps = int(round(duration / dt))
     r = math.sqrt(end_shortening)
-    probes = [((k, k), (1.0 / r, 0.0)), (rod.interp_weights(0.25)[0],
-                                         tuple(w / r for w in rod.interp_weights(0.25)[1]))]
-    run = integrate(rod, z, np.zeros(rod.N), ms + dmu, xi=damping, dt=dt, nsteps=nsteps,
-                    probes=probes)
+    probes = [
+        ((k, k), (1.0 / r, 0.0)),
+        (rod.interp_weights(0.25)[0], tuple(w / r for w in rod.interp_weights(0.25)[1])),
+    ]
+    run = integrate(
+        rod, z, np.zeros(rod.N), ms + dmu, xi=damping, dt=dt, nsteps=nsteps, probes=probes
+    )
     w_mid = run.rec[:, 0]
     wf = float(zB[k] / r)
     hit = np.flatnonzero(w_mid >= wf)
     t_snap = float(run.t[hit[0]]) if hit.size else None
-    return SnapThrough(mu_star=ms, mu=ms + dmu, t=run.t, w_mid=w_mid, w_probe=run.rec[:, 1],
-                       w_mid_final=wf, t_snap=t_snap,
-                       info={"stop": run.stop, "cpu_s": run.cpu_s, "steps": run.steps,
-                             "dt": run.dt})
+    return SnapThrough(
+        mu_star=ms,
+        mu=ms + dmu,
+        t=run.t,
+        w_mid=w_mid,
+        w_probe=run.rec[:, 1],
+        w_mid_final=wf,
+        t_snap=t_snap,
+        info={"stop": run.stop, "cpu_s": run.cpu_s, "steps": run.steps, "dt": run.dt},
+    )
 
 
-def _pinned_follow(rod: Rod, z: np.ndarray, mu0: float, mu1: float, k: int,
-                   steps: int = 20) -> np.ndarray:
+def _pinned_follow(
+    rod: Rod, z: np.ndarray, mu0: float, mu1: float, k: int, steps: int = 20
+) -> np.ndarray:
     """Equilibria with dof k held (the indenter) from mu0 to mu1 (mu given, dof k's reaction
     free): Newton on the free dofs other than k."""
     hold = z[k]

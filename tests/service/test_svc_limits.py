@@ -149,6 +149,10 @@ async def test_budgets_are_checked_at_the_door(runner_app) -> None:  # noqa: ANN
         ({"elements": 10_000_000}, "elements"),
         ({"elements": 1000}, "elements"),
         ({"model": "normal-form", "duration": 10, "dt": 1e-9}, "dt"),
+        # the rod's time steps are charged: a tiny rtol (steps per period ~ rtol^-1/2) ...
+        ({"model": "cosserat", "mu": 0.5, "duration": 1.0, "elements": 40, "rtol": 1e-9}, "rtol"),
+        # ... and the default duration (40 periods) when none is given
+        ({"model": "cosserat", "mu": 0.5, "elements": 400, "rtol": 1e-6}, "rtol"),
     ]
     for doc, field in cases:
         t0 = time.perf_counter()
@@ -156,6 +160,97 @@ async def test_budgets_are_checked_at_the_door(runner_app) -> None:  # noqa: ANN
         assert r.status_code == 422, (doc, r.text)
         assert r.json()["errors"][0]["field"] == field, (doc, r.json())
         assert time.perf_counter() - t0 < 2.0
+
+
+def _refused(scene: dict, settings: object, model: str = "cosserat") -> dict:
+    """The one error of the 422 ``check_scene`` raises (field, value, message)."""
+    from service.api import limits
+    from service.api.problems import ApiProblem
+
+    with pytest.raises(ApiProblem) as err:
+        limits.check_scene(scene, model, settings)
+    assert err.value.status == 422, err.value.detail
+    assert "SNAPWARN_MAX_SIM_WORK" in err.value.detail, err.value.detail
+    return err.value.errors[0]
+
+
+def test_a_rod_run_without_duration_is_charged_its_default_duration() -> None:
+    """No duration: the rod runs 40 fundamental periods (sim.cosserat.dynamics.simulate),
+    12 000 steps at the default rtol; they are charged as a given duration's would be."""
+    from service.api import Settings, limits
+
+    small = Settings(max_sim_work=1e6)
+    scene = {"mu": 0.5, "elements": 100}  # 100 x 12 000 = 1.2e6 element-steps
+    err = _refused(scene, small)
+    assert err["field"] == "duration" and err["value"] is None, err
+    assert "default" in err["message"] and "elements=100" in err["message"], err
+    plan = limits.check_scene(scene, "cosserat", Settings(max_sim_work=1.2e6))  # just fits
+    assert plan.steps == 12_000 and plan.elements * plan.steps == 1_200_000
+    limits.check_scene({**scene, "duration": 2.0}, "cosserat", small)  # ~390 steps/unit time
+
+
+def test_a_snap_is_not_charged_as_a_simulation() -> None:
+    """A snap runs its own 4000 steps (sim.snap), whatever the scene's rtol or duration: the
+    door that refuses the same scene as a 40-period simulation over the budget lets it pass
+    as a snap, rtol far below the default included (the rod's elements are what bound it)."""
+    from service.api import Settings, limits
+
+    small = Settings(max_sim_work=1e6)
+    scene = {"mu": 0.5, "elements": 100}
+    assert _refused(scene, small)["field"] == "duration"
+    plan = limits.check_scene(scene, "cosserat", small, timed=False)
+    assert plan.elements == 100 and plan.steps is None
+    limits.check_scene({**scene, "rtol": 1e-9}, "cosserat", small, timed=False)
+
+
+def test_a_tiny_rtol_is_charged_for_its_time_steps() -> None:
+    """Steps per period grow as rtol^-1/2 (the time-stepping error (omega dt)^2 / 12 <= rtol/4),
+    whatever the elements: 40 elements over 1 time unit at rtol=1e-9 is ~7.5e5 steps."""
+    from service.api import Settings, limits
+
+    settings = Settings()
+    scene = {"mu": 0.5, "duration": 1.0, "elements": 40}
+    fine = limits.check_scene(scene, "cosserat", settings)
+    err = _refused({**scene, "rtol": 1e-9}, settings)
+    assert err["field"] == "rtol" and err["value"] == 1e-9, err
+    assert err["message"].startswith("rtol: 1e-09 asks for at least 114715 steps per"), err
+    tiny = limits.plan_scene({**scene, "rtol": 1e-9}, "cosserat")
+    assert tiny.elements == fine.elements == 40 and tiny.steps > 300 * fine.steps
+
+
+def test_a_sampling_step_finer_than_the_rods_is_charged_at_once() -> None:
+    """dt below the rod's own step sets the steps (one per sample): refused from the request
+    alone (no numerics), naming dt."""
+    from service.api import Settings, limits
+    from service.api.problems import ApiProblem
+
+    scene = {"mu": 0.5, "duration": 400.0, "dt": 1e-4, "elements": 400}  # 4e6 x 400
+    with pytest.raises(ApiProblem) as err:
+        limits.check_simulation(scene, "cosserat", Settings())
+    assert err.value.errors[0]["field"] == "dt" and "SNAPWARN_MAX_SIM_WORK" in err.value.detail
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        {"mu": 0.5, "elements": 16, "duration": 0.5},
+        {"mu": 0.5, "elements": 16},  # the default duration and sampling
+        {"mu": 0.5, "elements": 16, "duration": 0.3, "dt": 1e-4},  # dt sets the step
+        {"mu": 0.5, "elements": 16, "dt": 0.011},  # the default duration, a given dt
+        {"mu": 1.0, "elements": 20, "duration": 0.4, "rtol": 1e-5},
+        {"mu": 0.5, "branch": "U_B", "elements": 16, "duration": 0.2, "rtol": 3e-3},
+        {"mu": 0.3, "actuation": "symmetric", "duration": 0.2, "rtol": 5e-3},  # elements: rtol
+    ],
+)
+def test_the_charge_is_what_the_rod_runs(scene: dict) -> None:
+    """The door's elements x steps are the run's own (``info["steps"]``, ``elements``)."""
+    import sim
+    from service.api import limits
+
+    plan = limits.plan_scene(scene, "cosserat")
+    out = sim.simulate(sim.Scene(**scene), model="cosserat")
+    assert out.info["stop"] == "done"
+    assert (plan.elements, plan.steps) == (out.info["elements"], out.info["steps"]), scene
 
 
 def test_restarts_do_not_rerun_limited_or_cancelled_jobs(tmp_path) -> None:  # noqa: ANN001

@@ -10,7 +10,8 @@ The strip, damping and resolution are checked at the door exactly as a simulatio
 SNAPWARN_MAX_ELEMENTS whether given or chosen from rtol) and the duration against
 SNAPWARN_MAX_SIM_DURATION. A snap's record is a fixed number of steps (``sim.snap``: dt =
 duration / 4000), so its cost is elements x 4000 steps whatever the duration: the elements
-bound bounds it (below a simulation's budget, duration x elements <= SNAPWARN_MAX_SIM_WORK).
+bound bounds it, and a simulation's budget (elements x time steps <= SNAPWARN_MAX_SIM_WORK)
+is not charged (``check_scene(timed=False)``).
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def scene_of(params: dict[str, Any]) -> dict[str, Any]:
 def check_snap(params: dict[str, Any], settings: Any) -> None:
     """The door's checks of a snap (blocking: numerics for the rod's elements; see the module
     docstring): 422 naming the field and the value."""
-    limits.check_scene(scene_of(params), params["model"], settings)
+    limits.check_scene(scene_of(params), params["model"], settings, timed=False)
     limits.check_simulation({"duration": params.get("duration")}, params["model"], settings)
 
 
