@@ -126,25 +126,20 @@ def _predict(args: argparse.Namespace) -> int:
     kw: dict[str, Any] = {}
     col = {c: table.find(c) for c in ("sigma2", "sigma2_std", "omega", "omega_std",
                                       "w_static", "w_static_std")}  # fmt: skip
-    # both columns go to the numerics, which use sigma2 once omega agrees with it (else they
-    # name omega and the worst row)
-    if col["sigma2"]:
-        kw["sigma2"] = _floats(table, col["sigma2"], "SWEEP", args.file)
-        if col["sigma2_std"]:
-            kw["sigma2_std"] = _floats(table, col["sigma2_std"], "SWEEP", args.file)
-    if col["omega"]:
-        kw["omega"] = _rate_column(table, col["omega"], "SWEEP", args.file)
-        if col["omega_std"]:
-            kw["omega_std"] = _rate_column(
-                table, col["omega_std"], "SWEEP", args.file, like=col["omega"]
-            )
+    # every column found goes to the numerics, as over HTTP: they use sigma2 once omega agrees
+    # with it (else they name omega and the worst row), and refuse a std without its column
     if not (col["sigma2"] or col["omega"]):
         raise bad("SWEEP", args.file, f"needs a column 'sigma2' or 'omega' (columns found: "
                   f"{table.names})")  # fmt: skip
-    if col["w_static"]:
-        kw["w_static"] = _floats(table, col["w_static"], "SWEEP", args.file)
-        if col["w_static_std"]:
-            kw["w_static_std"] = _floats(table, col["w_static_std"], "SWEEP", args.file)
+    for name in ("sigma2", "sigma2_std", "w_static", "w_static_std"):
+        if col[name]:
+            kw[name] = _floats(table, col[name], "SWEEP", args.file)
+    if col["omega"]:
+        kw["omega"] = _rate_column(table, col["omega"], "SWEEP", args.file)
+    if col["omega_std"]:
+        kw["omega_std"] = _rate_column(
+            table, col["omega_std"], "SWEEP", args.file, like=col["omega"]
+        )
     if args.damping is not None:
         kw["damping"] = args.damping
     if args.transition:

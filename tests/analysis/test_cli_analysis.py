@@ -66,6 +66,25 @@ def test_predict_rejects_bad_tables(tmp_path, capsys) -> None:
     assert "sigma2" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("header", "field"),
+    [("mu,sigma2,omega_std", "omega_std"), ("mu,omega,sigma2_std", "sigma2_std"),
+     ("mu,sigma2,w_static_std", "w_static_std")],
+)
+def test_predict_refuses_a_std_column_without_its_column(
+    tmp_path, capsys, header: str, field: str
+) -> None:
+    """A std column whose quantity is absent is refused naming it, as over HTTP (it was
+    dropped without a word)."""
+    p = tmp_path / "t.csv"
+    rows = [f"{1 - x},{-x if 'sigma2,' in header else x**0.5},0.01" for x in
+            np.geomspace(1, 1e-3, 10)]  # fmt: skip
+    p.write_text(header + "\n" + "\n".join(rows) + "\n")
+    assert main(["predict", str(p), "--json"]) == 2
+    problem = json.loads(capsys.readouterr().out)  # --json: the problem document on stdout
+    assert problem["field"] == field, problem
+
+
 def test_detect_rejects_a_missing_file(capsys) -> None:
     assert main(["detect", "/nonexistent/rec.csv", "--json"]) == 2
     err = capsys.readouterr().err
