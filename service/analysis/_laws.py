@@ -160,12 +160,27 @@ def _sigma_bound(sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool) ->
     return -math.inf
 
 
+def _sigma_floor(
+    sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool, scale: float, joint: bool
+) -> float:
+    """Lower bound of the eigenvalue law's -2 log L inside a joint fit with the static law:
+    the eigenvalue law's own minimum over mu* (the joint -2 log L is the sum of the two at
+    one mu*), searched only where a joint fit follows (usually a hit of the window
+    selection's memo); never below :func:`_sigma_bound`."""
+    lb = _sigma_bound(sw, idx, a, h, K, cf)
+    if joint:
+        comp = _sigma_comp(sw, idx, 2 * a, h, K, cf)
+        lb = max(lb, _profile(sw.mu[idx], [comp], float(scale), with_interval=False).nll)
+    return lb
+
+
 def _w_bound(b: float, Kw: int, wc: _Comp) -> float:
-    """Lower bound of -2 log L of the static law over every mu*: with its noise known, 0, or
-    for b = 1 (a polynomial of degree Kw in mu) the best polynomial's chi^2; -inf otherwise."""
-    if not wc.known or wc.conformal:
+    """Lower bound of -2 log L of the static law over every mu*: with its noise known, 0 (a
+    chi^2), or for the plain b = 1 law (a polynomial of degree Kw in mu) the best polynomial's
+    chi^2; -inf with the noise estimated (a log-likelihood of any sign)."""
+    if not wc.known:
         return -math.inf
-    if b == 1.0:
+    if b == 1.0 and not wc.conformal:
         assert wc.mu is not None  # the static law's own window
         return _polynomial_bound(wc.mu, wc.y, wc.wt, Kw)
     return 0.0
@@ -188,11 +203,12 @@ def _fit_candidate(
     idx = slice(N - n, N)
     n_w = n if n_w is None else n_w
     idx_w = slice(N - n_w, N)
-    best: ModelFit | None = None
-    best_crit = best_pen = math.inf
     kw_range = [0]
     if sw.w is not None and b is not None:
         kw_range = [kw for kw in range(1, _KW_MAX + 1) if n_w - kw - 1 >= 2] or [0]
+    # (K, variant, Kw) with a lower bound of -2 log L, tried from the lowest bound up: a
+    # term count whose bound cannot beat the best criterion found is never searched (exact)
+    combos = []
     for K in range(_KMAX + 1):
         # a secondary fold beyond mu* belongs to a branch that continues past mu*: the trivial
         # branch of a subcritical pitchfork, never the side branch of a supercritical one
@@ -201,33 +217,39 @@ def _fit_candidate(
         for cf in cfs:
             if n - K - 2 - int(cf) < 1:
                 break
-            lb_s = _sigma_bound(sw, idx, a, h, K, cf) if best is not None else -math.inf
+            lb_s = _sigma_floor(sw, idx, a, h, K, cf, scale, joint=kw_range != [0])
             for Kw in kw_range:
-                comps = [_sigma_comp(sw, idx, 2 * a, h, K, cf)]
-                bic_pen = (K + 2 + int(cf)) * math.log(n)
+                lb = lb_s
                 if Kw:
-                    wc = _w_comp(sw, idx_w, float(b), Kw, cf)
-                    assert wc is not None
-                    comps.append(wc)
-                    bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
-                k_all = K + 2 + int(cf) + (Kw + 1 if Kw else 0)
-                m_all = n + (n_w if Kw else 0)
-                if best is not None:
-                    lb = lb_s + (_w_bound(float(b), Kw, comps[-1]) if Kw else 0.0)
-                    if _crit(lb, lb + bic_pen, k_all, m_all) >= best_crit:
-                        continue  # no mu* makes this law beat the best (an exact lower bound)
-                # the full search: the terms are chosen on these values, and a screening
-                # search misses the narrow valley of precise data with enough corrections
-                # (measured: a beam plan at 1.5e-5 noise chose 2 corrections and mu* 5.7 away)
-                nll = _profile(sw.mu[idx], comps, scale, with_interval=False).nll
-                bic = nll + bic_pen
-                crit = _crit(nll, bic, k_all, m_all)
-                if best is None or crit < best_crit:
-                    best_crit, best_pen = crit, bic_pen
-                    best = ModelFit(
-                        name, a, b if b is not None else math.nan, h, n, K, Kw, bic, _NO_PROFILE,
-                        n_w, cf,
-                    )  # fmt: skip
+                    lb += _w_bound(float(b), Kw, _w_comp(sw, idx_w, float(b), Kw, cf))
+                combos.append((lb, K, cf, Kw))
+    best: ModelFit | None = None
+    best_crit = best_pen = math.inf
+    key: tuple[int, bool, int] = (0, False, 0)
+    for lb, K, cf, Kw in sorted(combos, key=lambda c: c[0]):
+        comps = [_sigma_comp(sw, idx, 2 * a, h, K, cf)]
+        bic_pen = (K + 2 + int(cf)) * math.log(n)
+        if Kw:
+            wc = _w_comp(sw, idx_w, float(b), Kw, cf)
+            assert wc is not None
+            comps.append(wc)
+            bic_pen += (Kw + 1 + (0 if wc.known else 1)) * math.log(n_w)
+        k_all = K + 2 + int(cf) + (Kw + 1 if Kw else 0)
+        m_all = n + (n_w if Kw else 0)
+        if best is not None and _crit(lb, lb + bic_pen, k_all, m_all) >= best_crit:
+            continue  # no mu* makes this law beat the best (an exact lower bound)
+        # the full search: the terms are chosen on these values, and a screening
+        # search misses the narrow valley of precise data with enough corrections
+        # (measured: a beam plan at 1.5e-5 noise chose 2 corrections and mu* 5.7 away)
+        nll = _profile(sw.mu[idx], comps, scale, with_interval=False).nll
+        bic = nll + bic_pen
+        crit = _crit(nll, bic, k_all, m_all)
+        if best is None or crit < best_crit or (crit == best_crit and (K, cf, Kw) < key):
+            best_crit, best_pen, key = crit, bic_pen, (K, cf, Kw)
+            best = ModelFit(
+                name, a, b if b is not None else math.nan, h, n, K, Kw, bic, _NO_PROFILE,
+                n_w, cf,
+            )  # fmt: skip
     assert best is not None
     comps = [_sigma_comp(sw, idx, 2 * a, h, best.K, best.conformal)]
     if best.Kw:

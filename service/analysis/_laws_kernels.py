@@ -278,16 +278,28 @@ def _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0):
 @njit(cache=True, error_model="numpy")
 def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
     """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
+    v, u, _ = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, -1)
+    return v, u
+
+
+@njit(cache=True, error_model="numpy")
+def _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, j0):
+    """:func:`_profile_u`, the ``logu`` grid searched from index ``j0`` by descent (the best
+    grid point of a nearby mu*: a minimisation's or root finder's successive steps) instead
+    of whole (``j0 < 0``). Returns ``(value, u, j)``, ``j`` the best grid index (-1: none)."""
     x_last = max(ms - mu_last, 1e-300)
     best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     best_u = 0.0
-    fb, jb = _scan_u(ms, D, E, M, x_last, logu, WK, RK)
+    if 0 <= j0 < logu.size:
+        fb, jb = _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0)
+    else:
+        fb, jb = _scan_u(ms, D, E, M, x_last, logu, WK, RK)
     if jb < 0:
-        return best, best_u
+        return best, best_u, jb
     if not refine:
         if fb < best:
-            return fb, math.exp(logu[jb])
-        return best, best_u
+            return fb, math.exp(logu[jb]), jb
+        return best, best_u, jb
     G = logu.size
     a = logu[jb - 1] if jb > 0 else logu[0]
     c = logu[jb + 1] if jb < G - 1 else logu[G - 1]
@@ -295,7 +307,7 @@ def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
     if fxb < best:
         best = fxb
         best_u = math.exp(xb)
-    return best, best_u
+    return best, best_u, jb
 
 
 @njit(cache=True, error_model="numpy")

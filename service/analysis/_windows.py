@@ -39,6 +39,8 @@ CANDIDATES: dict[str, tuple[float, float, float]] = {
 _KMAX = 3  # most correction terms in the sigma^2 law
 _KW_MAX = 3  # most terms beyond the constant in the static law
 _ALPHA = 0.05  # goodness-of-fit level for accepting a window
+_NESTED_K = 0  # corrections up to which a smaller window's misfit bounds a larger one's
+
 
 def _window_sizes(n: int) -> list[int]:
     if n <= 40:
@@ -80,6 +82,7 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
     misses = 0
     t_prev: float | None = None  # log(mu* - mu_last) of the last fit (continuation)
     last = float(sw.mu[-1])
+    floor: dict[tuple[int, bool], float] = {}  # (K, variant) -> a lower bound of -2 log L
     for n in _window_sizes(N):
         idx = slice(N - n, N)
         ok = False
@@ -89,6 +92,16 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
                 if dof < 1:
                     break
                 crit = _chi2_isf(_ALPHA, dof)
+                # a window holds every smaller one's points (and the same nearest point, so
+                # the same fold parameter u means the same delta): at every mu* and u its
+                # least-squares misfit is at least theirs, and with K = 0 (no correction to
+                # constrain) -2 log L is that misfit. A smaller window's minimum is thus a
+                # lower bound here; one failing the test, and no better fallback, is a failure
+                # known without a search (on a long sweep, most of the K = 0 searches)
+                lb = floor.get((K, cf), -math.inf)
+                pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
+                if pv_lb < _ALPHA and fallback is not None and pv_lb <= fallback.pvalue:
+                    continue
                 comp = _sigma_comp(sw, idx, p, h, K, cf)
                 # screening: a cheap search accepts a window that passes at its best point (an
                 # upper bound of the minimum); the full search decides the rest (a screening
@@ -97,6 +110,8 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
                 if nll > crit:
                     prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
                     nll, t_prev = prof.nll, math.log(max(prof.mu_star - last, 1e-300))
+                if K <= _NESTED_K and nll > crit:
+                    floor[(K, cf)] = nll  # the full search's minimum (after a failed screen)
                 pv = _chi2_sf(nll, dof)
                 if fallback is None or pv > fallback.pvalue:
                     fallback = _Sel(n, K, False, pv, cf)

@@ -133,3 +133,28 @@ def test_continued_exponent_profile_matches_the_full_one() -> None:
     )
     assert e_cont == pytest.approx(res.x, abs=max(1e-3, 0.05 * se_cont))
     assert se_cont > 0 and math.isfinite(se_cont)
+
+
+def test_a_valley_narrower_than_the_grid_is_found() -> None:
+    """A lab plan on the Euler beam (antisymmetric, steps of 0.0905 ending 0.0287 before mu*,
+    4.8e-5 noise): on its nearest 8 points the plain pitchfork law with 2 corrections has a
+    valley 0.01 wide in log(mu* - mu_last), 0.04 from the nearest two-point seed, whose grid
+    points stand above a far, shallow basin's lowest point (2513 at 5.7). Reference: the
+    kernel at 200,001 values of mu*. Refining the scan's three lowest local minima finds the
+    valley (refining only the lowest point, the search's former behaviour, fails this test)."""
+    from service.analysis._laws_kernels import nll_fixed_u
+    from sim.euler_beam import bifurcation, spectrum
+
+    b = bifurcation("antisymmetric")
+    last = b.mu_star - 0.02874122717284692
+    mu = last - 0.09054011581051227 * np.arange(int(last / 0.09054011581051227) + 1)[::-1]
+    s2 = np.array([spectrum("antisymmetric", m, "U_A", modes=1).sigma2[0] for m in mu])
+    rng = np.random.default_rng(821606719)
+    y = -(s2 + 4.8409304745018225e-05 * np.abs(s2) * rng.standard_normal(mu.size))
+    sd = 4.8409304745018225e-05 * np.abs(s2)
+    m8, comps = mu[-8:], [_Comp(y[-8:], 1.0 / sd[-8:], _sigma_exps(1.0, 1.0, 2), True, True)]
+    ms = m8[-1] + np.geomspace(1e-6, 1.0, 200_001)
+    dense = nll_fixed_u(ms, 0.0, *_pack(m8, comps), float(m8[-1]))
+    got = _profile(m8, comps, float(mu[-1] - mu[0]), with_interval=False)
+    assert got.nll <= float(dense.min()) + 1e-6
+    assert got.mu_star == pytest.approx(float(ms[dense.argmin()]), abs=1e-5)

@@ -1,4 +1,9 @@
-"""The term choice's shortcut: the polynomial lower bound of a plain pitchfork law.
+"""The engine's exact shortcuts: lower bounds that skip searches without changing a result.
+
+* the term choice: the polynomial lower bound of a plain pitchfork law, the eigenvalue law's
+  own minimum inside a joint fit with the static law, and 0 for a static law's chi^2;
+* the window choice: a smaller window's minimum bounds a larger one's (K = 0);
+* the free exponent: the walk along the exponent grid stops where the profile has risen far.
 
 Reference: the law's -2 log L evaluated by the kernels at every mu* of a fine grid (and the
 profile search's minimum): the bound must lie below all of them, and close to them when the
@@ -69,9 +74,101 @@ def test_term_choice_with_bounds_equals_the_exhaustive_choice(
                            mu.size), w_static_std=1e-6)  # fmt: skip
     _, fast, n_fast, _ = _laws.analyse(sw)
     monkeypatch.setattr(_laws, "_sigma_bound", lambda *a, **k: -np.inf)
+    monkeypatch.setattr(_laws, "_sigma_floor", lambda *a, **k: -np.inf)
     monkeypatch.setattr(_laws, "_w_bound", lambda *a, **k: -np.inf)
     _, full, n_full, _ = _laws.analyse(sw)
     assert n_fast == n_full
     for f, g in zip(fast, full, strict=True):
         assert (f.name, f.n, f.K, f.Kw, f.conformal) == (g.name, g.n, g.K, g.Kw, g.conformal)
         assert f.profile == g.profile and f.weight == g.weight
+
+
+def _beam_sweep(
+    act: str, n: int, rel: float, seed: int, with_w: bool = True, step: float = 0.05,
+    stop: float = 0.004,
+):
+    """A lab's fixed grid on the Euler beam: ``n`` points ``step`` apart (those >= 0), the last
+    ``stop`` before mu*, relative noise ``rel``."""
+    from service.analysis._sweep import prepare_sweep
+    from sim.euler_beam import bifurcation, equilibrium, spectrum
+
+    b = bifurcation(act)
+    mu = b.mu_star - stop - step * np.arange(n)[::-1]
+    mu = mu[mu >= 0]
+    n = mu.size
+    s2 = np.array([spectrum(act, m, "U_A", modes=1).sigma2[0] for m in mu])
+    rng = np.random.default_rng(seed)
+    kw = {}
+    if with_w:
+        w = np.array([equilibrium(act, m, "U_A").w_quarter for m in mu])
+        kw = {"w_static": w + 1e-6 * rng.standard_normal(n), "w_static_std": 1e-6}
+    return prepare_sweep(mu, s2 + rel * np.abs(s2) * rng.standard_normal(n),
+                         sigma2_std=rel * np.abs(s2), **kw)  # fmt: skip
+
+
+# lab plans of random step, stop and noise (the last four: plans where a bound for K >= 1,
+# whose law the correction constraint penalises, would have changed the window or terms)
+_PLANS = [
+    ("asymmetric", 0.05, 0.004, 1e-5, 3), ("symmetric", 0.05, 0.004, 1e-3, 3),
+    ("antisymmetric", 0.05, 0.004, 1e-5, 3),
+    ("antisymmetric", 0.05954623782252959, 0.029242560538343027, 6.473327501069738e-05,
+     759638830),
+    ("antisymmetric", 0.07982604057802213, 0.08693319460156938, 2.9585556200338437e-05,
+     475832016),
+    ("antisymmetric", 0.0922992223637698, 0.019235214558500538, 0.00013171923147033146,
+     259384561),
+    ("antisymmetric", 0.049583488199848716, 0.0010427637512936702, 2.5218566137230806e-05,
+     314184469),
+]
+
+
+@pytest.mark.parametrize(("act", "step", "stop", "rel", "seed"), _PLANS)
+def test_window_choice_with_the_nested_bound_equals_the_full_scan(
+    act: str, step: float, stop: float, rel: float, seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The informative window and terms of both selection laws are the same whether a smaller
+    window's minimum skips the searches it rules out or every search is run."""
+    from service.analysis import _windows
+    from service.analysis._likelihood import profile_memo
+
+    sw = _beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)
+    scale = float(sw.mu[-1] - sw.mu[0])
+    calls = {"n": 0}
+    real = _windows._profile
+
+    def counted(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(_windows, "_profile", counted)
+    out = {}
+    for nested in (0, -1):
+        monkeypatch.setattr(_windows, "_NESTED_K", nested)
+        calls["n"] = 0
+        with profile_memo():
+            out[nested] = ([_windows._select_window(sw, p, h, scale) for p, h in
+                            ((0.5, 0.5), (1.0, 1.0))], calls["n"])  # fmt: skip
+    (fast, n_fast), (full, n_full) = out[0], out[-1]
+    for f, g in zip(fast, full, strict=True):
+        assert (f.n, f.K, f.accepted, f.conformal) == (g.n, g.K, g.accepted, g.conformal)
+    assert n_fast <= n_full
+
+
+@pytest.mark.parametrize("act", ["asymmetric", "symmetric"])
+def test_free_exponent_walk_equals_the_whole_grid(
+    act: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The free exponent a and its standard error are the same when the exponent grid is
+    walked from the law's exponent until the profile has risen ``_FAR`` as when every grid
+    point is searched (reference: ``_FAR = inf``)."""
+    from service.analysis import _laws, _likelihood
+    from service.analysis._likelihood import profile_memo
+
+    sw = _beam_sweep(act, 25, 1e-4, 5)
+    _, fits, n_c, _ = _laws.analyse(sw)
+    with profile_memo():
+        walk = _laws.free_exponent_a(sw, fits[0], n_c)
+    monkeypatch.setattr(_likelihood, "_FAR", np.inf)
+    with profile_memo():
+        full = _laws.free_exponent_a(sw, fits[0], n_c)
+    assert walk == pytest.approx(full, rel=1e-9, abs=1e-12)
