@@ -59,7 +59,8 @@ Record = tuple[np.ndarray, float, float]  # (w, dt, control)
 def lab_records(n_prior: int, n_samples: int, actuation: str) -> list[Record]:
     """``n_prior`` records at the advised controls, then one of ``n_samples`` samples."""
     from service.analysis import live
-    from service.analysis.pipeline import KICK_POWER, PERIODS
+    from service.analysis.pipeline import KICK_POWER
+    from service.analysis.sampling import PERIODS
     from sim import simulate
     from sim.scene import Scene
 

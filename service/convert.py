@@ -66,7 +66,7 @@ PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] =
     "service.analysis.common:Flag": (wire.Flag, frozenset(), frozenset()),
     "service.analysis.detect:Mode": (wire.Mode, frozenset(), frozenset()),
     "service.analysis.detect:Detection": (wire.Detection, frozenset(), frozenset()),
-    "service.analysis.pipeline:Measurement": (wire.Measurement, frozenset(), frozenset()),
+    "service.analysis.measurement:Measurement": (wire.Measurement, frozenset(), frozenset()),
     "service.analysis.predict:PaperRule": (wire.PaperRule, frozenset(), frozenset()),
     # the model fits are the engine's internals (profiles, windows): not a result
     "service.analysis.classify:Classification": (

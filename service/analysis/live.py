@@ -45,7 +45,8 @@ from service.analysis.alarm import (
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
-from service.analysis.pipeline import Measurement, WarnResult, measurement_from_detection
+from service.analysis.measurement import Measurement, measurement_from_detection
+from service.analysis.pipeline import WarnResult
 from service.analysis.predict import Prediction, bounded_by, predict
 from service.analysis.sampling import next_record_sampling
 

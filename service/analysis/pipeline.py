@@ -28,13 +28,9 @@ from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_meas
 from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
+from service.analysis.measurement import Measurement, measurement_from_detection
 from service.analysis.predict import Prediction, bounded_by, paper_rule, predict
-from service.analysis.sampling import (  # noqa: F401 - PERIODS etc. stay importable from here
-    MAX_SAMPLES,
-    PERIODS,
-    SAMPLES_PER_PERIOD,
-    next_record_sampling,
-)
+from service.analysis.sampling import PERIODS, next_record_sampling
 
 Progress = Callable[[float, str], None]
 
@@ -44,61 +40,6 @@ Progress = Callable[[float, str], None]
 # nears (with a constant amplitude the normal-form sweeps were biased by -2e-6, 7-11 standard
 # errors; the simulators' noise is relative to the response, so the SNR is unchanged)
 KICK_POWER = 3.0
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """One analysed record of the sweep.
-
-    Attributes
-    ----------
-    mu : float
-        Control value (user unit).
-    omega, sigma2, sigma2_std : float
-        sqrt|sigma^2| (rad/time), the fundamental's undamped eigenvalue (1/time^2) and its error.
-    w_static, w_static_std : float
-        Static level of the record (the equilibrium's deflection at the probe).
-    regime : str
-        "underdamped" or "overdamped".
-    duration, dt : float
-        Record length and step used.
-    flags : tuple of Flag
-        The detector's flags for this record.
-    """
-
-    mu: float
-    omega: float
-    sigma2: float
-    sigma2_std: float
-    w_static: float
-    w_static_std: float
-    regime: str
-    duration: float
-    dt: float
-    flags: tuple[Flag, ...] = ()
-
-
-def measurement_from_detection(
-    mu: float, det: Detection, duration: float, dt: float
-) -> Measurement:
-    """Reduce a detection to the sweep's measurement (fundamental, static level, flags)."""
-    f = det.fundamental
-    if f is None or not math.isfinite(f.sigma2):
-        raise ParameterError(
-            "record", float(mu), f"record at mu={mu!r}: no fundamental mode found in it"
-        )
-    return Measurement(
-        mu=float(mu),
-        omega=math.sqrt(abs(f.sigma2)),
-        sigma2=float(f.sigma2),
-        sigma2_std=float(f.sigma2_std) if f.sigma2_std is not None else math.nan,
-        w_static=float(det.static_level),
-        w_static_std=float(det.static_level_std),
-        regime=f.regime,
-        duration=float(duration),
-        dt=float(dt),
-        flags=tuple(det.flags),
-    )
 
 
 @dataclass(frozen=True)
@@ -312,9 +253,13 @@ def warn(
         except NameError:
             simulated = model
         b = BACKENDS[simulated].bifurcation(base)
-        truth = {"mu_star": b.mu_star, "transition": b.transition, "model": b.model,
-                 "mu_star_error": b.mu_star_error,
-                 "resolution": b.resolution}
+        truth = {
+            "mu_star": b.mu_star,
+            "transition": b.transition,
+            "model": b.model,
+            "mu_star_error": b.mu_star_error,
+            "resolution": b.resolution,
+        }
     except Exception:  # noqa: BLE001 - the truth is a comparison, never a failure
         truth = None
     if truth is not None and pred is not None:
@@ -355,9 +300,7 @@ def sweep_from_signals(
     order = np.argsort([float(r[2]) for r in records], kind="stable")
     controls = [float(records[j][2]) for j in order]
     if len(set(controls)) != len(controls):
-        raise ParameterError(
-            "control", controls, "control values must be distinct, got duplicates"
-        )
+        raise ParameterError("control", controls, "control values must be distinct, got duplicates")
     ms: list[Measurement] = []
     dets: list[tuple[Detection, float, str | None]] = []
     flags: list[Flag] = []
@@ -426,5 +369,4 @@ def _past_alarm(mu: float, ms: Sequence[Measurement], pred: Prediction | None) -
     )  # fmt: skip
 
 
-__all__ = ["Measurement", "WarnResult", "measurement_from_detection", "paper_rule",
-           "sweep_from_signals", "warn"]  # fmt: skip
+__all__ = ["WarnResult", "paper_rule", "sweep_from_signals", "warn"]

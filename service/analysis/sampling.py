@@ -24,8 +24,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, NamedTuple
 
-if TYPE_CHECKING:  # annotations only: no import cycle with the pipeline
-    from service.analysis.pipeline import Measurement
+if TYPE_CHECKING:
+    from service.analysis.measurement import Measurement
     from service.analysis.predict import Prediction
 
 __all__ = ["MAX_SAMPLES", "PERIODS", "SAMPLES_PER_PERIOD", "RecordSampling",

@@ -40,7 +40,7 @@ def test_detect_errors_carry_their_parameter() -> None:
 
 def test_no_fundamental_is_named_by_the_record_not_by_a_word() -> None:
     from service.analysis.detect import detect
-    from service.analysis.pipeline import measurement_from_detection
+    from service.analysis.measurement import measurement_from_detection
 
     det = detect(np.zeros(500), dt=0.01)  # nothing to find
     assert det.fundamental is None

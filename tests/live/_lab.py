@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from service.analysis.pipeline import KICK_POWER, PERIODS
+from service.analysis.pipeline import KICK_POWER
+from service.analysis.sampling import PERIODS
 from sim import simulate
 from sim.scene import Scene
 

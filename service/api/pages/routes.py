@@ -19,13 +19,13 @@ from fastapi import APIRouter, Form, Query, Request, Response
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
 from fastapi.templating import Jinja2Templates
 
-from service import recordings
 from service.api.auth import Caller, get_caller
+from service.api.live_events import event_stream
 from service.api.pages import _work
 from service.api.problems import ApiProblem
-from service.api.routers.sweeps import sweep_doc
 from service.api.state import AppState, get_state, job_doc, signal_meta
-from service.charts import MEDIA, NONDIM
+from service.api.sweep_views import sweep_doc, sweep_units
+from service.charts import MEDIA
 from service.convert import sweep_document
 from service.schemas import Sweep
 from service.schemas.analysis import SweepResult
@@ -289,56 +289,6 @@ async def signal_page(request: Request, signal_id: str) -> Response:
 
 
 # ------------------------------------------------------------------------------ sweeps
-async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[str, Any]:
-    """The user's control name and unit and the records' time unit (from the sweep request's
-    ``control`` where given, else from the stored signals of ``sweep``, read with ``scope``);
-    the simulator's non-dimensional scales for a simulated sweep. ``mixed`` names what the
-    records disagree on (then a neutral name is used)."""
-    req = sweep.request or {}
-    if req.get("mode") == "live":
-        control = req.get("control") or {}
-        return {"control_name": control.get("name") or "mu", "control_unit": control.get("unit"),
-                "time_unit": None, "value_unit": None, "mixed": []}  # fmt: skip
-    if req.get("simulate") is not None or not req.get("measurements"):
-        return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
-                "value_unit": NONDIM, "mixed": []}  # fmt: skip
-    names, cunits, tunits, vunits = set(), set(), set(), set()
-
-    def rows() -> list[Any]:  # one thread for all the reads
-        return [state.store.get_signal_meta(m["signal_id"], scope=scope)
-                for m in req["measurements"]]  # fmt: skip
-
-    for row in await to_thread.run_sync(rows):
-        if row is None:
-            continue
-        names.add(row.control_name)
-        cunits.add(row.control_unit)
-        tunits.add(row.unit)
-        vunits.add(row.value_unit)
-    given = req.get("control") or {}  # the sweep's own control name and unit come first
-    if given.get("name"):
-        names = {given["name"]}
-    if given.get("unit"):
-        cunits = {given["unit"]}
-    if len(tunits) > 1 and all(recordings.seconds_per(u) is not None for u in tunits):
-        tunits = {"s"}  # the analysis brought every record to seconds (common_time_base)
-    mixed = [what for what, s in (("control name", names), ("control unit", cunits),
-                                  ("time unit", tunits), ("value unit", vunits))
-             if len(s) > 1]  # fmt: skip
-
-    def one(s: set) -> str | None:
-        vals = sorted(v for v in s if v)
-        return vals[0] if len(vals) == 1 else None
-
-    return {
-        "control_name": one(names) or "control",
-        "control_unit": one(cunits),
-        "time_unit": one(tunits),
-        "value_unit": one(vunits),
-        "mixed": mixed,
-    }
-
-
 def _records(result: SweepResult | None) -> list[dict[str, Any]]:
     """One row per record: the stored detections (recorded sweeps) or the measurements."""
     if result is None:
@@ -398,8 +348,11 @@ def _live_result(updates: list[Any]) -> SweepResult | None:
     dets = []
     for u in updates:
         d = u.detection.model_dump()
-        d.update(control=u.control, name=u.signal_id,
-                 flags=[f.model_dump() for f in (*u.record_flags, *u.detection.flags)])
+        d.update(
+            control=u.control,
+            name=u.signal_id,
+            flags=[f.model_dump() for f in (*u.record_flags, *u.detection.flags)],
+        )
         dets.append(d)
     return SweepResult.model_validate({
         "measurements": [u.measurement.model_dump() for u in updates
@@ -467,14 +420,13 @@ async def sweep_events(
     (an ``EventSource`` sends no ``Authorization`` header)."""
 
     async def handler(caller: Caller, state: AppState) -> Response:
-        from service.api.routers import live
         from service.api.storage import live as store_live
 
         row = await to_thread.run_sync(store_live.get_live, state.store, sweep_id, caller.scope)
         if row is None:
             return JSONResponse({"detail": f"no live sweep {sweep_id!r}"}, status_code=404)
         resume = request.headers.get("last-event-id")  # the browser's reconnection
-        return live.event_stream(request, state, sweep_id, after, resume, EVENTS_TIMEOUT_S)
+        return event_stream(request, state, sweep_id, after, resume, EVENTS_TIMEOUT_S)
 
     return await _serve(request, handler)
 

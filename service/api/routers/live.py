@@ -8,7 +8,8 @@ document, for ``GET /v1/sweeps/{id}``, its charts, pages and listings.
 The numerics of an update live in :mod:`service.analysis.live` and run in the analysis pool
 (one call per record: detection, assessment and the wire document); this module reads the
 record (:mod:`service.api.routers._live_input`), stores it while the numerics run, serialises
-concurrent writers (see :mod:`service.api.storage.live`) and streams the stored updates.
+concurrent writers (see :mod:`service.api.storage.live`) and streams the stored updates
+(:mod:`service.api.live_events`).
 """
 
 from __future__ import annotations
@@ -29,13 +30,14 @@ from fastapi.responses import JSONResponse, Response, StreamingResponse
 from service import convert, recordings
 from service.analysis import live as numerics
 from service.api.auth import Caller, CallerDep
+from service.api.live_events import MAX_SEQ, event_stream, notify
 from service.api.problems import ApiProblem, invalid, not_found
 from service.api.routers import _live_input
 from service.api.routers._common import problems
-from service.api.routers.sweeps import sweep_doc
 from service.api.state import AppState, StateDep
 from service.api.storage import as_utc, utcnow
 from service.api.storage import live as store_live
+from service.api.sweep_views import sweep_doc
 from service.schemas import Sweep
 from service.schemas.live import LiveRecordIn, LiveUpdate, LiveUpdatePage
 
@@ -43,12 +45,6 @@ router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
 
 #: Attempts of the optimistic append before answering 503 (each loser recomputes).
 MAX_ATTEMPTS = 50
-#: Largest record number a query may name (records per sweep are far fewer).
-MAX_SEQ = 2**31 - 1
-#: How often an event stream looks for updates another process stored (s; this process's own
-#: wake its streams at once), and its keep-alive comment.
-POLL_S = 0.25
-KEEPALIVE_S = 15.0
 
 
 # ---------------------------------------------------------------------------------- creation
@@ -169,7 +165,7 @@ async def add_record(
     body = _json({**doc, "server_ms": 1e3 * (t0 - t_start)})
     wall, cpu = timing.get("serialise", (0.0, 0.0))
     timing["serialise"] = (wall + time.perf_counter() - t0, cpu)
-    _notify(sweep_id)
+    notify(sweep_id)
     ms = 1e3 * (time.perf_counter() - t_start)
     parts = ", ".join(_timing_entry(k, v) for k, v in timing.items())
     return Response(
@@ -451,7 +447,7 @@ async def close_sweep(sweep_id: str, state: StateDep, caller: CallerDep) -> dict
         done = await to_thread.run_sync(store_live.close_live, state.store, sweep_id,
                                         st.row.version, result)  # fmt: skip
         if done:
-            _notify(sweep_id)
+            notify(sweep_id)
             break
         st = await _read_state(state, sweep_id, None, timing)
     else:
@@ -470,11 +466,6 @@ def _finish(
 
 
 # ---------------------------------------------------------------------------------- events
-def _sse(event: str, ident: int, data: Any) -> bytes:
-    body = json.dumps(data, separators=(",", ":"), allow_nan=False)
-    return f"id: {ident}\nevent: {event}\ndata: {body}\n\n".encode()
-
-
 @router.get(
     "/{sweep_id}/events",
     summary="Server-sent events: each update of a live sweep, then 'closed'",
@@ -503,81 +494,3 @@ async def events(
 ) -> StreamingResponse:
     await _live_row(state, sweep_id, caller)
     return event_stream(request, state, sweep_id, after, last_event_id, timeout)
-
-
-def event_stream(
-    request: Request, state: AppState, sweep_id: str, after: int | None,
-    last_event_id: str | None, timeout: float,
-) -> StreamingResponse:  # fmt: skip
-    """The event stream of a live sweep the caller may read (also behind the sweep's page,
-    which authenticates with its cookie): updates after ``after`` or ``Last-Event-ID``."""
-    start = after or 0
-    if last_event_id:
-        try:
-            given = int(last_event_id)
-        except ValueError:
-            given = -1
-        if not 0 <= given <= MAX_SEQ:
-            raise invalid("Last-Event-ID", last_event_id, "is not a record number")
-        start = max(start, given)
-    return StreamingResponse(
-        _stream(request, state, sweep_id, start, timeout),
-        media_type="text/event-stream",
-        headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"},
-    )
-
-
-async def _stream(request: Request, state: AppState, sweep_id: str, last: int, timeout: float):  # noqa: ANN202
-    """Stored updates with seq > last, then new ones as they are stored: at once when this
-    process stored them (:func:`_notify`), within :data:`POLL_S` when another process did."""
-    deadline = time.monotonic() + timeout
-    quiet_since = time.monotonic()
-    yield b"retry: 1000\n\n"
-    known = -1
-    wake = asyncio.Event()
-    listeners = _listeners.setdefault(sweep_id, set())
-    listeners.add(wake)
-    try:
-        while True:
-            wake.clear()
-            vs = await to_thread.run_sync(store_live.live_version, state.store, sweep_id)
-            if vs is None:
-                return
-            version, status = vs
-            if version > last and version != known:
-                _, recs = await to_thread.run_sync(store_live.records_after, state.store,
-                                                   sweep_id, last, 500)  # fmt: skip
-                for r in recs:
-                    yield _sse("update", r.seq, r.doc)
-                    last = r.seq
-                known = version if last >= version else -1
-                quiet_since = time.monotonic()
-                continue
-            if status != store_live.OPEN and last >= version:
-                if last == version:
-                    yield _sse("closed", version + 1, {"status": status, "n_records": version})
-                return
-            now = time.monotonic()
-            if now >= deadline or await request.is_disconnected():
-                return
-            if now - quiet_since >= KEEPALIVE_S:
-                yield b": keep-alive\n\n"
-                quiet_since = now
-            try:
-                await asyncio.wait_for(wake.wait(), timeout=POLL_S)
-            except TimeoutError:
-                pass
-    finally:
-        listeners.discard(wake)
-        if not listeners:
-            _listeners.pop(sweep_id, None)
-
-
-#: The event streams of this process waiting for a sweep's next update, by sweep id.
-_listeners: dict[str, set[asyncio.Event]] = {}
-
-
-def _notify(sweep_id: str) -> None:
-    """Wake this process's streams of ``sweep_id``: an update or a close was stored."""
-    for ev in list(_listeners.get(sweep_id, ())):
-        ev.set()

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import logging
 import math
 from typing import Annotated, Any
 
 from anyio import to_thread
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
-from pydantic import ValidationError
 
 from service import convert, recordings
 from service.analysis.pipeline import sweep_from_signals, warn
@@ -18,38 +16,12 @@ from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
 from service.api.problems import ApiProblem, as_problems, invalid, not_found, too_large
 from service.api.routers._common import MAX_OFFSET, problems
-from service.api.state import AppState, StateDep, job_doc
-from service.api.storage import as_utc
+from service.api.routers.live import create_live
+from service.api.state import AppState, StateDep
+from service.api.sweep_views import sweep_doc, sweep_units
 from service.schemas import Sweep, SweepPage, SweepRequest
 
 router = APIRouter(prefix="/v1/sweeps", tags=["sweeps"])
-log = logging.getLogger("snapwarn.api")
-
-
-def sweep_doc(sweep: Any, job: Any) -> dict[str, Any]:
-    """The sweep resource: the typed sweep document (once succeeded) and its parts."""
-    result = None
-    if job.status == "succeeded" and job.result:
-        try:
-            result = convert.sweep_document(job.result)
-        except ValidationError:  # a document this version cannot read: the job still shows it
-            log.warning("sweep %s: stored result does not read as a sweep document", sweep.id)
-    pred = result.prediction if result is not None else None
-    alarms = result.alarm if result is not None else []
-    doc = Sweep(
-        id=sweep.id,
-        name=sweep.name,
-        status=job.status,
-        request=sweep.request,
-        job=job_doc(job),
-        result=result,
-        measurements=result.measurements if result is not None else None,
-        classification=pred.classification if pred is not None else None,
-        prediction=pred,
-        alarm=alarms[-1] if alarms else (pred.alarm if pred is not None else None),
-        created_at=as_utc(sweep.created_at),
-    )
-    return doc.model_dump(mode="json")
 
 
 def _check_batch_fields(req: SweepRequest) -> None:
@@ -166,8 +138,6 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
 
     With ``"mode": "live"`` answers 201 with an open sweep (``service.api.routers.live``)."""
     if req.mode == "live":
-        from service.api.routers.live import create_live
-
         return await create_live(req, state, caller)
     if (req.measurements is None) == (req.simulate is None):
         raise invalid("measurements", None, "give exactly one of 'measurements' or 'simulate'")
@@ -250,16 +220,20 @@ async def _plot(sweep_id: str, state: AppState, fmt: str, scope: str | None) -> 
             field="status",
             value=job.status,
         )
-    from service.api.pages.routes import sweep_units  # (the pages import this module)
-
     units = await sweep_units(state, scope, sweep)  # the user's control name and units
     body = await state.run(_render, job.result, sweep.name or sweep_id, fmt, units)
     return Response(body, media_type=plots.MEDIA[fmt])
 
 
 def _render(doc: dict[str, Any], title: str, fmt: str, units: dict[str, Any]) -> bytes:
-    return plots.sweep_plot(doc, title=title, fmt=fmt, control_name=units["control_name"],
-                            control_unit=units["control_unit"], time_unit=units["time_unit"])
+    return plots.sweep_plot(
+        doc,
+        title=title,
+        fmt=fmt,
+        control_name=units["control_name"],
+        control_unit=units["control_unit"],
+        time_unit=units["time_unit"],
+    )
 
 
 @router.get(
