@@ -187,3 +187,46 @@ def test_errors_name_the_parameter() -> None:
     with pytest.raises(BeamError, match="mu") as e:
         equilibria("asymmetric", float("nan"))
     assert e.value.parameter == "mu"
+
+
+# ---- the compiled entire basis against its slow numpy reference ----
+def _basis_reference(lam: complex, X: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The basis in numpy (the statics' former implementation): 18 Taylor terms in z = lam X^2
+    where |z| <= 1, the closed forms elsewhere."""
+    X = np.asarray(X, dtype=float)
+    z = complex(lam) * X * X
+    out = [np.empty(X.shape, dtype=complex) for _ in range(4)]
+    small = np.abs(z) <= 1.0
+    Xs, zs = X[small], z[small]
+    c, s, s1, co = (np.zeros_like(zs) for _ in range(4))
+    term = np.ones_like(zs)
+    for k in range(18):
+        co += term
+        s1 += term / (2 * k + 1)
+        c += term / ((2 * k + 1) * (2 * k + 2))
+        s += term / ((2 * k + 1) * (2 * k + 2) * (2 * k + 3))
+        term = term * (-zs) / ((2 * k + 1) * (2 * k + 2))
+    out[3][small], out[2][small], out[0][small], out[1][small] = co, s1 * Xs, c * Xs**2, s * Xs**3
+    L, Xb = np.sqrt(complex(lam)), X[~small]
+    sn, cs = np.sin(L * Xb), np.cos(L * Xb)
+    out[3][~small], out[2][~small] = cs, sn / L
+    out[0][~small] = 2.0 * np.sin(0.5 * L * Xb) ** 2 / lam
+    out[1][~small] = (L * Xb - sn) / (lam * L)
+    return tuple(out)
+
+
+@pytest.mark.parametrize(
+    "lam", [0.3, 5.0, 39.4784176, 80.0, -25.0, complex(40.0, 1e-30), complex(-3.0, 1e-30)]
+)
+def test_compiled_basis_matches_the_numpy_reference(lam: complex) -> None:
+    """Both sides of |lam X^2| = 1 (series and closed forms), tension (lam < 0) and the
+    complex step the derivatives take: values to round-off, and the complex step's
+    imaginary part (the derivative) to the same relative accuracy."""
+    from sim.euler_beam.statics import basis
+
+    X = np.concatenate([np.linspace(0.0, 1.0, 41), [0.999, 1.0]]).reshape(43, 1)
+    got, ref = basis(lam, X), _basis_reference(lam, X)
+    for g, r in zip(got, ref, strict=True):
+        assert g.shape == X.shape
+        np.testing.assert_allclose(g.real, r.real, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(g.imag, r.imag, rtol=1e-12, atol=1e-45)
