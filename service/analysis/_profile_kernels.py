@@ -31,6 +31,7 @@ _GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08
 _EPS = 2.220446049250313e-16
 BIG = 1e300  # value of a non-finite -2 log L inside the searches
+_XTOL_PROBE = 1e-4  # tolerance (in t) of the refinement probing a further local minimum
 
 
 @njit(cache=True, error_model="numpy")
@@ -287,9 +288,12 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         order = np.argsort(vals)
         for r in range(min(polish - 1, nc)):
             j = cand[order[r]]
-            tj, fj = _polish(j, t, f, xatol, P, mu_last, logu, W, cf)
+            # a coarse refinement tells whether this basin goes lower; only then the full one
+            tj, fj = _polish(j, t, f, max(xatol, _XTOL_PROBE), P, mu_last, logu, W, cf)
             if fj < fh:
-                th, fh, i = tj, fj, j
+                tj, fj = _polish(j, t, f, xatol, P, mu_last, logu, W, cf)
+                if fj < fh:
+                    th, fh, i = tj, fj, j
     out = np.full(7, math.nan)
     out[0], out[1], out[2] = th, fh, i
     if d95 > 0.0:
