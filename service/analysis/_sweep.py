@@ -85,6 +85,18 @@ def _as_1d(name: str, value: Any, n: int | None = None) -> np.ndarray:
     return arr
 
 
+def positive_1d(name: str, value: Any, n: int) -> np.ndarray:
+    """:func:`_as_1d` of length ``n`` whose values are all > 0 (rates and their stds), else a
+    ``ParameterError`` naming ``name`` with the first offending value."""
+    arr = _as_1d(name, value, n)
+    if np.any(arr <= 0):
+        i = int(np.flatnonzero(arr <= 0)[0])
+        raise ParameterError(
+            name, float(arr[i]), f"{name} must be > 0, got {name}[{i}]={float(arr[i])!r}"
+        )
+    return arr
+
+
 def drop_past(
     mu: Any, sigma2: Any, *columns: Any
 ) -> tuple[float | None, Any, Any, tuple[Any, ...]]:
@@ -222,23 +234,12 @@ def prepare_sweep(
                     f"sigma2_std must be > 0, got sigma2_std[{i}]={float(sd[i])!r}",
                 )
     else:
-        om = _as_1d("omega", omega, n)
-        if np.any(om <= 0):
-            i = int(np.flatnonzero(om <= 0)[0])
-            raise ParameterError(
-                "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={float(om[i])!r}"
-            )
+        om = positive_1d("omega", omega, n)
         y = om**2
         kind = "omega"
         sd = None
         if omega_std is not None:
-            om_sd = _as_1d("omega_std", omega_std, n)
-            if np.any(om_sd <= 0):
-                i = int(np.flatnonzero(om_sd <= 0)[0])
-                raise ParameterError(
-                    "omega_std", float(om_sd[i]),
-                    f"omega_std must be > 0, got omega_std[{i}]={float(om_sd[i])!r}",
-                )  # fmt: skip
+            om_sd = positive_1d("omega_std", omega_std, n)
             sd = np.sqrt((2 * om * om_sd) ** 2 + 2 * om_sd**4)
     _check_direction(m, y)
     w = w_sd = None

@@ -29,7 +29,7 @@ from scipy import optimize, stats
 
 from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
 from service.analysis._likelihood import profile_memo
-from service.analysis._sweep import Sweep, _as_1d, drop_past, prepare_sweep
+from service.analysis._sweep import Sweep, drop_past, positive_1d, prepare_sweep
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
@@ -531,21 +531,8 @@ def _check_rates_agree(sw: Sweep, omega: Any, omega_std: Any) -> None:
         odds with ``sigma2``: ``.parameter == "omega"``, ``.value`` the rate of the worst row.
     """
     n = sw.mu.size
-    om = _as_1d("omega", omega, n)
-    if np.any(om <= 0):
-        i = int(np.flatnonzero(om <= 0)[0])
-        raise ParameterError(
-            "omega", float(om[i]), f"omega must be > 0, got omega[{i}]={float(om[i])!r}"
-        )
-    om_sd = None
-    if omega_std is not None:
-        om_sd = _as_1d("omega_std", omega_std, n)
-        if np.any(om_sd <= 0):
-            i = int(np.flatnonzero(om_sd <= 0)[0])
-            raise ParameterError(
-                "omega_std", float(om_sd[i]),
-                f"omega_std must be > 0, got omega_std[{i}]={float(om_sd[i])!r}",
-            )  # fmt: skip
+    om = positive_1d("omega", omega, n)
+    om_sd = positive_1d("omega_std", omega_std, n) if omega_std is not None else None
     xi = sw.damping
     over = om < xi / 2 if xi is not None else np.zeros(n, dtype=bool)
     with np.errstate(over="ignore", invalid="ignore"):
