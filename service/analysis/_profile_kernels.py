@@ -2,7 +2,9 @@
 
 The profile ``-2 log L(mu*)`` of a law (:mod:`service.analysis._laws_kernels`) is searched in
 ``t = log(mu* - mu_last)``: a scan of a given grid, a bounded minimisation (Brent's parabolic
-interpolation with golden-section safeguard) in the bracket of the grid's lowest point, and the
+interpolation with golden-section safeguard) in the bracket of the grid's lowest point (and,
+with ``polish > 1``, of the next lowest local minima: a valley narrower than the grid's step
+may lie between two points that stand above another basin's lowest one), and the
 profile-likelihood interval ends where ``-2 log L`` rises by ``delta`` above its minimum (Brent's
 root finder between the last grid point below and the first above). One call does all of it, so
 a profile costs no Python call per evaluation. A slow reference (the same steps with scipy's
