@@ -78,12 +78,10 @@ def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple[np.ndarray, np.ndarray,
     nc = len(comps)
     if nc == 1 and comps[0].mu is None:  # the common case, without the general loop's cost
         c = comps[0]
+        D = np.empty((3, mu_w.size))
+        D[0], D[1], D[2] = mu_w, c.y, c.wt
         row = (0, mu_w.size, c.exps.size, c.known, c.lead, c.lead_col, c.signed, c.conformal)
-        return (
-            np.vstack((mu_w, c.y, c.wt)).astype(float, copy=False),
-            c.exps.astype(float).reshape(1, -1),
-            np.array([row], dtype=np.int64),
-        )
+        return D, c.exps.astype(float).reshape(1, -1), np.array([row], dtype=np.int64)
     mus = [mu_w if c.mu is None else c.mu for c in comps]
     N = sum(m.size for m in mus)
     D = np.empty((3, N))
@@ -193,15 +191,8 @@ def _profile_uncached(
     xatol: float | None,
 ) -> _Profile:
     last = float(mu_w[-1])
-    # a conformal law profiles the secondary fold at every mu* (some 25 fits each): a coarser
-    # grid around the same seeds keeps its cost near the plain laws'
     cf = any(c.conformal for c in comps)
-    t = _range_grid(scale, _GRID_CF if cf else _GRID)
-    seeds = _seeds(mu_w, comps[0]) if comps[0].lead else []
-    if seeds:
-        k1, k2 = (15, 9) if cf else (41, 41)
-        offs = np.concatenate([_SEED[k1], _SEED_FINE[k2]])
-        t = _clip(np.unique(np.concatenate([t, *[math.log(d0) + offs for d0 in seeds]])), scale)
+    t = _search_grid(mu_w, comps[0], scale, cf)
     # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-5 for model selection
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
     d95 = _chi2_1_quantile(level) * inflate if with_interval else 0.0
@@ -242,6 +233,34 @@ def _chi2_1_quantile(level: float) -> float:
     """``scipy.stats.chi2.ppf(level, 1)`` (its distribution machinery costs some 0.2 ms a call,
     paid by every interval)."""
     return float(stats.chi2.ppf(level, 1))
+
+
+_SEED_OFFSETS = {cf: np.concatenate([_SEED[k1], _SEED_FINE[k2]])
+                 for cf, (k1, k2) in ((False, (41, 41)), (True, (15, 9)))}  # fmt: skip
+
+
+def _search_grid(mu_w: np.ndarray, c: _Comp, scale: float, cf: bool) -> np.ndarray:
+    """The full search's grid of ``log(mu* - mu_last)``: the range's uniform grid and, for a
+    law whose leading term leads (``c.lead``), a coarse and a fine grid around each two-point
+    seed of ``c``. A conformal law profiles the secondary fold at every mu* (some 25 fits
+    each): a coarser grid around the same seeds keeps its cost near the plain laws'. Memoised
+    in a :func:`profile_memo` scope (a window's joint fits share their eigenvalue law's)."""
+    memo = _MEMO.get()
+    key = None
+    if memo is not None:
+        key = ("grid", mu_w.tobytes(), c.y.tobytes(), c.exps.tobytes(), c.lead, scale, cf)
+        hit = memo.get(key)
+        if hit is not None:
+            return hit  # type: ignore[return-value]
+    t = _range_grid(scale, _GRID_CF if cf else _GRID)
+    seeds = _seeds(mu_w, c) if c.lead else []
+    if seeds:
+        offs = _SEED_OFFSETS[cf]
+        t = _clip(np.unique(np.concatenate([t, *[math.log(d0) + offs for d0 in seeds]])), scale)
+    t = np.ascontiguousarray(t)
+    if key is not None:
+        memo[key] = t  # type: ignore[assignment]
+    return t
 
 
 def _seeds(mu_w: np.ndarray, c: _Comp) -> list[float]:
