@@ -23,7 +23,8 @@ common window by BIC, which gives the model probabilities.
 
 Public entry points (used by :mod:`service.analysis.classify` and
 :mod:`service.analysis.predict`): :func:`analyse`, :func:`probabilities`, :func:`refit_profile`,
-:func:`free_exponent_a`, :func:`free_exponent_b`, :func:`secondary_fold`, :class:`ModelFit`,
+:func:`free_exponent_a`, :func:`free_exponent_b`, :func:`secondary_fold`,
+:func:`fold_rival_gap`, :class:`ModelFit`,
 :data:`CANDIDATES`.
 """
 
@@ -76,6 +77,7 @@ __all__ = [
     "probabilities",
     "refit_profile",
     "secondary_fold",
+    "fold_rival_gap",
 ]
 
 
@@ -575,6 +577,26 @@ def secondary_fold(sweep: Sweep, fit: ModelFit) -> float:
     _, u = _nll_u(sweep.mu[idx], [comp], np.array([fit.profile.mu_star]))
     x_last = fit.profile.mu_star - float(sweep.mu[-1])
     return x_last / float(u[0]) if u[0] > 0 else math.inf
+
+
+def fold_rival_gap(sweep: Sweep, fit: ModelFit) -> float:
+    """How much worse a fold explains ``fit``'s eigenvalues: ``-2 log L`` of the saddle-node
+    law with one correction more than ``fit`` has (so as many parameters as a conformal law's,
+    whose fold parameter it gives up) minus ``fit``'s own, on ``fit``'s window, the eigenvalues
+    alone (dimensionless; ``inf`` when that fold law has no degree of freedom left)."""
+    N = sweep.mu.size
+    idx = slice(N - fit.n, N)
+    K = fit.K + 1
+    if fit.n - K - 2 < 1:
+        return math.inf
+    scale = float(sweep.mu[-1] - sweep.mu[0])
+    a, _, h = CANDIDATES["saddle-node"]
+    fold = _sigma_comp(sweep, idx, 2 * a, h, K)
+    own = _sigma_comp(sweep, idx, 2 * fit.a, fit.h, fit.K, fit.conformal)
+    mu = sweep.mu[idx]
+    gap = (_profile(mu, [fold], scale, with_interval=False).nll
+           - _profile(mu, [own], scale, with_interval=False).nll)  # fmt: skip
+    return float(gap)
 
 
 def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:

@@ -136,11 +136,18 @@ def test_sweep_rejects_a_bad_manifest(tmp_path, capsys) -> None:
 def test_normal_form_warn_intervals_cover_its_mu_star(actuation: str) -> None:
     """The normal-form records are nonlinear: with a constant response amplitude the kicked
     records' frequency shift biased mu* by -2e-6 (7-11 standard errors, 3 seeds of 3 missed);
-    kicks scaled with the expected rate cubed keep the response a fixed fraction of the well."""
+    kicks scaled with the expected rate cubed keep the response a fixed fraction of the well.
+
+    A calibrated 95 % interval misses one seed in 20, so three of three covered fails one run
+    in seven (seed 1, symmetric, missed at 2.3 standard errors once the truncation neighbours
+    changed the measurement sequence); at least two of three (one run in 140) and every error
+    within 3 standard errors still fail the old bias."""
+    covered = 0
     for seed in (1, 2, 3):
         res = warn(actuation, model="normal-form", seed=seed, max_measurements=30)
         t, std = res.truth, res.prediction.mu_star_std
-        assert t["covered"], (seed, t)
+        covered += bool(t["covered"])
         # the old bias sat 7-11 standard errors off; an unbiased estimate stays within 3
         assert abs(t["error"]) < 3 * std, (seed, t, std)
         assert abs(t["error"]) < 1e-5, (seed, t)  # the warn accuracy target
+    assert covered >= 2, covered

@@ -55,10 +55,21 @@ def test_symmetric_fixed_grid_is_a_pitchfork_and_beats_the_rule(stop: float) -> 
     """Steps of 0.05 stopping 0.05 / 0.01 / 0.002 before mu* = 2 (the issue's plans): a
     pitchfork, the interval covers mu*, and the error is below the paper's rule's (measured
     before the secondary-fold law: supercritical or undetermined, errors 1e-2 and 1.7e-3, the
-    interval missing at stop 0.05)."""
+    interval missing at stop 0.05).
+
+    At stop 0.05 the last record lies 3.9 secondary-fold distances (0.0119) before mu*, where
+    the pitchfork law's series is more a fold's than a pitchfork's, and without static data a
+    fold law with as many parameters fits within 7.9 of it (likelihood ratio 51 < 100): the type
+    is withheld (``fold_indistinct``), never a fold named; of 5 noise seeds the probabilities
+    alone already left 2 undetermined (saddle-node 0.57 and 0.48). From stop 0.01 (0.8
+    distances) the fold law loses by > 7000."""
     d = lab_sweep("symmetric", 0.05, stop)
     p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
-    assert p.transition == "pitchfork", p.probabilities
+    if stop == 0.05:
+        assert p.transition == "undetermined", p.probabilities
+        assert "fold_indistinct" in {f.code for f in p.flags}
+    else:
+        assert p.transition == "pitchfork", p.probabilities
     lo, hi = p.mu_star_interval
     assert lo <= d["mu_star"] <= hi
     rule = paper_rule(d["mu"], d["sigma2"], 0.5)
