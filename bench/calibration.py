@@ -1,7 +1,7 @@
 """Calibration of the predictor on random lab plans: coverage of the 95 % interval, type, error
 against the paper's two-point rule on the same data.
 
-    python bench/calibration.py [--plans N] [--seed S] [--workers W] [--quick] [--from-csv]
+    python bench/calibration.py [--plans N (300)] [--seed S] [--workers W] [--quick] [--from-csv]
                                 [--input sigma2|sigma2-no-std|omega|omega-no-std]
 
 A lab plan is what an experimenter does without knowing mu*: a fixed grid of control values
@@ -23,7 +23,8 @@ paper's rule (``T > 10 T0`` and two-point extrapolation with the true exponent, 
 case), the share of plans where ours is worse than the rule, how many of those carry a flag
 and how many of those our interval misses (on the normal form's pure laws the rule's two
 nearest points carry nearly all the information, so "worse" there is a coin toss between two
-estimates of equal accuracy, inside our interval).
+estimates of equal accuracy, inside our interval); and the share worse by more than our own
+standard error (``mu_star_std``), with how many of those carry a flag.
 
 ``--input``: what the lab hands over: sigma^2 with its std (the default), sigma^2 alone (the
 noise then estimated), or the rates omega = sqrt|sigma^2| with or without their std and no
@@ -182,6 +183,9 @@ def run_plan(plan: Plan, given: str = "sigma2") -> dict:
         confident_wrong = True
     flags = [f.code for f in p.flags]
     worse = bool(not (abs(err) <= abs(rerr))) if math.isfinite(rerr) else False
+    # worse by more than our own standard error: beyond the noise that both estimates share
+    # (on exact laws both lean on the nearest points, so "worse" alone is often a coin toss)
+    worse_std = worse and bool(abs(err) - abs(rerr) > p.mu_star_std)
     return {
         **asdict(plan),
         "n_points": int(d["mu"].size),
@@ -195,7 +199,9 @@ def run_plan(plan: Plan, given: str = "sigma2") -> dict:
         "hi": hi - ms,
         "covered": bool(lo <= ms <= hi),
         "rule_error": rerr,
+        "std": float(p.mu_star_std),
         "worse": worse,
+        "worse_beyond_std": worse_std,
         "flagged": bool(set(flags) - _INFO),
         "right": bool(right),
         "confident_wrong": bool(confident_wrong),
@@ -245,6 +251,8 @@ def summarise(rows: list[dict]) -> list[dict]:
             "worse": len(worse) / n,
             "worse_flagged": sum(r["flagged"] for r in worse),
             "worse_missed": sum(not r["covered"] for r in worse),
+            "worse_std": sum(r.get("worse_beyond_std", False) for r in g) / n,
+            "worse_std_flagged": sum(r["flagged"] for r in g if r.get("worse_beyond_std")),
             "median_cpu_s": float(np.median([r["cpu_s"] for r in g])),
         })  # fmt: skip
     return out
@@ -259,8 +267,9 @@ def table_md(summary: list[dict], meta: str) -> str:
         "| source | actuation | plans | coverage 95 % | binomial 95 % range | (with w / without) | "
         "median abs err / half-width | type right | "
         "confident wrong | median abs err ours | median abs err paper's rule | "
-        "worse than rule | of which flagged | of which missed | median CPU s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "worse than rule | of which flagged | of which missed | worse by > our std | "
+        "of which flagged | median CPU s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summary:
         lines.append(
@@ -270,7 +279,7 @@ def table_md(summary: list[dict], meta: str) -> str:
             f"{s['median_err_over_half']:.2f} | "
             f"{100 * s['type_right']:.0f} % | {s['confident_wrong']} | {s['median_err']:.2e} | "
             f"{s['median_rule_err']:.2e} | {100 * s['worse']:.1f} % | {s['worse_flagged']} | "
-            f"{s['worse_missed']} | "
+            f"{s['worse_missed']} | {100 * s['worse_std']:.1f} % | {s['worse_std_flagged']} | "
             f"{s['median_cpu_s']:.2f} |"
         )
     n = sum(s["plans"] for s in summary)
@@ -283,7 +292,7 @@ def table_md(summary: list[dict], meta: str) -> str:
 
 def main(argv: list[str] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--plans", type=int, default=100, help="plans per (source, actuation)")
+    ap.add_argument("--plans", type=int, default=300, help="plans per (source, actuation)")
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="10 plans per (source, actuation)")
@@ -331,8 +340,9 @@ def _from_csv() -> list[dict]:
     rows = []
     for r in raw:
         d: dict = dict(r)
-        for k in ("covered", "right", "confident_wrong", "worse", "flagged", "with_w"):
-            d[k] = r[k] == "True"
+        for k in ("covered", "right", "confident_wrong", "worse", "flagged", "with_w",
+                  "worse_beyond_std"):
+            d[k] = r.get(k) == "True"
         for k in ("error", "lo", "hi", "rule_error", "cpu_s"):
             d[k] = float(r[k])
         rows.append(d)

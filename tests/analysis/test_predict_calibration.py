@@ -94,6 +94,8 @@ def test_a_fold_bias_only_larger_windows_reveal_is_covered(
     [
         (0.04820090296227639, 0.022439883978220932, 0.000774879566443594, 2100530763),
         (0.05819618512587793, 0.0027513082311421415, 0.0009962345367368255, 1595227025),
+        (0.1, 0.01, 1e-3, 6017),
+        (0.1, 0.001, 1e-3, 6017),
     ],
 )
 def test_a_fold_in_a_pitchforks_disguise_is_not_named_and_stays_covered(
@@ -103,7 +105,10 @@ def test_a_fold_in_a_pitchforks_disguise_is_not_named_and_stays_covered(
     plans per group: 131 and 198) were named ``pitchfork`` at probability 0.995 and 0.989, mu*
     6e-3 and 1.3e-3 late with the interval past mu*: the pitchfork law's secondary fold sat
     6 and 9.7 of its distances before the last record, where its series in z is a fold's, and
-    a fold law with as many parameters fitted within 8.4 and 5.2 of it. The type is withheld
+    a fold law with as many parameters fitted within 8.4 and 5.2 of it. Two cells of the
+    predictor's atlas (step 0.1, noise 1e-3, stop 0.01 and 0.001): the same, with the secondary
+    fold 9.3 and 2.8 of its distances before the last record and the fold law 13.4 and 20.3
+    behind (its truncated series misfits the window 0.6 wide as well). The type is withheld
     and the fold's own mu*, earlier, stays inside the interval."""
     pytest.importorskip("sim.euler_beam")
     cal = _calibration()

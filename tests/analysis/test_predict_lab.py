@@ -58,9 +58,9 @@ def test_symmetric_fixed_grid_is_a_pitchfork_and_beats_the_rule(stop: float) -> 
     interval missing at stop 0.05).
 
     At stop 0.05 the last record lies 3.9 secondary-fold distances (0.0119) before mu*, where
-    the pitchfork law's series is more a fold's than a pitchfork's, and without static data a
-    fold law with as many parameters fits within 7.9 of it (likelihood ratio 51 < 100): the type
-    is withheld (``fold_indistinct``), never a fold named; of 5 noise seeds the probabilities
+    no record sees the pitchfork's own regime (x < delta), and without static data a fold law
+    with as many parameters fits within 7.9 of it (likelihood ratio 51 < 1e6): the type is
+    withheld (``fold_indistinct``), never a fold named; of 5 noise seeds the probabilities
     alone already left 2 undetermined (saddle-node 0.57 and 0.48). From stop 0.01 (0.8
     distances) the fold law loses by > 7000."""
     d = lab_sweep("symmetric", 0.05, stop)
