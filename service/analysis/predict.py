@@ -246,18 +246,18 @@ _RICHARDSON = 2.5  # bias of the main fit over the bias its neighbours reveal
 
 
 def _truncation_spread(sw: Sweep, fit: ModelFit) -> tuple[float, float]:
-    """Downward and upward truncation bias of ``fit``'s mu*, read from less-truncated fits.
+    """Downward and upward truncation bias of ``fit``'s mu*, read from neighbouring fits.
 
     The neighbours are fits that truncate less than ``fit``: one more correction term (same
     window or one point less), and the window without its one, two or three farthest points or
-    cut to half its size (same terms, and one more on the half window); and the window one or
-    two points larger (same terms): the truncation's effect on mu* is set by the spacing of the
-    points nearest mu*, which every smaller window shares, so on a fixed grid it barely moves as
-    the window shrinks (the beam's fold, 2 corrections on the nearest 5-8 points of one plan:
-    -16.6 to -15.8 standard deviations), and shows where the window grows (-13.3, -8.7 at 9 and
-    10 points). Fits with fewer terms are not neighbours: they measure their own, larger
-    truncation (on the beam they set the width: median |error| / half-width 0.04-0.10 where a
-    calibrated interval gives 0.34).
+    cut to half its size (same terms, and one more on the half window); and, truncating more,
+    the window one or two points larger (same terms): the truncation's effect on mu* is set
+    by the spacing of the points nearest mu*, which every smaller window shares, so on a fixed
+    grid it barely moves as the window shrinks (the beam's fold, 2 corrections on the nearest
+    5-8 points of one plan: -16.6 to -15.8 standard deviations), and shows where the window
+    grows (-13.3, -8.7 at 9 and 10 points). Fits with fewer terms are not neighbours: they
+    measure their own, larger truncation (on the beam they set the width: median |error| /
+    half-width 0.04-0.10 where a calibrated interval gives 0.34).
 
     A neighbour's difference ``D = mu*_j - mu*`` carries noise as well as bias: both fits are
     unbiased if the law holds and one of them is the more efficient, so the noise of ``D`` is
