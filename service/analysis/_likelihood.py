@@ -130,21 +130,35 @@ def _profile(
     inflate: float = 1.0,
     with_interval: bool = True,
     xatol: float | None = None,
+    only68: bool = False,
 ) -> _Profile:
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals.
+
+    ``only68`` (with ``with_interval``): the 68 % interval alone, ``lo`` and ``hi`` NaN (and
+    without their flags); mu*, -2 log L and the 68 % ends are those of the full profile (the
+    same search and tolerance, and the kernel's 68 % ends do not depend on whether the
+    ``level`` ends are searched too), at the cost of one interval instead of two.
 
     Deterministic in its inputs: a result is memoised on the packed data and the options (model
     selection, the exponent profiles and the final fits revisit the same windows and laws).
     """
     packed = _pack(mu_w, comps)
+    only68 = only68 and with_interval
     memo = _MEMO.get()
     if memo is None:
-        return _profile_uncached(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+        return _profile_uncached(
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
+        )
     key = _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+    if only68:
+        hit = memo.get(key)  # the full profile, if computed: the same 68 % interval
+        if hit is not None:
+            return hit
+        key = (*key, "68")
     hit = memo.get(key)
     if hit is None:
         hit = memo[key] = _profile_uncached(
-            mu_w, comps, packed, scale, level, inflate, with_interval, xatol
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
         )
     return hit
 
@@ -189,15 +203,17 @@ def _profile_uncached(
     inflate: float,
     with_interval: bool,
     xatol: float | None,
+    only68: bool = False,
 ) -> _Profile:
     last = float(mu_w[-1])
     cf = any(c.conformal for c in comps)
     t = _search_grid(mu_w, comps[0], scale, cf)
     # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-5 for model selection
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
-    d95 = _chi2_1_quantile(level) * inflate if with_interval else 0.0
+    d95 = _chi2_1_quantile(level) * inflate if with_interval and not only68 else 0.0
+    d68 = 1.0 * inflate if with_interval else 0.0
     th, fh, ig, tl, tu, tl68, tu68 = profile_search(
-        np.ascontiguousarray(t), packed, last, _LOGU, cf, tol, d95, 1.0 * inflate, _POLISH
+        np.ascontiguousarray(t), packed, last, _LOGU, cf, tol, d95, d68, _POLISH
     )
     i, G = int(ig), t.size
     flags: list[Flag] = []
@@ -210,10 +226,12 @@ def _profile_uncached(
     mh = last + math.exp(th)
     if not with_interval:
         return _Profile(mh, fh, mh, mh, mh, mh, tuple(flags))
-    lo = last if math.isnan(tl) else last + math.exp(tl)
-    hi = last + math.exp(t[-1]) if math.isnan(tu) else last + math.exp(tu)
     lo68 = last if math.isnan(tl68) else last + math.exp(tl68)
     hi68 = last + math.exp(t[-1]) if math.isnan(tu68) else last + math.exp(tu68)
+    if only68:
+        return _Profile(mh, fh, math.nan, math.nan, lo68, hi68, tuple(flags))
+    lo = last if math.isnan(tl) else last + math.exp(tl)
+    hi = last + math.exp(t[-1]) if math.isnan(tu) else last + math.exp(tu)
     if math.isnan(tu):
         flags.append(
             Flag("interval_unbounded", "the profile likelihood does not bound mu* from above")

@@ -259,7 +259,10 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     xatol : float
         Tolerance of the minimisation in t.
     d95, d68 : float
-        Rises of ``-2 log L`` that end the intervals; ``d95 <= 0``: no interval.
+        Rises of ``-2 log L`` that end the intervals; an interval whose rise is ``<= 0`` is not
+        searched (its ends NaN). Each interval's ends are the same whether or not the other is
+        searched: the grid values the walks make exact are the same refined rows, and each
+        crossing starts its own fold-parameter descent.
 
     Returns
     -------
@@ -300,5 +303,6 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     out[0], out[1], out[2] = th, fh, i
     if d95 > 0.0:
         out[3], out[4] = _ends(th, fh, d95, t, f, exact, P, mu_last, logu, W, cf)
+    if d68 > 0.0:
         out[5], out[6] = _ends(th, fh, d68, t, f, exact, P, mu_last, logu, W, cf)
     return out

@@ -158,3 +158,24 @@ def test_a_valley_narrower_than_the_grid_is_found() -> None:
     got = _profile(m8, comps, float(mu[-1] - mu[0]), with_interval=False)
     assert got.nll <= float(dense.min()) + 1e-6
     assert got.mu_star == pytest.approx(float(ms[dense.argmin()]), abs=1e-5)
+
+
+@pytest.mark.parametrize("fold", [False, True])
+@pytest.mark.parametrize("seed", range(3))
+def test_the_68_interval_alone_is_the_full_profiles(seed: int, fold: bool) -> None:
+    """Searched without the 95 % ends (``d95 = 0``), the 68 % ends, mu* and -2 log L are the
+    full search's to the bit (plain and conformal laws), and so is ``_profile(only68=True)``."""
+    mu, y, sd = _sweep(seed, fold=fold)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 61 if fold else 111)
+    P, last = _pack(mu, comps), float(mu[-1])
+    d95 = float(stats.chi2.ppf(0.95, 1))
+    full = profile_search(t, P, last, _LOGU, fold, 1e-10, d95, 1.0, 3)
+    only = profile_search(t, P, last, _LOGU, fold, 1e-10, 0.0, 1.0, 3)
+    assert np.isnan(only[3]) and np.isnan(only[4])
+    np.testing.assert_array_equal(only[[0, 1, 2, 5, 6]], full[[0, 1, 2, 5, 6]])
+    pf = _profile(mu, comps, scale)
+    p68 = _profile(mu, comps, scale, only68=True)
+    assert (p68.mu_star, p68.nll, p68.lo68, p68.hi68) == (pf.mu_star, pf.nll, pf.lo68, pf.hi68)
+    assert math.isnan(p68.lo) and math.isnan(p68.hi)
