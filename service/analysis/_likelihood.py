@@ -21,7 +21,11 @@ import numpy as np
 from scipy import optimize, stats
 
 from service.analysis._laws_kernels import nll_rows
-from service.analysis._profile_kernels import profile_search
+from service.analysis._profile_kernels import (
+    profile_scan,
+    profile_search,
+    profile_search_scanned,
+)
 from service.analysis._sweep import Sweep
 from service.analysis.common import Flag
 
@@ -212,9 +216,7 @@ def _profile_uncached(
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
     d95 = _chi2_1_quantile(level) * inflate if with_interval and not only68 else 0.0
     d68 = 1.0 * inflate if with_interval else 0.0
-    th, fh, ig, tl, tu, tl68, tu68 = profile_search(
-        np.ascontiguousarray(t), packed, last, _LOGU, cf, tol, d95, d68, _POLISH
-    )
+    th, fh, ig, tl, tu, tl68, tu68 = _search(mu_w, t, packed, last, cf, tol, d95, d68)
     i, G = int(ig), t.size
     flags: list[Flag] = []
     if i == 0:
@@ -244,6 +246,31 @@ def _profile_uncached(
             )
         )
     return _Profile(mh, fh, lo, hi, lo68, hi68, tuple(flags))
+
+
+def _search(
+    mu_w: np.ndarray, t: np.ndarray, packed: tuple, last: float, cf: bool, tol: float,
+    d95: float, d68: float,
+) -> np.ndarray:
+    """The kernel's full search (:func:`profile_search`), its scan of the grid kept in a
+    :func:`profile_memo` scope: a window and law searched again with another tolerance or
+    intervals (a model-selection search, then the final fit or a truncation refit) scans its
+    grid once. The scan depends on the grid and the data alone, and the search after it is
+    given copies (its interval walks update them): the same result to the bit."""
+    t = np.ascontiguousarray(t)
+    memo = _MEMO.get()
+    if memo is None:
+        return profile_search(t, packed, last, _LOGU, cf, tol, d95, d68, _POLISH)
+    D, E, M = packed
+    key = ("scan", mu_w.tobytes(), t.tobytes(), D.tobytes(), E.tobytes(), E.shape,
+           M.tobytes(), cf)  # fmt: skip
+    hit = memo.get(key)
+    if hit is None:
+        hit = memo[key] = profile_scan(t, packed, last, _LOGU, cf)  # type: ignore[assignment]
+    f, exact = hit  # type: ignore[misc]
+    return profile_search_scanned(
+        t, f.copy(), exact.copy(), packed, last, _LOGU, cf, tol, d95, d68, _POLISH
+    )
 
 
 @functools.lru_cache(maxsize=16)
