@@ -562,7 +562,8 @@ def refit_profile(sweep: Sweep, fit: ModelFit, n: int, K: int) -> tuple[float, f
     idx = slice(N - n, N)
     comp = _sigma_comp(sweep, idx, 2 * fit.a, fit.h, K, fit.conformal)
     scale = float(sweep.mu[-1] - sweep.mu[0])
-    prof = _profile(sweep.mu[idx], [comp], scale, with_interval=True)
+    # the 68 % interval alone: the same mu* and half-width as the full profile's
+    prof = _profile(sweep.mu[idx], [comp], scale, with_interval=True, only68=True)
     return prof.mu_star, 0.5 * (prof.hi68 - prof.lo68)
 
 

@@ -21,7 +21,11 @@ import numpy as np
 from scipy import optimize, stats
 
 from service.analysis._laws_kernels import nll_rows
-from service.analysis._profile_kernels import profile_search
+from service.analysis._profile_kernels import (
+    profile_scan,
+    profile_search,
+    profile_search_scanned,
+)
 from service.analysis._sweep import Sweep
 from service.analysis.common import Flag
 
@@ -130,21 +134,35 @@ def _profile(
     inflate: float = 1.0,
     with_interval: bool = True,
     xatol: float | None = None,
+    only68: bool = False,
 ) -> _Profile:
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals.
+
+    ``only68`` (with ``with_interval``): the 68 % interval alone, ``lo`` and ``hi`` NaN (and
+    without their flags); mu*, -2 log L and the 68 % ends are those of the full profile (the
+    same search and tolerance, and the kernel's 68 % ends do not depend on whether the
+    ``level`` ends are searched too), at the cost of one interval instead of two.
 
     Deterministic in its inputs: a result is memoised on the packed data and the options (model
     selection, the exponent profiles and the final fits revisit the same windows and laws).
     """
     packed = _pack(mu_w, comps)
+    only68 = only68 and with_interval
     memo = _MEMO.get()
     if memo is None:
-        return _profile_uncached(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+        return _profile_uncached(
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
+        )
     key = _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+    if only68:
+        hit = memo.get(key)  # the full profile, if computed: the same 68 % interval
+        if hit is not None:
+            return hit
+        key = (*key, "68")
     hit = memo.get(key)
     if hit is None:
         hit = memo[key] = _profile_uncached(
-            mu_w, comps, packed, scale, level, inflate, with_interval, xatol
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
         )
     return hit
 
@@ -189,16 +207,16 @@ def _profile_uncached(
     inflate: float,
     with_interval: bool,
     xatol: float | None,
+    only68: bool = False,
 ) -> _Profile:
     last = float(mu_w[-1])
     cf = any(c.conformal for c in comps)
     t = _search_grid(mu_w, comps[0], scale, cf)
     # tolerance on log(mu* - mu[-1]): 1e-10 relative for final fits, 1e-5 for model selection
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
-    d95 = _chi2_1_quantile(level) * inflate if with_interval else 0.0
-    th, fh, ig, tl, tu, tl68, tu68 = profile_search(
-        np.ascontiguousarray(t), packed, last, _LOGU, cf, tol, d95, 1.0 * inflate, _POLISH
-    )
+    d95 = _chi2_1_quantile(level) * inflate if with_interval and not only68 else 0.0
+    d68 = 1.0 * inflate if with_interval else 0.0
+    th, fh, ig, tl, tu, tl68, tu68 = _search(mu_w, t, packed, last, cf, tol, d95, d68)
     i, G = int(ig), t.size
     flags: list[Flag] = []
     if i == 0:
@@ -210,10 +228,12 @@ def _profile_uncached(
     mh = last + math.exp(th)
     if not with_interval:
         return _Profile(mh, fh, mh, mh, mh, mh, tuple(flags))
-    lo = last if math.isnan(tl) else last + math.exp(tl)
-    hi = last + math.exp(t[-1]) if math.isnan(tu) else last + math.exp(tu)
     lo68 = last if math.isnan(tl68) else last + math.exp(tl68)
     hi68 = last + math.exp(t[-1]) if math.isnan(tu68) else last + math.exp(tu68)
+    if only68:
+        return _Profile(mh, fh, math.nan, math.nan, lo68, hi68, tuple(flags))
+    lo = last if math.isnan(tl) else last + math.exp(tl)
+    hi = last + math.exp(t[-1]) if math.isnan(tu) else last + math.exp(tu)
     if math.isnan(tu):
         flags.append(
             Flag("interval_unbounded", "the profile likelihood does not bound mu* from above")
@@ -226,6 +246,31 @@ def _profile_uncached(
             )
         )
     return _Profile(mh, fh, lo, hi, lo68, hi68, tuple(flags))
+
+
+def _search(
+    mu_w: np.ndarray, t: np.ndarray, packed: tuple, last: float, cf: bool, tol: float,
+    d95: float, d68: float,
+) -> np.ndarray:
+    """The kernel's full search (:func:`profile_search`), its scan of the grid kept in a
+    :func:`profile_memo` scope: a window and law searched again with another tolerance or
+    intervals (a model-selection search, then the final fit or a truncation refit) scans its
+    grid once. The scan depends on the grid and the data alone, and the search after it is
+    given copies (its interval walks update them): the same result to the bit."""
+    t = np.ascontiguousarray(t)
+    memo = _MEMO.get()
+    if memo is None:
+        return profile_search(t, packed, last, _LOGU, cf, tol, d95, d68, _POLISH)
+    D, E, M = packed
+    key = ("scan", mu_w.tobytes(), t.tobytes(), D.tobytes(), E.tobytes(), E.shape,
+           M.tobytes(), cf)  # fmt: skip
+    hit = memo.get(key)
+    if hit is None:
+        hit = memo[key] = profile_scan(t, packed, last, _LOGU, cf)  # type: ignore[assignment]
+    f, exact = hit  # type: ignore[misc]
+    return profile_search_scanned(
+        t, f.copy(), exact.copy(), packed, last, _LOGU, cf, tol, d95, d68, _POLISH
+    )
 
 
 @functools.lru_cache(maxsize=16)

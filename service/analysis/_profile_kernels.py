@@ -241,6 +241,20 @@ def _polish(i, t, f, xatol, P, mu_last, logu, W, cf):
 
 
 @njit(cache=True, error_model="numpy")
+def profile_scan(t, P, mu_last, logu, cf):
+    """The scan of :func:`profile_search` alone: ``(f, exact)``, the profile on the grid ``t``
+    and which of its values are exact (a conformal law's others are upper bounds). It depends
+    on the grid and the data only, not on the search's tolerance or intervals: a scan kept
+    serves every later search of the same grid and data (:func:`profile_search_scanned`)."""
+    W = _work(P[0], P[2])
+    G = t.size
+    f = np.empty(G)
+    exact = np.zeros(G, dtype=np.bool_)
+    _scan(t, P, mu_last, logu, W, cf, f, exact)
+    return f, exact
+
+
+@njit(cache=True, error_model="numpy")
 def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     """Minimum of the profile over the grid ``t`` (log distances, increasing) and its intervals.
 
@@ -259,7 +273,10 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     xatol : float
         Tolerance of the minimisation in t.
     d95, d68 : float
-        Rises of ``-2 log L`` that end the intervals; ``d95 <= 0``: no interval.
+        Rises of ``-2 log L`` that end the intervals; an interval whose rise is ``<= 0`` is not
+        searched (its ends NaN). Each interval's ends are the same whether or not the other is
+        searched: the grid values the walks make exact are the same refined rows, and each
+        crossing starts its own fold-parameter descent.
 
     Returns
     -------
@@ -268,11 +285,17 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         NaN where the profile does not rise that far within the grid; ``i_grid`` the index of the
         grid's lowest point.
     """
+    f, exact = profile_scan(t, P, mu_last, logu, cf)
+    return profile_search_scanned(t, f, exact, P, mu_last, logu, cf, xatol, d95, d68, polish)
+
+
+@njit(cache=True, error_model="numpy")
+def profile_search_scanned(t, f, exact, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
+    """:func:`profile_search` after its scan, ``(f, exact)`` of :func:`profile_scan` on the
+    same grid and data (the same result, to the bit). ``f`` and ``exact`` are updated in place
+    (the interval walks make values exact): pass copies to keep a scan for another search."""
     W = _work(P[0], P[2])
     G = t.size
-    f = np.empty(G)
-    exact = np.zeros(G, dtype=np.bool_)
-    _scan(t, P, mu_last, logu, W, cf, f, exact)
     i = int(np.argmin(f))
     th, fh = _polish(i, t, f, xatol, P, mu_last, logu, W, cf)
     if polish > 1:
@@ -300,5 +323,6 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
     out[0], out[1], out[2] = th, fh, i
     if d95 > 0.0:
         out[3], out[4] = _ends(th, fh, d95, t, f, exact, P, mu_last, logu, W, cf)
+    if d68 > 0.0:
         out[5], out[6] = _ends(th, fh, d68, t, f, exact, P, mu_last, logu, W, cf)
     return out

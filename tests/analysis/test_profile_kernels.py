@@ -25,8 +25,9 @@ from service.analysis._likelihood import (
     _profile_screen,
     _range_grid,
     _sigma_exps,
+    profile_memo,
 )
-from service.analysis._profile_kernels import profile_search
+from service.analysis._profile_kernels import profile_scan, profile_search, profile_search_scanned
 
 
 def _sweep(seed: int, n: int = 16, rel: float = 1e-4, fold: bool = False):
@@ -158,3 +159,47 @@ def test_a_valley_narrower_than_the_grid_is_found() -> None:
     got = _profile(m8, comps, float(mu[-1] - mu[0]), with_interval=False)
     assert got.nll <= float(dense.min()) + 1e-6
     assert got.mu_star == pytest.approx(float(ms[dense.argmin()]), abs=1e-5)
+
+
+@pytest.mark.parametrize("fold", [False, True])
+@pytest.mark.parametrize("seed", range(3))
+def test_the_68_interval_alone_is_the_full_profiles(seed: int, fold: bool) -> None:
+    """Searched without the 95 % ends (``d95 = 0``), the 68 % ends, mu* and -2 log L are the
+    full search's to the bit (plain and conformal laws), and so is ``_profile(only68=True)``."""
+    mu, y, sd = _sweep(seed, fold=fold)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 61 if fold else 111)
+    P, last = _pack(mu, comps), float(mu[-1])
+    d95 = float(stats.chi2.ppf(0.95, 1))
+    full = profile_search(t, P, last, _LOGU, fold, 1e-10, d95, 1.0, 3)
+    only = profile_search(t, P, last, _LOGU, fold, 1e-10, 0.0, 1.0, 3)
+    assert np.isnan(only[3]) and np.isnan(only[4])
+    np.testing.assert_array_equal(only[[0, 1, 2, 5, 6]], full[[0, 1, 2, 5, 6]])
+    pf = _profile(mu, comps, scale)
+    p68 = _profile(mu, comps, scale, only68=True)
+    assert (p68.mu_star, p68.nll, p68.lo68, p68.hi68) == (pf.mu_star, pf.nll, pf.lo68, pf.hi68)
+    assert math.isnan(p68.lo) and math.isnan(p68.hi)
+
+
+@pytest.mark.parametrize("fold", [False, True])
+@pytest.mark.parametrize("seed", range(3))
+def test_a_kept_scan_gives_the_full_search(seed: int, fold: bool) -> None:
+    """The scan kept and searched again (copies: the walks update them), with and without
+    intervals and at either tolerance, gives the full search's result to the bit; so does
+    ``_profile`` in a memo scope, where a window's searches share their scan."""
+    mu, y, sd = _sweep(seed, fold=fold)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 61 if fold else 111)
+    P, last = _pack(mu, comps), float(mu[-1])
+    d95 = float(stats.chi2.ppf(0.95, 1))
+    f, exact = profile_scan(t, P, last, _LOGU, fold)
+    for tol, a, b in ((1e-5, 0.0, 0.0), (1e-10, d95, 1.0), (1e-10, 0.0, 1.0)):
+        full = profile_search(t, P, last, _LOGU, fold, tol, a, b, 3)
+        kept = profile_search_scanned(t, f.copy(), exact.copy(), P, last, _LOGU, fold, tol, a, b, 3)
+        np.testing.assert_array_equal(kept, full)
+    plain = [_profile(mu, comps, scale, with_interval=w) for w in (False, True)]
+    with profile_memo():
+        shared = [_profile(mu, comps, scale, with_interval=w) for w in (False, True)]
+    assert shared == plain
