@@ -161,17 +161,22 @@ def test_a_valley_narrower_than_the_grid_is_found() -> None:
     assert got.mu_star == pytest.approx(float(ms[dense.argmin()]), abs=1e-5)
 
 
+def _search_case(seed: int, fold: bool) -> tuple:
+    """A sweep's one-component law (plain or conformal), its scale, range grid, packed arrays,
+    last control value and the 95 % threshold of -2 log L."""
+    mu, y, sd = _sweep(seed, fold=fold)
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
+    scale = float(mu[-1] - mu[0])
+    t = _range_grid(scale, 61 if fold else 111)
+    return mu, comps, scale, t, _pack(mu, comps), float(mu[-1]), float(stats.chi2.ppf(0.95, 1))
+
+
 @pytest.mark.parametrize("fold", [False, True])
 @pytest.mark.parametrize("seed", range(3))
 def test_the_68_interval_alone_is_the_full_profiles(seed: int, fold: bool) -> None:
     """Searched without the 95 % ends (``d95 = 0``), the 68 % ends, mu* and -2 log L are the
     full search's to the bit (plain and conformal laws), and so is ``_profile(only68=True)``."""
-    mu, y, sd = _sweep(seed, fold=fold)
-    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
-    scale = float(mu[-1] - mu[0])
-    t = _range_grid(scale, 61 if fold else 111)
-    P, last = _pack(mu, comps), float(mu[-1])
-    d95 = float(stats.chi2.ppf(0.95, 1))
+    mu, comps, scale, t, P, last, d95 = _search_case(seed, fold)
     full = profile_search(t, P, last, _LOGU, fold, 1e-10, d95, 1.0, 3)
     only = profile_search(t, P, last, _LOGU, fold, 1e-10, 0.0, 1.0, 3)
     assert np.isnan(only[3]) and np.isnan(only[4])
@@ -188,12 +193,7 @@ def test_a_kept_scan_gives_the_full_search(seed: int, fold: bool) -> None:
     """The scan kept and searched again (copies: the walks update them), with and without
     intervals and at either tolerance, gives the full search's result to the bit; so does
     ``_profile`` in a memo scope, where a window's searches share their scan."""
-    mu, y, sd = _sweep(seed, fold=fold)
-    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
-    scale = float(mu[-1] - mu[0])
-    t = _range_grid(scale, 61 if fold else 111)
-    P, last = _pack(mu, comps), float(mu[-1])
-    d95 = float(stats.chi2.ppf(0.95, 1))
+    mu, comps, scale, t, P, last, d95 = _search_case(seed, fold)
     f, exact = profile_scan(t, P, last, _LOGU, fold)
     for tol, a, b in ((1e-5, 0.0, 0.0), (1e-10, d95, 1.0), (1e-10, 0.0, 1.0)):
         full = profile_search(t, P, last, _LOGU, fold, tol, a, b, 3)
