@@ -65,7 +65,10 @@ __all__ = [
 PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] = {
     "service.analysis.common:Flag": (wire.Flag, frozenset(), frozenset()),
     "service.analysis.detect:Mode": (wire.Mode, frozenset(), frozenset()),
-    "service.analysis.detect:Detection": (wire.Detection, frozenset(), frozenset()),
+    # the record's units come from its reader (the file's header), not from the numerics
+    "service.analysis.detect:Detection": (
+        wire.Detection, frozenset(), frozenset({"time_unit", "value_unit"})
+    ),
     "service.analysis.measurement:Measurement": (wire.Measurement, frozenset(), frozenset()),
     "service.analysis.predict:PaperRule": (wire.PaperRule, frozenset(), frozenset()),
     # the model fits are the engine's internals (profiles, windows): not a result
@@ -189,9 +192,13 @@ def detection(
     extra_flags: Iterable[Any] = (),
     control: float | None = None,
     name: str | None = None,
+    time_unit: str | None = None,
+    value_unit: str | None = None,
 ) -> wire.Detection:
     """A ``Detection``; ``extra_flags`` (e.g. the reader's) come first. With ``control`` or
-    ``name``, a :class:`~service.schemas.analysis.RecordDetection` (a record of a sweep)."""
+    ``name``, a :class:`~service.schemas.analysis.RecordDetection` (a record of a sweep).
+    ``time_unit``, ``value_unit``: the record's units as its file named them (the numbers are
+    in them: omega in rad per ``time_unit``)."""
     if isinstance(det, Mapping):  # a document (the per-record detections of older sweeps)
         return _detection_doc(det, control, name)
     doc = _fields(det, skip=("modes", "fundamental", "flags"))
@@ -200,7 +207,8 @@ def detection(
     if det.fundamental is not None:
         i = int(det.fundamental.index)
         fund = wire.Fundamental(**modes[i].model_dump(), index=i)
-    doc.update(modes=modes, fundamental=fund, flags=flags([*extra_flags, *det.flags]))
+    doc.update(modes=modes, fundamental=fund, flags=flags([*extra_flags, *det.flags]),
+               time_unit=time_unit or None, value_unit=value_unit or None)  # fmt: skip
     if control is not None or name is not None:
         return wire.RecordDetection(**doc, control=plain(control), name=name)
     return wire.Detection(**doc)
@@ -266,12 +274,16 @@ def prediction(p: Any) -> wire.Prediction:
 
 
 def sweep_result(
-    r: Any, *, record_flags: Mapping[str, Iterable[Any]] | None = None
+    r: Any,
+    *,
+    record_flags: Mapping[str, Iterable[Any]] | None = None,
+    time_unit: str | None = None,
 ) -> wire.SweepResult:
     """A sweep (``WarnResult``: simulated or recorded) as the one sweep document.
 
     ``record_flags``: per record name, what the reader noticed about the file (rounded
     timestamps, resampling), listed first among that record's detection flags.
+    ``time_unit``: the records' common time unit (their detections are in it), if named.
     """
     doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections"))
     dets = []
@@ -280,7 +292,7 @@ def sweep_result(
             one = _detection_doc(d, d.get("control"), d.get("name"))
         else:  # a (detection, control, name) triple or a detection with those attributes
             det, control, name = d if isinstance(d, tuple) else (d, None, None)
-            one = detection(det, control=control, name=name)
+            one = detection(det, control=control, name=name, time_unit=time_unit)
         notes = (record_flags or {}).get(getattr(one, "name", None) or "")
         if notes:
             one = one.model_copy(update={"flags": flags([*notes, *one.flags])})

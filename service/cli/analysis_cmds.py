@@ -99,13 +99,17 @@ def _detect(args: argparse.Namespace) -> int:
         if err is None:
             raise
         raise err from None
-    doc = convert.detection(det, extra_flags=rec.flags)
+    doc = convert.detection(det, extra_flags=rec.flags, time_unit=rec.unit,
+                            value_unit=rec.value_unit)  # fmt: skip
     if args.plot:
         plot_detection(args.plot, rec.w, rec.dt, doc, time_unit=rec.unit,
                        value_unit=rec.value_unit, title=Path(args.file).name)  # fmt: skip
     f = doc.fundamental
+    per = f" rad/{rec.unit}" if rec.unit else ""
+    sq = f" 1/{rec.unit}^2" if rec.unit else ""
     text = (
-        f"fundamental: omega = {f.omega}, sigma2 = {f.sigma2} +- {f.sigma2_std} ({f.regime})"
+        f"fundamental: omega = {f.omega}{per}, sigma2 = {f.sigma2} +- {f.sigma2_std}{sq} "
+        f"({f.regime})"
         if f is not None
         else "no fundamental"
     ) + f"; {len(doc.modes)} modes; flags: {[x.code for x in doc.flags] or 'none'}"
@@ -262,7 +266,7 @@ def _sweep(args: argparse.Namespace) -> int:
     finally:
         if cb is not None:
             cb.close()
-    doc = convert.sweep_result(res, record_flags=notes)
+    doc = convert.sweep_result(res, record_flags=notes, time_unit=time_unit)
     if args.plot:
         plot_sweep(args.plot, doc, control_name=args.control_name,
                    control_unit=args.control_unit or table.units.get(control_col),

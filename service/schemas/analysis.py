@@ -90,6 +90,15 @@ class Detection(_Result):
     dt: Num = None
     kind: str = "impulse"
     iterations: int = 0
+    time_unit: str | None = Field(
+        default=None,
+        description="Time unit of the record as its file or upload named it (e.g. 'ms'): "
+        "omega is in rad per this unit, damping in 1/unit, sigma2 in 1/unit^2, dt in it. "
+        "None: the record named no unit (the numbers are in its time axis's unit).",
+    )
+    value_unit: str | None = Field(
+        default=None, description="Unit of the samples (amplitudes, static level), if named."
+    )
 
 
 class RecordDetection(Detection):

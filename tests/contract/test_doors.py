@@ -90,6 +90,12 @@ async def test_a_lab_file_gives_one_detection_through_cli_and_api(api, lab, name
     omega = 40.0 * np.sqrt(2.0 - (0.0 if name == "s_6g" else 0.5))
     scale = 1e-3 if name == "ms_9g" else 1.0  # rad/ms for a record in milliseconds
     assert cli_doc["fundamental"]["omega"] == pytest.approx(omega * scale, rel=1e-4)
+    # the document says the unit its numbers are in, as the file named it (none for .npy)
+    units = {"ms_9g": ("ms", "mm"), "s_6g": ("s", "mV")}.get(name, (None, None))
+    assert (cli_doc["time_unit"], cli_doc["value_unit"]) == units
+    if name == "ms_9g":
+        text = run_cli("detect", str(path))[1]
+        assert "rad/ms" in text and "1/ms^2" in text, text
 
 
 @pytest.mark.parametrize(
@@ -148,6 +154,7 @@ async def test_one_recorded_sweep_through_cli_api_and_sdk(api, lab) -> None:  # 
     assert _without_names(api_doc["result"]) == _without_names(cli_doc)
     for d in cli_doc["detections"]:  # the reader's note on the %.6g timestamps, in every door
         assert d["flags"][0]["code"] == "rounded_timestamps", d["flags"]
+        assert d["time_unit"] == "s"  # the records' header 'time_s': omega in rad/s
 
     transport = api._transport  # the same app, through the SDK
     async with AsyncClient("http://asgi", transport=transport) as sdk:
@@ -208,4 +215,7 @@ async def test_rounded_times_sent_inline_read_as_from_the_file(api, lab) -> None
     t, w = [float(a) for a, _ in rows], [float(b) for _, b in rows]
     r = await api.post("/v1/detections", json={"t": t, "w": w})
     assert r.status_code == 200, r.text
-    assert r.json() == cli_doc
+    # the numbers alike; the units the file's header named are not in the JSON arrays
+    inline = r.json()
+    assert (inline.pop("time_unit"), inline.pop("value_unit")) == (None, None)
+    assert inline == {k: v for k, v in cli_doc.items() if k not in ("time_unit", "value_unit")}

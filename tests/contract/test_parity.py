@@ -76,7 +76,9 @@ def test_real_results_convert_to_strict_json() -> None:
         records.append((0.1 + 1e-2 * np.exp(-0.3 * t) * np.cos(omega * t) + noise, dt, mu))
     det = detect(records[0][0], dt=dt)
     doc = _strict_roundtrip(convert.detection(det))
-    assert [f.name for f in fields(det)] == list(doc)  # every field, in order
+    # every field, in order, then the record's units (from its reader: none for arrays)
+    assert [f.name for f in fields(det)] + ["time_unit", "value_unit"] == list(doc)
+    assert doc["time_unit"] is None and doc["value_unit"] is None
     assert doc["fundamental"] == {**doc["modes"][det.fundamental.index],
                                   "index": det.fundamental.index}  # fmt: skip
     silent = convert.detection(detect(np.zeros(300), dt=dt))  # no mode: NaN -> None

@@ -68,10 +68,12 @@ async def create_detection(request: Request, state: StateDep, caller: CallerDep)
             raise not_found("signal", req.signal_id)
         w, dt = sig.w, sig.row.dt
         notes = (sig.row.meta or {}).get("recording_flags") or []
+        units = (sig.row.unit, sig.row.value_unit)
     else:  # a big inline signal (streamed): validated in a thread
         rec = await to_thread.run_sync(_clean, req, s.max_samples, s.uniform_rtol)
         w, dt, notes = rec.w, rec.dt, [convert.plain(f) for f in rec.flags]
-    return await state.run(detection_doc, w, dt, req.method, notes)
+        units = (None, None)
+    return await state.run(detection_doc, w, dt, req.method, notes, *units)
 
 
 def _clean(req: DetectionRequest, max_samples: int, uniform_rtol: float) -> recordings.Recording:
@@ -109,10 +111,18 @@ def inline_detection(body: bytes, max_samples: int, uniform_rtol: float) -> tupl
 
 
 def detection_doc(
-    w: Any, dt: float, method: str = "auto", notes: list[dict[str, str]] | None = None
+    w: Any,
+    dt: float,
+    method: str = "auto",
+    notes: list[dict[str, str]] | None = None,
+    time_unit: str | None = None,
+    value_unit: str | None = None,
 ) -> dict[str, Any]:
     """``detect(w, dt=dt, method=method)`` as the wire document (runs in the analysis pool);
-    ``notes``: the reader's flags about the record (rounded timestamps...), listed first."""
+    ``notes``: the reader's flags about the record (rounded timestamps...), listed first;
+    ``time_unit``, ``value_unit``: the stored signal's units (the document says them)."""
     with as_problems("w"):
         det = detect(np.asarray(w, dtype=np.float64), dt=float(dt), method=method)
-    return convert.detection(det, extra_flags=notes or ()).model_dump(mode="json")
+    return convert.detection(
+        det, extra_flags=notes or (), time_unit=time_unit, value_unit=value_unit
+    ).model_dump(mode="json")

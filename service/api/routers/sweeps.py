@@ -293,7 +293,7 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     names = [m["signal_id"] for m in params["measurements"]]
     # signals stored in different time units (one in ms, another in s) are brought to seconds
     try:
-        factors, _ = recordings.common_time_base(units, names)
+        factors, time_unit = recordings.common_time_base(units, names)
     except recordings.RecordingError as exc:
         raise ApiProblem(422, str(exc), field="measurements", value=exc.value) from None
     items = [(w, dt * f, c) for (w, dt, c), f in zip(items, factors)]
@@ -301,4 +301,6 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
         res = sweep_from_signals(
             items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg)
         )
-    return convert.sweep_result(res, record_flags=notes).model_dump(mode="json")
+    return convert.sweep_result(res, record_flags=notes, time_unit=time_unit).model_dump(
+        mode="json"
+    )
