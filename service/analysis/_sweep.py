@@ -216,10 +216,16 @@ def prepare_sweep(
         pos = np.flatnonzero(s2 >= 0)
         if pos.size:
             i = int(pos[0])
+            hint = (
+                ": every value is >= 0; if the column holds |sigma2| = omega^2 (a squared "
+                "frequency), give its negative, or the rates as omega"
+                if pos.size == n
+                else ""
+            )
             raise ParameterError(
                 "sigma2", float(s2[i]),
                 f"sigma2 must be < 0 (a stable mode on the measured branch), got sigma2[{i}]="
-                f"{float(s2[i])!r}",
+                f"{float(s2[i])!r}{hint}",
             )  # fmt: skip
         y = -s2
         kind = "sigma2"

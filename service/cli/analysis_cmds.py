@@ -87,6 +87,44 @@ def _rate_column(
     return v * factors[unit] if unit in factors else v
 
 
+#: Column names read as the fundamental's frequency f (Hz unless the header names another
+#: unit of :data:`service.schemas.predictions.OMEGA_UNIT_FACTORS`) or its period T, when the
+#: table has neither sigma2 nor omega: omega = 2 pi f, or 2 pi / T (in rad per T's unit).
+_FREQUENCY_NAMES = ("frequency", "freq", "f")
+_PERIOD_NAMES = ("period",)
+
+
+def _rates_from_f_or_t(table: Any, path: str) -> dict[str, np.ndarray]:
+    """``omega`` (and ``omega_std``) of a table that gives the fundamental's frequency or its
+    period instead (see :data:`_FREQUENCY_NAMES`); empty when it gives neither."""
+    from service.schemas.predictions import OMEGA_UNIT_FACTORS
+
+    out: dict[str, np.ndarray] = {}
+    f_col = table.find(*_FREQUENCY_NAMES)
+    if f_col is not None:
+        factors = {u.lower(): v for u, v in OMEGA_UNIT_FACTORS.items()}
+        unit = (table.units.get(f_col) or "hz").lower()
+        k = factors.get(unit, 2.0 * math.pi)  # a frequency: cycles per time unit
+        out["omega"] = k * _floats(table, f_col, "SWEEP", path)
+        sd = table.find(*(f"{n}_std" for n in _FREQUENCY_NAMES))
+        if sd is not None:
+            out["omega_std"] = k * _floats(table, sd, "SWEEP", path)
+        return out
+    t_col = table.find(*_PERIOD_NAMES)
+    if t_col is not None:
+        T = _floats(table, t_col, "SWEEP", path)
+        bad_rows = np.flatnonzero(T <= 0)
+        if bad_rows.size:
+            i = int(bad_rows[0])
+            raise CliError(f"SWEEP {path!r}: {t_col}[{i}]={float(T[i])!r}: a period must be > 0",
+                           field=f"{t_col}[{i}]", value=float(T[i]))  # fmt: skip
+        out["omega"] = 2.0 * math.pi / T
+        sd = table.find(*(f"{n}_std" for n in _PERIOD_NAMES))
+        if sd is not None:
+            out["omega_std"] = 2.0 * math.pi * _floats(table, sd, "SWEEP", path) / T**2
+    return out
+
+
 # ------------------------------------------------------------------------------- commands
 def _detect(args: argparse.Namespace) -> int:
     from service.analysis.detect import detect
@@ -132,9 +170,12 @@ def _predict(args: argparse.Namespace) -> int:
                                       "w_static", "w_static_std")}  # fmt: skip
     # every column found goes to the numerics, as over HTTP: they use sigma2 once omega agrees
     # with it (else they name omega and the worst row), and refuse a std without its column
-    if not (col["sigma2"] or col["omega"]):
-        raise bad("SWEEP", args.file, f"needs a column 'sigma2' or 'omega' (columns found: "
+    alt = {} if (col["sigma2"] or col["omega"]) else _rates_from_f_or_t(table, args.file)
+    if not (col["sigma2"] or col["omega"] or alt):
+        raise bad("SWEEP", args.file, "needs a column 'sigma2' or 'omega' (or the "
+                  "fundamental's 'frequency' [Hz] or 'period') (columns found: "
                   f"{table.names})")  # fmt: skip
+    kw.update(alt)
     for name in ("sigma2", "sigma2_std", "w_static", "w_static_std"):
         if col[name]:
             kw[name] = _floats(table, col[name], "SWEEP", args.file)
@@ -411,7 +452,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "predict",
         help="mu* from a sweep table (mu, sigma2 or omega, [sigma2_std or omega_std], "
         "[w_static[, w_static_std]]); units in the header ('mu [deg]'): mu* comes in the "
-        "control's unit, 'omega [Hz]' is read as 2 pi f",
+        "control's unit, 'omega [Hz]' is read as 2 pi f; a table with the fundamental's "
+        "'frequency' (Hz) or 'period' instead is read as omega = 2 pi f or 2 pi / T",
     )
     p.add_argument("file", metavar="SWEEP")
     p.add_argument("--control-column", default=None, metavar="NAME",

@@ -138,3 +138,49 @@ def test_predict_table_of_rates_with_every_column_and_damping(tmp_path, capsys) 
     assert doc == json.loads(convert.prediction(want).model_dump_json())
     other = predict(mus, omega=om, omega_std=1e-5 * om, w_static=w, damping=0.5)
     assert json.loads(convert.prediction(other).model_dump_json()) != doc
+
+
+@pytest.mark.parametrize(
+    ("header", "to_column"),
+    [
+        ("mu,freq_Hz", lambda om: om / (2 * np.pi)),  # a logger's frequency in Hz
+        ("mu,f [kHz]", lambda om: om / (2 * np.pi * 1e3)),
+        ("mu,frequency", lambda om: om / (2 * np.pi)),  # no unit: Hz
+        ("mu,period [ms]", lambda om: 2e3 * np.pi / om),  # the paper's T, in ms
+    ],
+)
+def test_predict_reads_a_frequency_or_a_period_as_omega(tmp_path, capsys, header, to_column) -> None:  # noqa: ANN001,E501
+    """A table that gives the fundamental's frequency or period (what a lab's counter or the
+    paper's T measure) predicts as the same table in omega: mu* does not depend on the time
+    unit, and the rates are 2 pi f or 2 pi / T."""
+    mu_star = bifurcation("asymmetric").mu_star
+    mus = np.arange(0.0, mu_star - 0.01, 0.1)  # a fixed grid
+    om = np.array([np.sqrt(-spectrum("asymmetric", m, "U_A", modes=1).sigma2[0]) for m in mus])
+    ref = tmp_path / "omega.csv"
+    rows = zip(mus.tolist(), om.tolist(), to_column(om).tolist())
+    ref.write_text("mu,omega\n" + "".join(f"{m!r},{o!r}\n" for m, o, _ in rows))
+    p = tmp_path / "t.csv"
+    rows = zip(mus.tolist(), om.tolist(), to_column(om).tolist())
+    p.write_text(header + "\n" + "".join(f"{m!r},{v!r}\n" for m, _, v in rows))
+    want = run_json(capsys, "predict", str(ref))
+    got = run_json(capsys, "predict", str(p))
+    assert got["transition"] == want["transition"] == "saddle-node"
+    assert got["mu_star"] == pytest.approx(want["mu_star"], rel=1e-9)
+    assert got["mu_star_interval"] == pytest.approx(want["mu_star_interval"], rel=1e-9)
+
+
+def test_predict_refuses_a_period_that_is_not_positive(tmp_path, capsys) -> None:
+    p = tmp_path / "t.csv"
+    p.write_text("mu,period\n0,1.0\n0.1,1.1\n0.2,0\n0.3,1.4\n")
+    assert main(["predict", str(p), "--json"]) == 2
+    problem = json.loads(capsys.readouterr().out)
+    assert problem["field"] == "period[2]" and problem["value"] == 0.0, problem
+
+
+def test_an_all_positive_sigma2_column_is_told_how_to_give_it(tmp_path, capsys) -> None:
+    """|sigma2| written as a positive omega^2: the error says what to do."""
+    p = tmp_path / "t.csv"
+    p.write_text("mu,sigma2\n0,4.0\n0.1,3.0\n0.2,2.0\n0.3,1.0\n")
+    assert main(["predict", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "every value is >= 0" in err and "give its negative" in err, err
