@@ -126,6 +126,13 @@ def test_rates_in_hz_with_options_give_the_clis_document(beam, live_server, tmp_
     r = _post(live_server.url, body)
     assert r.status_code == 200, r.text
     assert r.json() == cli_doc
+    # a lab's table of the frequency itself (no omega column): the same floats, one document
+    freq = _write(tmp_path / "freq.csv", {"mu": beam["mu"], "freq_Hz": f, "freq_std": f_std,
+                                          "w_static": w})  # fmt: skip
+    rc, freq_doc = _cli(
+        "predict", str(freq), "--json", "--damping", "0.25", "--transition", "saddle-node"
+    )
+    assert rc == 0 and freq_doc == cli_doc, freq_doc
 
     async def via_sdk() -> Any:
         async with AsyncClient(live_server.url) as sdk:
