@@ -125,6 +125,11 @@ class ModelFit:
     conformal: bool = False
     weight: float = math.nan  # model probability from the comparison (NaN: from the BIC alone)
 
+    @property
+    def corrections_exhausted(self) -> bool:
+        """Whether the eigenvalue law used every correction term the engine allows."""
+        return self.K >= _KMAX
+
 
 _K_CRITERION = "aicc"
 _XI_EVIDENCE = 25.0  # chi^2 drop that identifies a damping nobody gave (5 standard deviations)

@@ -331,6 +331,30 @@ def classify_sweep(
                     "is not named",
                 )
             )
+    if (
+        transition != "undetermined"
+        and sw.w is None
+        and top.corrections_exhausted
+        and len(fits) > 1
+        and fits[1].bic - top.bic < DECISIVE
+    ):
+        # the best law needed every correction the engine allows on its window: a series at
+        # its limit is flexible enough to follow the other exponent's records over a window far
+        # from mu*, and without static data (b) only a decisive likelihood ratio names the type
+        # (measured: a fold on a lab's grid 0, 0.1, ... (last record 0.082 before mu*, noise
+        # 3e-4) named a pitchfork at 0.98, the pitchfork law 7.9 ahead with 3 corrections on 7
+        # points, mu* 0.041 late and the interval past it; in 1800 calibration plans the rule
+        # withholds 14 right names, all beam folds, and no wrong one was named)
+        transition = "undetermined"
+        flags.append(
+            Flag(
+                "exponent_undecided",
+                f"the {top.name} law needs all its corrections on the nearest {top.n} points and "
+                f"beats the {fits[1].name} law by only {fits[1].bic - top.bic:.3g} in -2 log L "
+                f"(< {DECISIVE:.3g}, a likelihood ratio of 1e6): without static data the type "
+                "is not named",
+            )
+        )
     if math.isfinite(a_se) and a_se > 0:
         cands = [0.25, 0.5] if regime == "underdamped" else [0.5, 1.0]
         z = min(abs(a_hat - c) for c in cands) / a_se
