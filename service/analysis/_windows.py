@@ -219,10 +219,15 @@ def _noise_flag(sw: Sweep) -> Flag:
     which = "sigma2_std" if sw.kind == "sigma2" else "omega_std"
     rel = float(np.median(sw.sd / sw.y))
     if sw.mu.size < 4 + _MIN_NOISE_DOF:
+        how = (
+            f"assumed to be {rel:.2g}"
+            if rel == _ASSUMED_REL
+            else f"read from the scatter about the best law on so few points as {rel:.2g} (an "
+            "uncertain estimate; exact data give the floor 1e-12)"
+        )
         return Flag(
             "noise_assumed",
-            f"no {which} given and only {sw.mu.size} points: relative noise of |sigma2| "
-            f"assumed to be {rel:.2g}",
+            f"no {which} given and only {sw.mu.size} points: relative noise of |sigma2| {how}",
         )
     return Flag(
         "noise_estimated",
