@@ -239,27 +239,33 @@ def _grid_from_zero(act: str, step: float) -> tuple[float, np.ndarray, np.ndarra
     return ms, mu, np.array([spectrum(act, float(m), "U_A", modes=1).sigma2[0] for m in mu])
 
 
+def _over_seeds(act: str, step: float, rel: float, seeds: int = 20) -> tuple[float, list, int]:
+    """(mu*, the predictions, how many cover mu*) of the grid from zero with relative noise
+    ``rel`` (std given), one per noise seed."""
+    ms, mu, s2 = _grid_from_zero(act, step)
+    preds = []
+    for seed in range(seeds):
+        sd = rel * np.abs(s2)
+        y = s2 + sd * np.random.default_rng(seed).standard_normal(mu.size)
+        preds.append(predict(mu, y, sigma2_std=sd))
+    covered = sum(p.mu_star_interval[0] <= ms <= p.mu_star_interval[1] for p in preds)
+    return ms, preds, covered
+
+
 def test_a_fold_on_a_coarse_grid_far_from_mu_star_is_covered() -> None:
     """The fold on the grid 0, 0.1, ..., 1.7 (the last record 0.082 before mu*; noise 1e-4 with
     its std, no static data): the saddle-node law needs all three corrections on its 7 points
     and is 5e-3 early (15 statistical std); its larger windows go farther below, the smaller
     ones above. The one-sided truncation spread put their allowance below and covered mu* in
     7 of 20 noise seeds; at the truncation limit it now widens both sides."""
-    ms, mu, s2 = _grid_from_zero("asymmetric", 0.1)
-    covered, named, ours, rule = 0, set(), [], []
-    for seed in range(20):
-        sd = 1e-4 * np.abs(s2)
-        y = s2 + sd * np.random.default_rng(seed).standard_normal(mu.size)
-        p = predict(mu, y, sigma2_std=sd)
-        lo, hi = p.mu_star_interval
-        covered += lo <= ms <= hi
-        named.add(p.transition)
-        ours.append(abs(p.mu_star - ms))
-        rule.append(abs(p.baseline.mu_star - ms))
-        if ours[-1] > rule[-1]:  # worse than the rule only with a flag that says why
+    ms, preds, covered = _over_seeds("asymmetric", 0.1, 1e-4)
+    ours = [abs(p.mu_star - ms) for p in preds]
+    rule = [abs(p.baseline.mu_star - ms) for p in preds]
+    for p, e, r in zip(preds, ours, rule):
+        if e > r:  # worse than the rule only with a flag that says why
             assert {f.code for f in p.flags} - {"no_static_data"}, p.flags
     assert covered >= 19, covered
-    assert named <= {"saddle-node", "undetermined"}
+    assert {p.transition for p in preds} <= {"saddle-node", "undetermined"}
     assert np.median(ours) < 0.3 * np.median(rule)  # 5e-3 against 2.3e-2
 
 
@@ -285,13 +291,7 @@ def test_a_fold_on_a_fine_grid_with_precise_records_is_covered() -> None:
     on exact data: the nearest points set the truncation bias), and so does one more term; the
     second term beyond (the (n, K + 2) neighbour) reveals it. Covered in 6 of 20 noise seeds
     before it was consulted."""
-    ms, mu, s2 = _grid_from_zero("asymmetric", 0.03)
-    covered = 0
-    for seed in range(20):
-        sd = 1e-5 * np.abs(s2)
-        y = s2 + sd * np.random.default_rng(seed).standard_normal(mu.size)
-        p = predict(mu, y, sigma2_std=sd)
-        lo, hi = p.mu_star_interval
-        covered += lo <= ms <= hi
+    ms, preds, covered = _over_seeds("asymmetric", 0.03, 1e-5)
+    for p in preds:
         assert abs(p.mu_star - ms) < 0.05 * abs(p.baseline.mu_star - ms)  # 2e-5 against 2e-3
     assert covered >= 18, covered
