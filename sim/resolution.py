@@ -93,6 +93,21 @@ def rod_error_constant(
     return c_rel * mu_beam, mu_beam, order, "fundamental at mu = 0"
 
 
+def _elements_for(c: float, mu: float, order: float, rtol: float) -> int:
+    """The smallest even n >= MIN_ELEMENTS with c / n^order <= (rtol / 2) mu, worked out in
+    logarithms (an rtol of 1e-320 or a mu* of 0 neither underflows nor divides by zero);
+    MAX_ELEMENTS + 1 stands for "more than the cap"."""
+    if c == 0.0:
+        return MIN_ELEMENTS
+    if mu == 0.0:
+        return MAX_ELEMENTS + 1
+    log_n = (math.log(c) - math.log(0.5) - math.log(rtol) - math.log(mu)) / order
+    if log_n > math.log(MAX_ELEMENTS):
+        return MAX_ELEMENTS + 1
+    n = math.ceil(math.exp(log_n))
+    return max(MIN_ELEMENTS, n + (n % 2))
+
+
 def rod_resolution(
     actuation: str,
     *,
@@ -134,15 +149,14 @@ def rod_resolution(
         used_rtol = DEFAULT_RTOL if rtol is None else float(rtol)
         if not 0.0 < used_rtol < 0.1:
             raise ParameterError("rtol", rtol, f"rtol must lie in (0, 0.1), got {rtol!r}")
-        n = math.ceil((abs(c) / (0.5 * used_rtol * abs(mu_inf))) ** (1.0 / order))
-        n = int(n)
-        n = max(MIN_ELEMENTS, n + (n % 2))
+        n = _elements_for(abs(c), abs(mu_inf), order, used_rtol)
         if n > MAX_ELEMENTS:
             raise ParameterError(
                 "rtol",
                 rtol,
-                f"rtol={rtol!r} needs {n} elements, more than {MAX_ELEMENTS}: "
-                f"ask for rtol >= {2 * abs(c) / MAX_ELEMENTS**order / abs(mu_inf):.1e}",
+                f"rtol={rtol!r} needs more than {MAX_ELEMENTS} elements"
+                + (f": ask for rtol >= {2 * abs(c) / MAX_ELEMENTS**order / abs(mu_inf):.1e}"
+                   if mu_inf else ""),  # fmt: skip
             )
     err = abs(c) / n**order
     if not math.isfinite(err):

@@ -323,7 +323,7 @@ def branch_state(rod: Rod, mu: float, branch: str = "U_A") -> np.ndarray:
     try:
         return follow_mu(rod, z0, 0.0, float(mu), symmetric=sym)
     except ConvergenceError:
-        if branch == "U_A" and rod.actuation != "symmetric":
+        if branch == "U_A" and rod.actuation != "symmetric" and mu > 0.0:  # towards its fold
             return _u_a_near_fold(rod, z0, float(mu))
         raise
 
@@ -368,6 +368,8 @@ def _u_a_near_fold(rod: Rod, z0: np.ndarray, mu: float) -> np.ndarray:
             )
     else:
         raise ConvergenceError(f"no U_A equilibrium at mu={mu!r}", mu)
+    if len(pts) < 2:
+        raise ConvergenceError(f"no U_A equilibrium at mu={mu!r} near a fold", mu)
     (ca, za, ma), (cb, zb, mb) = pts[-2], pts[-1]
     cache: dict[float, tuple[np.ndarray, float]] = {}
 

@@ -302,6 +302,36 @@ def _particular_at_mode(
     return tuple(ab_p), tuple(ab_m), float(np.sum(_WQ * dWp**2)), float(np.sum(_WQ * dPh**2))
 
 
+#: Below this |mu| the root Lambda of J(Lambda) = 2 / mu^2 lies within O(mu) of an Euler
+#: eigenvalue (a pole of J) and the direct solve loses digits as 1 / mu: the length constraint
+#: off by 7e-11 at mu = 1e-4, 6e-9 at 1e-6, branches lost below ~1e-11, 2 / mu^2 = inf at
+#: 5e-324. There the states come from a parabola in mu (:func:`_near_zero`), 10-1e4x closer.
+_MU_LINEAR = 1e-4
+#: The parabola's nodes (-_MU_REF, 0, _MU_REF): the direct solve holds the constraint to 1e-11.
+_MU_REF = 1e-3
+
+
+def _near_zero(actuation: str, mu: float) -> list[Equilibrium]:
+    """The states at 0 < mu < _MU_LINEAR: the parabola in mu through those at -_MU_REF, 0 and
+    +_MU_REF (its error, O(mu _MU_REF^2), holds the length constraint to 1e-15 at mu = 1e-8,
+    8e-13 at 1e-5)."""
+    at = [{e.branch: e for e in equilibria(actuation, m)} for m in (-_MU_REF, 0.0, _MU_REF)]
+    t = mu / _MU_REF
+
+    def par(fm: float, f0: float, fp: float) -> float:
+        return f0 + 0.5 * t * (fp - fm) + 0.5 * t * t * (fp - 2.0 * f0 + fm)
+
+    out = []
+    for name, ep in at[2].items():
+        em, e0 = at[0].get(name), at[1].get(name)
+        if em is None or e0 is None:
+            continue
+        co = tuple(par(*c) for c in zip(em.coeffs, e0.coeffs, ep.coeffs, strict=True))
+        lam2 = par(em.lambda2, e0.lambda2, ep.lambda2)
+        out.append(Equilibrium(actuation, mu, name, lam2, co, ep.kind))  # type: ignore[arg-type]
+    return out
+
+
 def equilibria(
     actuation: str, mu: float, *, branches: tuple[str, ...] | None = None
 ) -> list[Equilibrium]:
@@ -338,6 +368,8 @@ def equilibria(
             )
             for e in mirrored
         ]
+    elif 0.0 < mu < _MU_LINEAR:
+        out = _near_zero(actuation, mu)
     elif mu == 0.0:
         out = []
         for i, (L, _) in enumerate(euler_eigenvalues(3)):

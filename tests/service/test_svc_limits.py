@@ -203,6 +203,23 @@ def test_a_snap_is_not_charged_as_a_simulation() -> None:
     limits.check_scene({**scene, "rtol": 1e-9}, "cosserat", small, timed=False)
 
 
+@pytest.mark.parametrize("rtol", [5e-324, 1e-320, 1e-310, 1e-300])
+@pytest.mark.parametrize("timed", [True, False])
+def test_a_subnormal_rtol_is_a_422_on_rtol(rtol: float, timed: bool) -> None:
+    """Found by the fuzz pass: an rtol of 5e-324 made (rtol / 2) mu* underflow to 0 in the
+    rod's resolution policy, a ZeroDivisionError and a 500 at POST /v1/snaps. Every tiny
+    rtol is refused on its own field, as a simulation (timed) and as a snap (untimed)."""
+    from service.api import Settings, limits
+    from service.api.problems import ApiProblem
+
+    for model in ("cosserat", "auto"):
+        with pytest.raises(ApiProblem) as err:
+            limits.check_scene({"mu": 0.5, "rtol": rtol}, model, Settings(), timed=timed)
+        assert err.value.status == 422, err.value.detail
+        assert [e["field"] for e in err.value.errors] == ["rtol"], err.value.errors
+        assert err.value.errors[0]["value"] == rtol
+
+
 def test_a_tiny_rtol_is_charged_for_its_time_steps() -> None:
     """Steps per period grow as rtol^-1/2 (the time-stepping error (omega dt)^2 / 12 <= rtol/4),
     whatever the elements: 40 elements over 1 time unit at rtol=1e-9 is ~7.5e5 steps."""

@@ -88,6 +88,31 @@ def test_every_equilibrium_satisfies_bcs_and_constraint(actuation: str, mu: floa
                                    atol=1e-4 * np.abs(d4).max())  # fmt: skip
 
 
+@pytest.mark.parametrize("actuation", ACTS)
+def test_every_branch_exists_at_tiny_mu(actuation: str) -> None:
+    """Found by the API's fuzz pass: at 0 < |mu| < ~1e-11 J(Lambda) = 2 / mu^2 has its root
+    within rounding of an Euler eigenvalue (branches vanished; at mu = 5e-324 2 / mu^2 divided
+    by zero), and the direct solve loses digits as 1 / mu. The six branches exist at every tiny
+    mu, satisfy the boundary conditions and the length constraint, and agree with the direct
+    solve where it is well conditioned."""
+    s = SLOPE[actuation]
+    ends = np.array([0.0, 1.0])
+    for mu in (5e-324, -5e-324, 1e-100, 1e-12, -1e-9, 9.9e-9):
+        eqs = equilibria(actuation, mu)
+        assert sorted(e.branch for e in eqs) == ["S_A", "S_B", "U_A", "U_B", "W_A", "W_B"], mu
+        for e in eqs:
+            assert e.mu == mu
+            np.testing.assert_allclose(e.shape(ends), 0.0, atol=1e-12)
+            np.testing.assert_allclose(e.shape(ends, 1), [mu, s * mu], atol=1e-12)
+            assert e.constraint == pytest.approx(2.0, rel=1e-12)
+    # the parabola (used below 1e-4) against the direct solve where that holds 3e-11
+    from sim.euler_beam.statics import _near_zero
+
+    direct = {e.branch: np.array(e.coeffs) for e in equilibria(actuation, 3e-4)}
+    for e in _near_zero(actuation, 3e-4):
+        np.testing.assert_allclose(e.coeffs, direct[e.branch], rtol=0, atol=2e-9)
+
+
 def test_generic_branch_matches_the_papers_basis() -> None:
     """Lambda of each generic equilibrium gives back its mu in the paper's own formulation."""
     for actuation in ACTS:
