@@ -220,6 +220,25 @@ def test_a_subnormal_rtol_is_a_422_on_rtol(rtol: float, timed: bool) -> None:
         assert err.value.errors[0]["value"] == rtol
 
 
+@pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
+@pytest.mark.parametrize(
+    "mu",  # the rod's continuation to |mu| = 1000 takes 2-8 s: slow
+    [pytest.param(m, marks=pytest.mark.slow) for m in (-1e3, 1e3)] + [5e-324, -5e-324, 1e-100],
+)
+def test_extreme_mu_at_the_door_is_a_plan_or_a_422(actuation: str, mu: float) -> None:
+    """Found by a scan of the wire's bounds: mu = 5e-324 divided by zero in the beam's statics
+    (the model choice at 'auto'); mu = -1000 indexed past a list in the rod's near-fold
+    fallback. The door answers every bound with a plan or a 422, never an exception."""
+    from service.api import Settings, limits
+    from service.api.problems import ApiProblem
+
+    for model in ("auto", "cosserat"):
+        try:
+            limits.check_scene({"mu": mu, "actuation": actuation}, model, Settings())
+        except ApiProblem as exc:
+            assert exc.status == 422, exc.detail
+
+
 def test_a_tiny_rtol_is_charged_for_its_time_steps() -> None:
     """Steps per period grow as rtol^-1/2 (the time-stepping error (omega dt)^2 / 12 <= rtol/4),
     whatever the elements: 40 elements over 1 time unit at rtol=1e-9 is ~7.5e5 steps."""
