@@ -29,7 +29,7 @@ from service.analysis._profile_kernels import (
 from service.analysis._sweep import Sweep
 from service.analysis.common import Flag
 
-_GRID = 111  # scan of log(mu* - mu_last) for a plain law
+_GRID = 81  # scan of log(mu* - mu_last) for a plain law
 _GRID_CF = 61  # for a conformal law (the fold parameter profiled at every point)
 # local minima of the scan refined (lowest first): a valley of precise data narrower than the
 # grid's step shows as a grid point thousands above its floor, above a far, shallow basin's
@@ -62,7 +62,7 @@ _CLOSE = np.linspace(-0.3, 0.3, 5)  # around the optimum of a neighbouring expon
 _FINE = np.linspace(-0.01, 0.01, 5)  # around a two-point seed
 #: grids around the two-point seeds, (half-width in t, points across it) per variant (plain,
 #: conformal): a coarse one and a fine one
-_SEED_GRIDS = {False: ((1.0, 41), (0.01, 41)), True: ((1.0, 15), (0.01, 9))}
+_SEED_GRIDS = {False: ((1.0, 31), (0.01, 21)), True: ((1.0, 15), (0.01, 9))}
 
 
 def _range_grid(scale: float, n: int) -> np.ndarray:

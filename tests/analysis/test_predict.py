@@ -413,3 +413,25 @@ def test_a_custom_exponent_is_fitted_and_its_document_says_custom() -> None:
     assert (doc["transition"], doc["a"], doc["probabilities"]) == ("custom", 0.35,
                                                                   {"custom": 1.0})  # fmt: skip
     assert doc["mu_star"] == p.mu_star
+
+
+@pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
+def test_a_labs_own_units_give_the_same_prediction(actuation: str, beam_sweeps: dict) -> None:  # noqa: F811
+    """A lab's control in its own unit and origin (mu -> off + c mu) and its spectrum in its own
+    time unit (sigma^2 -> k sigma^2): the same type, flags and alarm, and mu*, its standard
+    error and interval mapped by the same affine change, over c in 1e-6..1e4, k in
+    1e-12..1e12 and an origin 1e6 away (there the data keep 10 of their 16 digits)."""
+    d = beam_sweeps[actuation]
+    rng = np.random.default_rng(3)
+    sd = 1e-3 * np.abs(d["sigma2"][-12:])
+    mu, s2 = d["mu"][-12:], d["sigma2"][-12:] + sd * rng.standard_normal(12)
+    p0 = predict(mu, s2, sigma2_std=sd)
+    for c, off, k in [(1e-6, 0.0, 1.0), (1e4, -3.0, 1e-12), (57.3, 100.0, 1e12), (1.0, 1e6, 1.0)]:
+        p = predict(off + c * mu, k * s2, sigma2_std=k * sd)
+        assert p.transition == p0.transition and p.alarm.level == p0.alarm.level
+        assert sorted(f.code for f in p.flags) == sorted(f.code for f in p0.flags)
+        tol = (1e-3 if off == 1e6 else 1e-4) * c * p0.mu_star_std
+        assert abs(p.mu_star - (off + c * p0.mu_star)) < tol, (c, off, k)
+        assert p.mu_star_std == pytest.approx(c * p0.mu_star_std, rel=1e-2)
+        for end, end0 in zip(p.mu_star_interval, p0.mu_star_interval, strict=True):
+            assert end == pytest.approx(off + c * end0, abs=10 * tol)

@@ -17,6 +17,8 @@ from scipy import optimize, stats
 
 from service.analysis._laws_kernels import nll_rows
 from service.analysis._likelihood import (
+    _GRID,
+    _GRID_CF,
     _LOGU,
     _Comp,
     _free_exponent,
@@ -76,7 +78,7 @@ def test_plain_search_matches_the_scipy_reference(seed: int, K: int) -> None:
     mu, y, sd = _sweep(seed)
     comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True)]
     scale = float(mu[-1] - mu[0])
-    t = _range_grid(scale, 111)
+    t = _range_grid(scale, _GRID)
     d95 = float(stats.chi2.ppf(0.95, 1))
     got = profile_search(t, _pack(mu, comps), float(mu[-1]), _LOGU, False, 1e-10, d95, 1.0)
     th, fh, lo, hi = _reference(t, mu, comps, d95)
@@ -167,7 +169,7 @@ def _search_case(seed: int, fold: bool) -> tuple:
     mu, y, sd = _sweep(seed, fold=fold)
     comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, 1), True, True, conformal=fold)]
     scale = float(mu[-1] - mu[0])
-    t = _range_grid(scale, 61 if fold else 111)
+    t = _range_grid(scale, _GRID_CF if fold else _GRID)
     return mu, comps, scale, t, _pack(mu, comps), float(mu[-1]), float(stats.chi2.ppf(0.95, 1))
 
 
