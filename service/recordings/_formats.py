@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from service.recordings._clock import clock_seconds, is_clock
 from service.recordings._errors import (
     RecordingError,
     RecordingTooLarge,
@@ -21,7 +22,8 @@ from service.recordings._time_units import seconds_per
 from service.recordings._validate import _validate
 
 _TIME_NAMES = frozenset(
-    ("t", "time", "times", "timestamp", "timestamps", "seconds", "sec", "secs", "s", "ms")
+    ("t", "time", "times", "timestamp", "timestamps", "datetime", "seconds", "sec", "secs", "s",
+     "ms")
 )
 _VALUE_NAMES = frozenset(
     (
@@ -177,6 +179,41 @@ def _sep_hint(numbered: list[tuple[int, str]]) -> tuple[list[tuple[int, str]], s
     return numbered, None
 
 
+def _cells_of(line: str, delim: str | None) -> list[str]:
+    return next(csv.reader([line], delimiter=delim)) if delim else line.split()
+
+
+def content_lines(text: str) -> list[tuple[int, str]]:
+    """The lines that hold the table, numbered as a text editor shows them: blank lines and
+    ``#`` comments dropped, except a header written as the last comment before numbers
+    (``numpy.savetxt(..., header="t,w")`` writes ``# t,w``), taken when it names as many
+    columns as the first data row has and is not itself numbers."""
+    numbered: list[tuple[int, str]] = []
+    comment: tuple[int, str] | None = None
+    for k, ln in enumerate(text.splitlines()):
+        if not ln.strip():
+            continue
+        if ln.lstrip().startswith("#"):
+            if not numbered:
+                comment = (k + 1, ln.lstrip().lstrip("#").strip())
+            continue
+        numbered.append((k + 1, ln))
+    if not numbered or comment is None or not comment[1] or _SEP_LINE.match(numbered[0][1]):
+        return numbered
+    first = numbered[0][1]
+    delim: str | None = max((",", ";", "\t"), key=first.count)
+    if first.count(delim) == 0:
+        delim = None
+    data, head = _cells_of(first, delim), _cells_of(comment[1], delim)
+    if (
+        all(_is_number(c) for c in data)
+        and len(head) == len(data)
+        and not all(_is_number(c) for c in head)
+    ):
+        numbered.insert(0, comment)
+    return numbered
+
+
 def _time_unit(name: str) -> str | None:
     """The time column's unit: from the header (``t [ms]``, ``time_s``), or the name itself
     when it is one (``ms``, ``seconds``)."""
@@ -197,11 +234,7 @@ def _is_units_row(cells: list[str]) -> bool:
 
 def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_dt: bool) -> _Raw:
     text, encoding = _decode(data)
-    numbered = [
-        (k + 1, ln)
-        for k, ln in enumerate(text.splitlines())
-        if ln.strip() and not ln.lstrip().startswith("#")
-    ]  # (line number in the file, line): errors name the line a text editor shows
+    numbered = content_lines(text)  # (line number in the file, line): for the errors
     if not numbered:
         raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
     numbered, hint = _sep_hint(numbered)
@@ -240,8 +273,14 @@ def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_
     ti, wi = _choose_columns(header, column, time_column, has_dt)
     cols: dict[int, np.ndarray] = {}
     cells: dict[int, list[str]] = {}
+    time_unit = _time_unit(header[ti]) if ti is not None else None
     for idx in ([ti] if ti is not None else []) + [wi]:
         texts = [r[idx].strip() for r in body]
+        if idx == ti and not _is_number(texts[0]) and is_clock(texts[0]):
+            where = [f"file: line {n}, column {header[idx]!r}" for n in line_of]
+            cols[idx], cells[idx] = clock_seconds(texts, where)
+            time_unit = "s"
+            continue
         if delim in (";", "\t") and any("," in c for c in texts[:50]):
             texts = [c.replace(",", ".") for c in texts]  # decimal commas (spreadsheet exports)
         vals = np.empty(len(body))
@@ -256,7 +295,7 @@ def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_
     return _Raw(
         w=cols[wi],
         t=cols[ti] if ti is not None else None,
-        unit=_time_unit(header[ti]) if ti is not None else None,
+        unit=time_unit,
         value_unit=split_unit(header[wi])[1],
         source="csv",
         t_cells=cells[ti] if ti is not None else None,

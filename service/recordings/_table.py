@@ -2,8 +2,10 @@
 
 The same text rules as the recordings' CSV (:mod:`service.recordings._formats`): UTF-8 with or
 without a BOM, UTF-16 with its BOM, else Windows-1252; ``#`` comment lines and blank lines
-skipped; ``,``, ``;``, tab or blanks between cells; a unit in the header (``mu [deg]``,
-``omega (Hz)``, ``mu_deg``) or in a row of units under it; decimal commas with ``;`` or tab.
+skipped (a header written as the last comment before numbers, as ``numpy.savetxt`` writes
+it, is read as the header); ``,``, ``;``, tab or blanks between cells; a unit in the header
+(``mu [deg]``, ``omega (Hz)``, ``mu_deg``) or in a row of units under it; decimal commas with
+``;`` or tab.
 Errors name the line a text editor shows and the column.
 """
 
@@ -21,6 +23,7 @@ from service.recordings._formats import (
     _is_number,
     _is_units_row,
     _sep_hint,
+    content_lines,
     split_unit,
 )
 
@@ -77,11 +80,7 @@ def read_table(data: bytes, *, what: str = "file") -> Table:
     Rows whose cells are all empty (a spreadsheet's trailing ``,,``) are skipped.
     """
     text, _ = _decode(data)
-    numbered = [
-        (k + 1, ln)
-        for k, ln in enumerate(text.splitlines())
-        if ln.strip() and not ln.lstrip().startswith("#")
-    ]
+    numbered = content_lines(text)
     numbered, hint = _sep_hint(numbered)
     if not numbered:
         raise RecordingError(what, "", "is empty (a table needs a header row and data rows)")

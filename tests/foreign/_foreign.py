@@ -7,6 +7,7 @@ is the exact Euler-beam ``sigma^2`` (``sim.euler_beam.spectrum``) on a lab's fix
 
 from __future__ import annotations
 
+import datetime
 import io
 from pathlib import Path
 
@@ -85,6 +86,24 @@ def lab_records(d: Path) -> dict[str, tuple[Path, float]]:
     te = k / 1e4
     np.save(buf, np.column_stack([1.7e9 + te, np.exp(-2.5 * te) * np.cos(628.0 * te)]))
     put("epoch.npy", buf.getvalue(), 628.0)
+    # numpy.savetxt's header: the last comment line ("# t w", "# t [s],w [mm]")
+    for name, kw in (("savetxt.txt", {}), ("savetxt.csv", {"delimiter": ","})):
+        buf = io.BytesIO()
+        head = "t w" if not kw else "t [s],w [mm]"
+        np.savetxt(buf, np.column_stack([t, w]), header=head, **kw)  # type: ignore[arg-type]
+        put(name, buf.getvalue())
+    # a logger's clock: ISO 8601 date-times (microseconds; milliseconds with a zone), and
+    # times of day across midnight
+    start = datetime.datetime(2026, 11, 27, 23, 59, 59, 500000)
+    stamps = [start + datetime.timedelta(seconds=float(x)) for x in t]
+    iso = "\n".join(f"{s.isoformat()},{v:.6e}" for s, v in zip(stamps, w, strict=True))
+    put("iso.csv", f"time,w\n{iso}\n".encode())
+    zoned = "\n".join(f"{s.isoformat(' ', 'milliseconds')}+01:00;{v:.6e}"
+                      for s, v in zip(stamps, w, strict=True))  # fmt: skip
+    put("iso_zone.csv", f"Timestamp;w [mm]\n{zoned}\n".encode())
+    tod = "\n".join(f"{s.strftime('%H:%M:%S.%f')[:-3]},{v:.6e}"
+                     for s, v in zip(stamps, w, strict=True))  # fmt: skip
+    put("time_of_day.csv", f"time,w\n{tod}\n".encode())
     return out
 
 

@@ -28,7 +28,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict:
 @pytest.mark.parametrize("name", [
     "comments.csv", "units_row.csv", "scope.csv", "excel_unicode.txt", "legacy.csv",
     "named.npz", "logger.npz", "table.npz", "rate.npz", "daq.mat", "UPPER.CSV",
-    "excel_sep.csv", "struct.mat", "epoch.npy",
+    "excel_sep.csv", "struct.mat", "epoch.npy", "savetxt.txt", "savetxt.csv", "iso.csv",
+    "iso_zone.csv", "time_of_day.csv",
 ])  # fmt: skip
 def test_a_lab_record_gives_its_true_frequency(files, name) -> None:  # noqa: ANN001
     path, omega = files["good"][name]
@@ -239,3 +240,22 @@ def test_epoch_times_in_binary_floats_are_uniform_to_their_rounding(tmp_path, fs
     with pytest.raises(R.RecordingError) as e:
         R.from_arrays(w[keep], t=t[keep])
     assert e.value.field == "t[5000]"
+
+
+def test_clock_times_and_savetxt_headers() -> None:
+    """A logger's clock (ISO 8601, times of day) is read as seconds from the first reading,
+    rounded as written (milliseconds: a 0.5 ms quantum, so 1 ms steps are uniform); a header
+    that numpy.savetxt wrote as a comment is the header, and a comment that does not name the
+    columns is not."""
+    rec = R.read_bytes(b"time,w\n10:00:00.000,1\n10:00:00.001,2\n10:00:00.002,3\n", "csv")
+    assert rec.unit == "s" and rec.dt == pytest.approx(1e-3, rel=1e-12)
+    with pytest.raises(R.RecordingError) as e:
+        R.read_bytes(b"time,w\n10:00:00.000,1\n10:00:00.001,2\nsoon,3\n", "csv")
+    assert e.value.field == "file: line 4, column 'time'" and e.value.value == "soon"
+    with pytest.raises(R.RecordingError) as e:
+        R.read_bytes(b"time,w\n2026-01-01T10:00:00.000,1\n2026-01-01T10:00:00.001Z,2\n", "csv")
+    assert "time zone" in str(e.value)
+    sweep = R.read_table(b"# mu,sigma2\n0,-4\n1,-3\n")
+    assert sweep.names == ["mu", "sigma2"] and sweep.lines == [2, 3]
+    with pytest.raises(R.RecordingError, match="no header row"):
+        R.read_table(b"# my sweep of Tuesday\n0,-4\n1,-3\n")
