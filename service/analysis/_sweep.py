@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
 
 __all__ = ["Sweep", "prepare_sweep"]
@@ -110,6 +111,66 @@ def drop_past(
     cut = [v[:k] if v is not None and np.ndim(v) == 1 and len(v) == n else v
            for v in (mu, sigma2, *columns)]  # fmt: skip
     return float(np.asarray(mu, dtype=float)[k]), cut[0], cut[1], tuple(cut[2:])
+
+
+def _group_mean(
+    v: np.ndarray, sd: np.ndarray | None, starts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per group (rows ``starts[g]`` to ``starts[g + 1]``): the mean of ``v`` weighted by
+    ``1 / sd^2`` and its standard deviation ``(sum 1 / sd^2)^(-1/2)``, or the plain mean."""
+    if sd is None:
+        return np.add.reduceat(v, starts) / np.diff(np.append(starts, v.size)), None
+    wt = 1.0 / sd**2
+    tot = np.add.reduceat(wt, starts)
+    return np.add.reduceat(wt * v, starts) / tot, 1.0 / np.sqrt(tot)
+
+
+def average_repeats(
+    mu: Any, values: dict[str, Any], stds: dict[str, Any]
+) -> tuple[Any, dict[str, Any], dict[str, Any], Flag | None]:
+    """Rows that repeat the previous row's control value (a lab measuring several records at
+    each mu) averaged into one row per mu: each column weighted by the inverse variance of its
+    standard deviation when one is given (and given that deviation,
+    ``(sum 1/std^2)^(-1/2)``), else its plain mean. ``values``: ``{name: column or None}``
+    (sigma2, omega, w_static), ``stds``: their deviations by the same names (a scalar is per
+    row). Anything else (no repeat, a column invalid or of another length, a control that
+    falls) is returned as given, for :func:`prepare_sweep` to name. Returns ``(mu, values,
+    stds, flag)``, the flag None when nothing was averaged."""
+    try:
+        m = np.asarray(mu, dtype=float)
+        if m.ndim != 1 or m.size < 2 or not np.all(np.isfinite(m)):
+            return mu, values, stds, None
+        step = np.diff(m)
+        if not np.any(step == 0) or np.any(step < 0):
+            return mu, values, stds, None
+        cols = {k: np.asarray(v, dtype=float) for k, v in values.items() if v is not None}
+        sds = {}
+        for k, v in stds.items():
+            if v is None or values.get(k) is None:
+                continue
+            a = np.broadcast_to(np.asarray(v, dtype=float), m.shape)
+            if not np.all(np.isfinite(a) & (a > 0)):
+                return mu, values, stds, None
+            sds[k] = a
+    except (TypeError, ValueError):
+        return mu, values, stds, None
+    if any(c.shape != m.shape or not np.all(np.isfinite(c)) for c in cols.values()):
+        return mu, values, stds, None
+    starts = np.flatnonzero(np.r_[True, step != 0])
+    out_v = dict(values)
+    out_s = dict(stds)
+    for k, c in cols.items():
+        out_v[k], sd = _group_mean(c, sds.get(k), starts)
+        if sd is not None:
+            out_s[k] = sd
+    counts = np.diff(np.append(starts, m.size))
+    flag = Flag(
+        "repeated_points_averaged",
+        f"{int(np.sum(counts > 1))} control values measured more than once ({m.size} rows): "
+        "each averaged into one point"
+        + (", weighted by its standard deviation" if sds else " (no standard deviation given)"),
+    )
+    return m[starts], out_v, out_s, flag
 
 
 def past_suffix(mu: Any, sigma2: Any) -> int | None:

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -50,7 +50,7 @@ from service.analysis._laws import (
 )
 from service.analysis._likelihood import U_MAX as FOLD_U_MAX
 from service.analysis._likelihood import profile_memo
-from service.analysis._sweep import Sweep, prepare_sweep
+from service.analysis._sweep import Sweep, average_repeats, prepare_sweep
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
 
@@ -207,17 +207,22 @@ def classify(
     _check_probability(min_probability)
     if isinstance(mu, Sweep):
         return classify_sweep(mu, min_probability=min_probability)
+    mu, v, sd, repeats = average_repeats(
+        mu, {"sigma2": sigma2, "omega": omega, "w_static": w_static},
+        {"sigma2": sigma2_std, "omega": omega_std, "w_static": w_static_std},
+    )  # fmt: skip
     sw0 = prepare_sweep(
         mu,
-        sigma2,
-        sigma2_std=sigma2_std,
-        omega=omega,
-        omega_std=omega_std,
-        w_static=w_static,
-        w_static_std=w_static_std,
+        v["sigma2"],
+        sigma2_std=sd["sigma2"],
+        omega=v["omega"],
+        omega_std=sd["omega"],
+        w_static=v["w_static"],
+        w_static_std=sd["w_static"],
         damping=damping,
     )
-    return classify_sweep(sw0, min_probability=min_probability)
+    out = classify_sweep(sw0, min_probability=min_probability)
+    return out if repeats is None else replace(out, flags=(*out.flags, repeats))
 
 
 def _check_probability(min_probability: float) -> None:

@@ -30,7 +30,13 @@ from scipy import optimize, stats
 
 from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
 from service.analysis._likelihood import profile_memo
-from service.analysis._sweep import Sweep, drop_past, positive_1d, prepare_sweep
+from service.analysis._sweep import (
+    Sweep,
+    average_repeats,
+    drop_past,
+    positive_1d,
+    prepare_sweep,
+)
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
@@ -420,9 +426,16 @@ def predict(
     if a is not None:
         a = _check_a(a)
     past = None  # the control of the first row past the transition (sigma2 >= 0 from there)
+    repeats = None
     if isinstance(mu, Sweep):
         sw0 = mu
     else:
+        mu, v, sd, repeats = average_repeats(
+            mu, {"sigma2": sigma2, "omega": omega, "w_static": w_static},
+            {"sigma2": sigma2_std, "omega": omega_std, "w_static": w_static_std},
+        )  # fmt: skip
+        sigma2, omega, w_static = v["sigma2"], v["omega"], v["w_static"]
+        sigma2_std, omega_std, w_static_std = sd["sigma2"], sd["omega"], sd["w_static"]
         past, mu, sigma2, (sigma2_std, w_static, w_static_std, omega, omega_std) = drop_past(
             mu, sigma2, sigma2_std, w_static, w_static_std, omega, omega_std
         )
@@ -435,7 +448,7 @@ def predict(
         if both:
             _check_rates_agree(sw0, omega, omega_std)
     fit = _fit(sw0, transition, a, level)
-    flags = list(fit.flags)
+    flags = list(fit.flags) + ([repeats] if repeats is not None else [])
     m, std, lo, hi = _interval(sw0, fit, level, flags)
     last = float(sw0.mu[-1])
     # T/T0 as sqrt(y0) / sqrt(y): the same float as the pipeline's omega0 / omega

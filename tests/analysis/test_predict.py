@@ -435,3 +435,37 @@ def test_a_labs_own_units_give_the_same_prediction(actuation: str, beam_sweeps: 
         assert p.mu_star_std == pytest.approx(c * p0.mu_star_std, rel=1e-2)
         for end, end0 in zip(p.mu_star_interval, p0.mu_star_interval, strict=True):
             assert end == pytest.approx(off + c * end0, abs=10 * tol)
+
+
+def test_repeated_control_values_are_averaged(beam_sweeps: dict) -> None:  # noqa: F811
+    """A lab measuring two records at each mu writes each mu twice: the rows of one mu are
+    averaged (inverse-variance weights, std (sum 1/std^2)^(-1/2); plain means without std),
+    flagged, and give what the averages written by hand give. A control that falls is still
+    refused, naming mu."""
+    from service.analysis.classify import classify
+
+    d = beam_sweeps["asymmetric"]
+    mu, s2 = d["mu"][-10:], d["sigma2"][-10:]
+    rng = np.random.default_rng(5)
+    sd = 1e-4 * np.abs(np.repeat(s2, 2)) * np.tile([1.0, 2.0], mu.size)  # unequal deviations
+    y = np.repeat(s2, 2) + sd * rng.standard_normal(2 * mu.size)
+    w = np.repeat(d["w"][-10:], 2) + 1e-6 * rng.standard_normal(2 * mu.size)
+    p = predict(np.repeat(mu, 2), y, sigma2_std=sd, w_static=w, w_static_std=1e-6)
+    wt = 1 / sd**2
+    ya = (wt[0::2] * y[0::2] + wt[1::2] * y[1::2]) / (wt[0::2] + wt[1::2])
+    sda = 1 / np.sqrt(wt[0::2] + wt[1::2])
+    wa = 0.5 * (w[0::2] + w[1::2])
+    q = predict(mu, ya, sigma2_std=sda, w_static=wa, w_static_std=1e-6 / np.sqrt(2))
+    assert p.mu_star == pytest.approx(q.mu_star, rel=1e-12)
+    assert p.mu_star_std == pytest.approx(q.mu_star_std, rel=1e-6)
+    assert p.transition == q.transition
+    flag = [f for f in p.flags if f.code == "repeated_points_averaged"]
+    assert flag and flag[0].message.startswith("10 control values measured more than once")
+    assert not any(f.code == "repeated_points_averaged" for f in q.flags)
+    c = classify(np.repeat(mu, 2), np.repeat(s2, 2))  # no std: plain means
+    c0 = classify(mu, s2)
+    assert c.mu_star == pytest.approx(c0.mu_star, rel=1e-12)
+    assert any(f.code == "repeated_points_averaged" for f in c.flags)
+    with pytest.raises(ParameterError) as e:
+        predict(np.r_[mu, mu[-1], mu[-2]], np.r_[s2, s2[-1], s2[-2]])
+    assert e.value.parameter == "mu"
