@@ -42,7 +42,8 @@ class PredictionRequest(BaseModel):
     """A sweep table measured elsewhere: ``mu`` with ``sigma2`` or ``omega``.
 
     The columns of ``snapwarn predict TABLE``: the same numbers give the same document.
-    ``mu`` is strictly increasing, in any unit (mu* comes in that unit); ``sigma2`` in 1/time^2
+    ``mu`` is increasing (rows repeating a value are averaged into one point, flag
+    ``repeated_points_averaged``), in any unit (mu* comes in that unit); ``sigma2`` in 1/time^2
     (negative on the stable branch), ``omega`` in rad/time (or see ``omega_unit``). Both
     ``sigma2`` and ``omega`` may be given when they agree (``sigma2`` is then used); rows where
     they disagree are a 422 naming ``omega`` (the numerics judge, as for the CLI's table).
@@ -51,7 +52,8 @@ class PredictionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     mu: list[Finite] = Field(
-        description="Control values, strictly increasing (an upward sweep), at least 3."
+        description="Control values, increasing (an upward sweep), at least 3 distinct; rows "
+        "repeating the previous value are averaged into one point."
     )
     sigma2: list[Finite] | None = Field(
         default=None, description="Undamped eigenvalue of the fundamental, 1/time^2, < 0."
