@@ -89,7 +89,10 @@ def fit_figure(
     modes = list(_get(detection, "modes") or [])
     fit = None
     if kind == "impulse" and modes:
-        fit = model_curve(tr, modes, _get(detection, "static_level"))
+        start = int(_get(detection, "start") or 0) if _has(detection, "start") else 0
+        ts = tr - (tr[start] if 0 < start < tr.size else 0.0)
+        fit = model_curve(ts, modes, _get(detection, "static_level"))
+        fit[ts < 0] = np.nan  # the pre-trigger: before the kick the model says nothing
     tlabel = label("t", time_unit)
     wlabel = label("w", value_unit)
     if small:
@@ -169,9 +172,12 @@ def _first_periods(t: np.ndarray, detection: Any, periods: float) -> slice:
     s2 = _get(f, "sigma2") if f is not None else None
     if s2 is None or not math.isfinite(s2) or s2 >= 0:
         return slice(None)
+    start = int(_get(detection, "start") or 0) if _has(detection, "start") else 0
+    start = start if 0 <= start < t.size else 0
     span = periods * 2 * math.pi / math.sqrt(-s2)
-    n = int(np.searchsorted(t, t[0] + span)) + 1
-    return slice(0, max(n, 20))
+    n = int(np.searchsorted(t, t[start] + span)) + 1
+    first = max(0, start - max(n - start, 20) // 4)  # a little of the pre-trigger too
+    return slice(first, max(n, first + 20))
 
 
 def _has(obj: Any, name: str) -> bool:

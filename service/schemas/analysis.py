@@ -90,6 +90,11 @@ class Detection(_Result):
     dt: Num = None
     kind: str = "impulse"
     iterations: int = 0
+    start: int = Field(
+        default=0,
+        description="Index of the first sample analysed: 0, or the kick after a quiet "
+        "pre-trigger (flag 'pretrigger'); amplitudes and phases are at that sample.",
+    )
     time_unit: str | None = Field(
         default=None,
         description="Time unit of the record as its file or upload named it (e.g. 'ms'): "

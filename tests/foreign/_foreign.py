@@ -86,6 +86,14 @@ def lab_records(d: Path) -> dict[str, tuple[Path, float]]:
     te = k / 1e4
     np.save(buf, np.column_stack([1.7e9 + te, np.exp(-2.5 * te) * np.cos(628.0 * te)]))
     put("epoch.npy", buf.getvalue(), 628.0)
+    # a scope's pre-trigger (20 % of the record at rest before the kick), and a release: the
+    # strip held at a static deflection, let go into its free decay about a new equilibrium
+    rest = 1e-3 * np.random.default_rng(4).standard_normal(1000)
+    tp = DT * np.arange(N + 1000)
+    put("pretrigger.csv", table("t [s],w [mm]", [tp, np.r_[rest, w]], ["%.6f", "%.6e"]).encode())
+    held = 2.0 + rest
+    freed = 0.5 + 1.5 * np.exp(-XI * t) * np.cos(OMEGA * t) + (w - ringdown(0.0)[1])
+    put("release.csv", table("t [s],w [mm]", [tp, np.r_[held, freed]], ["%.6f", "%.6e"]).encode())
     # numpy.savetxt's header: the last comment line ("# t w", "# t [s],w [mm]")
     for name, kw in (("savetxt.txt", {}), ("savetxt.csv", {"delimiter": ","})):
         buf = io.BytesIO()

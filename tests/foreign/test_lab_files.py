@@ -29,7 +29,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict:
     "comments.csv", "units_row.csv", "scope.csv", "excel_unicode.txt", "legacy.csv",
     "named.npz", "logger.npz", "table.npz", "rate.npz", "daq.mat", "UPPER.CSV",
     "excel_sep.csv", "struct.mat", "epoch.npy", "savetxt.txt", "savetxt.csv", "iso.csv",
-    "iso_zone.csv", "time_of_day.csv",
+    "iso_zone.csv", "time_of_day.csv", "pretrigger.csv", "release.csv",
 ])  # fmt: skip
 def test_a_lab_record_gives_its_true_frequency(files, name) -> None:  # noqa: ANN001
     path, omega = files["good"][name]

@@ -71,6 +71,11 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
 ``combination_tone``   a mode's frequency is a sum or difference of stronger modes' frequencies
                        (or twice one): a quadratic nonlinearity; it is marked
                        (``Mode.combination``) and never chosen as the fundamental.
+``pretrigger``         (impulse) the record is quiet before the response (a scope's pre-trigger,
+                       the strip at rest before the kick or a release): a lead-in of at least
+                       2 % of the record below 5 % of the amplitude after it, 4x longer than
+                       the rise; the record is analysed from the rise past 20 % of its
+                       largest deviation (``Detection.start``).
 
 Detection limit: the record SNR of a mode is its energy over the noise variance,
 ``10 log10(A^2 N_eff / (2 s^2))`` = the per-sample SNR ``A^2 / (2 s^2)`` in dB plus

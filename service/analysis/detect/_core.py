@@ -86,6 +86,42 @@ def _validate(
     return arr, float(dt), method.lower(), kind, int(max_modes)
 
 
+#: A pre-trigger: the record's first samples quiet (below ``_QUIET`` of the amplitude that
+#: follows) for at least ``_LEAD`` of the record (and 16 samples) before the response rises
+#: past ``_ONSET`` of its largest deviation.
+_ONSET, _QUIET, _LEAD = 0.2, 0.05, 0.02
+_SHARP = 4.0  # the lead-in at least this many times longer than the rise from _QUIET to _ONSET
+
+
+def _pretrigger(arr: np.ndarray) -> int:
+    """Index where the response starts after a quiet lead-in (a scope's pre-trigger, a strip
+    at rest before the kick or a release), 0 when the record starts with it.
+
+    ``d = |w - b|`` with ``b`` the median of the first samples. The response has begun at the
+    first sample ``i0`` with ``d > _ONSET max(d)``; the lead-in is the samples before the first
+    one above ``_QUIET`` times the largest ``d`` over ``[i0, 2 i0)``. A lead-in of at least
+    ``_LEAD`` of the record, and ``_SHARP`` times longer than the rise, makes a pre-trigger;
+    the analysis starts at ``i0`` (past the kick's rise). A record that starts with its
+    response, drifts or rises smoothly has no such lead-in."""
+    n = arr.size
+    m = max(MIN_SAMPLES, int(_LEAD * n))
+    if n < 4 * m:
+        return 0
+    d = np.abs(arr - float(np.median(arr[:m])))
+    peak = float(d.max())
+    if not peak > 0:
+        return 0
+    i0 = int(np.argmax(d > _ONSET * peak))
+    if i0 < m or n - i0 < 2 * m:
+        return 0
+    after = float(d[i0 : min(n, 2 * i0)].max())
+    quiet = int(np.argmax(d > _QUIET * after))  # samples before the rise
+    # a kick rises from _QUIET to _ONSET within a few samples after a long quiet lead-in; a
+    # record that starts smoothly (d from its first value growing as t or t^2) spends
+    # about as long below _QUIET as rising past it
+    return i0 if quiet >= m and quiet >= _SHARP * (i0 - quiet) else 0
+
+
 _SAFE = (2.0**-400, 2.0**400)  # magnitudes whose squares summed over any record stay finite
 
 
@@ -193,7 +229,18 @@ def detect(
         w, dt, method, kind, max_modes, common_damping, max_iter
     )
     resolved = ALIASES.get(method, method)
+    start = _pretrigger(arr) if kind == "impulse" else 0
+    if start:
+        lead = Flag(
+            "pretrigger",
+            f"the record is quiet for its first {start} samples (to t = {start * dt:.6g} from "
+            "its first sample) before the response: a pre-trigger, or the strip at rest before "
+            "the kick; analysed from there (amplitudes and phases at that sample)",
+        )
+        arr = arr[start:]
     rec = _prepare(arr, kind, max_modes)
+    if start:
+        rec.flags.append(lead)
     opts = Options(max_modes, bool(common_damping), int(max_iter), bool(check_linearity))
     if rec.scale == 0.0:
         rec.flags.append(
@@ -247,6 +294,7 @@ def detect(
         dt=dt,
         kind=kind,
         iterations=out.iterations,
+        start=start,
     )
 
 

@@ -21,6 +21,7 @@ FLAG_CODES = (
     "numerical",
     "combination_tone",
     "trend",
+    "pretrigger",
 )
 MIN_SAMPLES = 16
 
@@ -209,10 +210,14 @@ class Detection:
         Per-sample SNR of the fundamental at the first sample, ``10 log10(A^2 / (2 s^2))``
         (``A`` its amplitude, ``s`` the noise std); NaN (flag ``"no_mode"``) without modes.
     n_samples : int
+        Samples analysed (from ``start`` to the end of the record).
     dt : float
     kind : str
     iterations : int
         Levenberg-Marquardt iterations of the final fit (0 for the non-iterative methods).
+    start : int
+        Index of the first sample analysed: 0, or the kick after a quiet pre-trigger (flag
+        ``"pretrigger"``); amplitudes and phases are at that sample (time ``start * dt``).
     """
 
     modes: tuple[Mode, ...]
@@ -227,6 +232,7 @@ class Detection:
     dt: float = 1.0
     kind: str = "impulse"
     iterations: int = 0
+    start: int = 0
 
     @property
     def flag_codes(self) -> tuple[str, ...]:
