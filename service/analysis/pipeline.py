@@ -82,7 +82,7 @@ def _predict(
     """The prediction from the measurements (None with fewer than ``least``); a table the
     predictor refuses gives None, or raises its ``ParameterError`` when ``strict`` (a lab's
     records: the user must hear why)."""
-    if len(ms) < least:
+    if len({m.mu for m in ms}) < least:  # records repeating a control count once
         return None
     arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
     s2_std = arr("sigma2_std")
@@ -287,7 +287,9 @@ def sweep_from_signals(
     ----------
     records : sequence of (w, dt, control)
         Each record's samples (any length unit), its sample step (its own time unit) and its
-        control value (any unit: degrees, newtons, volts...). Sorted by control here.
+        control value (any unit: degrees, newtons, volts...). Sorted by control here; records
+        sharing a control value are averaged into one point by the predictor (flag
+        ``repeated_points_averaged``).
     names : sequence of str, optional
         Labels for the per-record detections (e.g. file names).
     method : str
@@ -298,9 +300,7 @@ def sweep_from_signals(
             "records", len(records), f"records must hold at least 3 signals, got {len(records)}"
         )
     order = np.argsort([float(r[2]) for r in records], kind="stable")
-    controls = [float(records[j][2]) for j in order]
-    if len(set(controls)) != len(controls):
-        raise ParameterError("control", controls, "control values must be distinct, got duplicates")
+    controls = [float(records[j][2]) for j in order]  # repeated: averaged by the predictor
     ms: list[Measurement] = []
     dets: list[tuple[Detection, float, str | None]] = []
     flags: list[Flag] = []

@@ -304,47 +304,50 @@ SWEEP_PARAMS = {
 
 
 def _read_manifest(path: str) -> tuple[list[tuple[Any, float, float]], list[str]]:
-    """The records of a manifest (CSV ``path,control``), read with the service's parsers."""
-    import csv
+    """The records of a manifest (``path,control``), read as ``snapwarn sweep`` reads it:
+    the same table rules (:func:`service.recordings.read_table`), the same columns
+    (:func:`service.recordings.manifest_columns`) and the records brought to one time unit
+    (:func:`service.recordings.common_time_base`)."""
     from pathlib import Path
 
     from service.analysis.errors import ParameterError
+    from service.recordings import (
+        RecordingError,
+        common_time_base,
+        manifest_columns,
+        read_table,
+    )
 
     p = Path(path)
     if not p.is_file():
         raise ParameterError("manifest", path, f"manifest {path!r} is not a readable file")
-    with p.open(newline="") as fh:
-        rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    header = [h.strip() for h in rows[0]] if rows else []
-    if "path" not in header or "control" not in header:
-        raise ParameterError("manifest", path, f"manifest {path!r} needs the header "
-                             f"'path,control', got {header!r}")
-    ip, ic = header.index("path"), header.index("control")
-    records, names = [], []
-    for i, r in enumerate(rows[1:], start=2):
-        try:
-            control = float(r[ic])
-        except (ValueError, IndexError):
-            raise ParameterError("manifest", path, f"manifest {path!r} line {i}: control "
-                                 f"{r[ic] if ic < len(r) else None!r} is not a number") from None
-        rel = Path(r[ip].strip())
-        f = rel if rel.is_absolute() else p.resolve().parent / rel
-        w, dt = _read_record(f)
-        records.append((w, dt, control))
-        names.append(str(rel))
-    return records, names
+    try:
+        table = read_table(p.read_bytes(), what="file")
+        path_col, control_col = manifest_columns(table)
+        control = table.floats(control_col, what="file")
+    except RecordingError as exc:
+        raise ParameterError("manifest", path, f"manifest {path!r}: {exc}") from None
+    recs, names = [], []
+    for rel, c in zip(table.cells[path_col], control, strict=True):
+        q = Path(rel)
+        recs.append((_read_record(q if q.is_absolute() else p.resolve().parent / q), float(c)))
+        names.append(rel)
+    try:
+        factors, _ = common_time_base([r.unit for r, _ in recs], names)
+    except RecordingError as exc:
+        raise ParameterError("manifest", path, f"manifest {path!r}: {exc}") from None
+    return [(r.w, r.dt * f, c) for (r, c), f in zip(recs, factors, strict=True)], names
 
 
-def _read_record(path: Any) -> tuple[Any, float]:
+def _read_record(path: Any) -> Any:
     """One lab file through the service's one reader (``service.recordings``)."""
     from service.analysis.errors import ParameterError
     from service.recordings import RecordingError, read_file
 
     try:
-        rec = read_file(path)
+        return read_file(path)
     except RecordingError as exc:
         raise ParameterError("manifest", str(path), f"record {str(path)!r}: {exc}") from None
-    return rec.w, rec.dt
 
 
 def _run_sweep(inp: dict[str, Any]) -> tuple[dict[str, Any], list[dict[str, str]]]:

@@ -267,14 +267,13 @@ def _warn_text(doc: Any) -> str:
 
 def _sweep(args: argparse.Namespace) -> int:
     from service.analysis.pipeline import sweep_from_signals
-    from service.recordings import RecordingError, common_time_base
+    from service.recordings import RecordingError, common_time_base, manifest_columns
 
     table = _read_table(args.manifest, "MANIFEST")
-    path_col, control_col = table.find("path"), table.find(args.control_column or "control")
-    if path_col is None or control_col is None:
-        raise bad("MANIFEST", args.manifest,
-                  f"needs the header 'path,{args.control_column or 'control'}' (columns found: "
-                  f"{table.names}; name the control with --control-column)")  # fmt: skip
+    try:
+        path_col, control_col = manifest_columns(table, args.control_column)
+    except RecordingError as exc:
+        raise bad("MANIFEST", args.manifest, f"{exc.why} (--control-column)") from None
     control = _floats(table, control_col, "MANIFEST", args.manifest)
     dt_col = table.find("dt")
     steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None

@@ -81,11 +81,13 @@ from service.recordings._record import (
     to_npy,
     uniform_rtol_from_env,
 )
-from service.recordings._table import Table, read_table
+from service.recordings._table import PATH_NAMES, Table, manifest_columns, read_table
 from service.recordings._time_units import common_time_base, seconds_per
 from service.recordings._validate import from_arrays
 
 __all__ = [
+    "PATH_NAMES",
+    "manifest_columns",
     "DEFAULT_UNIFORM_RTOL",
     "FORMATS",
     "UNIFORM_RTOL_ENV",

@@ -126,3 +126,22 @@ def read_table(data: bytes, *, what: str = "file") -> Table:
     if not kept:
         raise RecordingError(what, header, "has no data rows")
     return Table(names, units, cells, kept)
+
+
+#: Names of a manifest's column of record files (any case).
+PATH_NAMES = ("path", "file", "filename", "file_name", "record", "recording")
+
+
+def manifest_columns(table: Table, control: str | None = None) -> tuple[str, str]:
+    """The columns of a manifest of records: the files (named one of :data:`PATH_NAMES`) and
+    the control (named ``control``, or ``control`` given). An error lists the columns found."""
+    path_col = table.find(*PATH_NAMES)
+    control_col = table.find(control or "control")
+    if path_col is None or control_col is None:
+        raise RecordingError(
+            "file", table.names,
+            f"needs the header 'path,{control or 'control'}' (the files' column may also be "
+            f"named {', '.join(PATH_NAMES[1:])}; columns found: {table.names}; name the "
+            "control column if it is not 'control')",
+        )  # fmt: skip
+    return path_col, control_col

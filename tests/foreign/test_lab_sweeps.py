@@ -267,3 +267,37 @@ def test_a_static_deflection_that_never_varies(tmp_path: Path) -> None:
     q = tmp_path / "plain.csv"
     q.write_text("mu,sigma2\n0,-1968\n0.5,-1696\n1.0,-1193\n1.3,-827\n1.5,-564\n1.6,-420\n")
     assert doc == run_cli("predict", str(q), "--json")[1]
+
+
+def test_a_scope_campaign_gives_the_answer_of_its_plain_records(lab: Path) -> None:
+    """The same ten records as a scope campaign writes them: 15 % pre-trigger at rest before
+    each kick, ISO 8601 timestamps, a manifest whose files' column is 'file' and whose control
+    carries its unit, two records per control value. The prediction is that of the plain
+    records (to the 1e-3 of a standard error the cut and the microsecond clock allow), with
+    the flags that say what was read."""
+    import datetime
+
+    start = datetime.datetime(2026, 11, 27, 14, 0, 0)
+    rows = []
+    for k, c in enumerate(CONTROLS):
+        w = _record(MU_STAR - c, k)
+        rest = w[-1] + 2e-3 * np.random.default_rng(100 + k).standard_normal(1400)
+        ww = np.r_[rest, w]
+        for rep in (0, 1):
+            stamps = [start + datetime.timedelta(seconds=DT * i) for i in range(ww.size)]
+            body = "".join(f"{s.isoformat(timespec='microseconds')};{v:.6g}\n"
+                           for s, v in zip(stamps, ww, strict=True))  # fmt: skip
+            (lab / f"scope{k}_{rep}.csv").write_text("Timestamp;w [mm]\n" + body)
+            rows.append(f"scope{k}_{rep}.csv,{float(c)!r}\n")
+    (lab / "scope.csv").write_text("file,theta [deg]\n" + "".join(rows))
+    plain = _manifest(lab, [(f"s{k}.csv", c) for k, c in enumerate(CONTROLS)], "plain.csv")
+    rc, doc, err = run_cli("sweep", str(lab / "scope.csv"), "--control-column", "theta",
+                           "--json", "--no-progress")  # fmt: skip
+    rc0, ref, err0 = _sweep(plain)
+    assert rc == 0 and rc0 == 0, (err, err0)
+    p, p0 = doc["prediction"], ref["prediction"]
+    assert p["transition"] == p0["transition"] == "saddle-node"
+    assert abs(p["mu_star"] - p0["mu_star"]) < 0.1 * p0["mu_star_std"]
+    assert "repeated_points_averaged" in [f["code"] for f in p["flags"]]
+    per_record = doc["detections"] if "detections" in doc else doc["measurements"]
+    assert per_record and all("pretrigger" in [f["code"] for f in r["flags"]] for r in per_record)

@@ -106,16 +106,7 @@ async def _resolve_measurements(
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
         out.append({"signal_id": m.signal_id, "control_value": float(value)})
     _check_units(req, rows)
-    seen: dict[float, int] = {}
-    for k, m in enumerate(out):
-        j = seen.setdefault(m["control_value"], k)
-        if j != k:
-            raise invalid(
-                f"measurements[{k}].control_value",
-                m["control_value"],
-                f"repeats measurements[{j}]'s: control values must be distinct",
-            )
-    return out
+    return out  # records sharing a control value are averaged by the predictor
 
 
 @router.post(
