@@ -411,7 +411,10 @@ def _from_mapping(
             raise RecordingError(f"file: {rn}", rate, f"disagrees with {dn} = {dt!r} (1/{rn})")
         dt = 1.0 / rate if dt is None else dt
         meta["sample_rate"] = rate
-    return _Raw(w=w, t=t, dt=dt, source=source, metadata=meta)
+    # units in the variables' names, as in a CSV header: t_ms, time_s, w_mm
+    unit = _time_unit(tn.rsplit(".", 1)[-1]) if tn is not None else None
+    value_unit = split_unit(wn.rsplit(".", 1)[-1])[1]
+    return _Raw(w=w, t=t, dt=dt, source=source, metadata=meta, unit=unit, value_unit=value_unit)
 
 
 def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:

@@ -259,3 +259,17 @@ def test_clock_times_and_savetxt_headers() -> None:
     assert sweep.names == ["mu", "sigma2"] and sweep.lines == [2, 3]
     with pytest.raises(R.RecordingError, match="no header row"):
         R.read_table(b"# my sweep of Tuesday\n0,-4\n1,-3\n")
+
+
+def test_units_in_the_variables_names_of_npz_and_mat() -> None:
+    """``t_ms``, ``time_s``, ``w_mm`` name their units as a CSV header does (they were read as
+    the time and the signal, their units dropped: a sweep could not tell ms from s)."""
+    from _foreign import mat, npz, ringdown
+
+    t, w = ringdown()
+    rec = R.read_bytes(npz(t_ms=1e3 * t, w_mm=w), "npz")
+    assert (rec.unit, rec.value_unit) == ("ms", "mm") and rec.dt == pytest.approx(1.0)
+    rec = R.read_bytes(mat(time_s=t, deflection_mm=w), "mat")
+    assert (rec.unit, rec.value_unit) == ("s", "mm") and rec.dt == pytest.approx(1e-3)
+    rec = R.read_bytes(mat(run={"t_ms": 1e3 * t, "w": w}), "mat")
+    assert (rec.unit, rec.value_unit) == ("ms", None)
