@@ -157,6 +157,12 @@ def average_repeats(
     if any(c.shape != m.shape or not np.all(np.isfinite(c)) for c in cols.values()):
         return mu, values, stds, None
     starts = np.flatnonzero(np.r_[True, step != 0])
+    if starts.size < 3:
+        raise ParameterError(
+            "mu", int(starts.size),
+            f"mu needs at least 3 distinct control values, got {starts.size} in {m.size} rows "
+            "(rows repeating a value are averaged into one point)",
+        )  # fmt: skip
     out_v = dict(values)
     out_s = dict(stds)
     for k, c in cols.items():

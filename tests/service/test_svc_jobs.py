@@ -194,7 +194,7 @@ async def test_sweep_validation(asgi) -> None:  # noqa: ANN001
                     {"signal_id": no_control, "control_value": 1.0},
                 ]
             },
-            "measurements[2].control_value",
+            "measurements",  # 2 distinct values: records sharing one are averaged into a point
         ),
         ({"simulate": {"actuation": "sideways"}}, "simulate.actuation"),
         ({"simulate": {"max_measurements": 1}}, "simulate.max_measurements"),

@@ -106,7 +106,16 @@ async def _resolve_measurements(
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
         out.append({"signal_id": m.signal_id, "control_value": float(value)})
     _check_units(req, rows)
-    return out  # records sharing a control value are averaged by the predictor
+    # records sharing a control value are averaged by the predictor: they count once
+    distinct = len({m["control_value"] for m in out})
+    if distinct < state.settings.min_sweep_signals:
+        raise invalid(
+            "measurements", distinct,
+            f"hold {distinct} distinct control values ({len(out)} signals): a sweep needs at "
+            f"least {state.settings.min_sweep_signals} (signals sharing a value are averaged "
+            "into one point)",
+        )  # fmt: skip
+    return out
 
 
 @router.post(
