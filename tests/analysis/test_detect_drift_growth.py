@@ -138,3 +138,27 @@ def test_decaying_records_are_not_unstable() -> None:
     for seed in range(4):
         det = detect(_oscillation(seed, noise=2e-2), dt=DT)
         assert "unstable" not in det.flag_codes
+
+
+@pytest.mark.parametrize(("size", "tau"), [(0.002, 0.5), (0.02, 2.0), (0.08, 2.0), (0.2, 1.0)])
+def test_a_relaxation_read_as_the_fundamental_is_flagged(size: float, tau: float) -> None:
+    """A settling offset (creep, temperature: ``A exp(-t / tau)``, 1-40 % of the oscillation)
+    does not complete a cycle and decays within the record: no quadratic absorbs it, so it is
+    a mode, the slowest, and was read as the fundamental (an overdamped one at sigma^2 ~ 0, or
+    an oscillation at 0.02-0.5 rad/s) with no word of the 3 Hz mode ringing beside it. When
+    the slow component is the fundamental it carries ``relaxation``, which names the ringing
+    mode; a kicked overdamped fundamental (two terms from rest) does not."""
+    w = _oscillation(3) + size * np.exp(-T / tau)
+    det = detect(w, dt=DT)
+    if det.fundamental.omega < 1.0:  # the relaxation was taken for the fundamental
+        assert "relaxation" in det.flag_codes, det.flag_codes
+        msg = next(f.message for f in det.flags if f.code == "relaxation")
+        assert f"{math.sqrt(-SIGMA2):.4g}"[:4] in msg
+    else:
+        assert det.fundamental.omega == pytest.approx(OMEGA, rel=1e-3)
+    # an overdamped fundamental kicked from rest beside a ringing mode: no relaxation
+    s1, s2 = 0.4, 3.0
+    kicked = 0.3 * (np.exp(-s1 * T) - np.exp(-s2 * T)) + _oscillation(4, noise=2e-4) - 1.7
+    det = detect(kicked, dt=DT)
+    assert det.fundamental.regime == "overdamped"
+    assert "relaxation" not in det.flag_codes, det.flags

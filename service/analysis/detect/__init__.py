@@ -71,6 +71,11 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
 ``combination_tone``   a mode's frequency is a sum or difference of stronger modes' frequencies
                        (or twice one): a quadratic nonlinearity; it is marked
                        (``Mode.combination``) and never chosen as the fundamental.
+``relaxation``         the fundamental is slow and looks like a relaxation of the sensor or of
+                       the equilibrium (creep, temperature, a settling offset): overdamped but
+                       not rising from rest as a kicked mode does, or less than one oscillation
+                       in the record, beside a mode that rings; kept as the fundamental (near
+                       the transition that is the physics), the message names the ringing mode.
 ``pretrigger``         (impulse) the record is quiet before the response (a scope's pre-trigger,
                        the strip at rest before the kick or a release): a lead-in of at least
                        2 % of the record below 5 % of the amplitude after it, 4x longer than

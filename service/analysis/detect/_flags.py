@@ -141,6 +141,9 @@ def _record_flags(
     ``trend`` the indices of the modes set aside as a slow trend.
     """
     flags = _fundamental_flags(modes[0], n * dt) if modes and 0 not in trend else []
+    relax = _relaxation_flag(modes, n * dt) if modes and 0 not in trend else None
+    if relax is not None:
+        flags.append(relax)
     flags += _mode_flags(modes, n * dt, growth=growth, trend=trend)
     tr = _trend_flag(modes, trend, n * dt)
     if tr is not None:
@@ -151,6 +154,55 @@ def _record_flags(
     if not (math.isfinite(static) and math.isfinite(static_std)):
         flags.append(Flag("numerical", "the static level could not be estimated"))
     return flags
+
+
+#: A slow fundamental suspect of being a relaxation: overdamped but not starting from rest
+#: (its value at the first sample, b1 + b2, above RELAX_REST of its largest over the record: a
+#: kick from rest gives 0), or less than one oscillation in the record; beside a mode at
+#: least RELAX_RING times its amplitude that rings FEW_PERIODS periods.
+RELAX_REST, RELAX_RING = 0.5, 0.3
+
+
+def _relaxation_flag(modes: list[Mode], T: float) -> Flag | None:
+    """relaxation: the fundamental is slow and looks like a relaxation, and a mode rings
+    beside it. A kick gives an overdamped mode two terms of opposite signs (it starts from
+    rest: ``b1 + b2 = 0``); a relaxation of the sensor or of the equilibrium (creep,
+    temperature, a settling offset) is one decaying term, or a component that does not
+    complete one oscillation in the record, and it is read as the slowest mode.
+    The fundamental is kept (near the transition a slow fundamental beside a ringing higher
+    mode is the physics): the flag says what else it may be."""
+    m0 = modes[0]
+    if m0.regime == "overdamped":
+        ra, rp = m0.real_amplitudes, m0.real_poles
+        if ra is None or rp is None or None in ra or None in rp:
+            return None
+        b1, b2 = m0.real_amplitudes
+        p1, p2 = m0.real_poles
+        t = np.linspace(0.0, T, 257)
+        size = float(np.max(np.abs(b1 * np.exp(p1 * t) + b2 * np.exp(p2 * t))))
+        if not size > 0 or abs(b1 + b2) < RELAX_REST * size:
+            return None  # it rises from rest (zero at the kick): a kicked overdamped mode
+        what = f"a slow decay that does not start from rest (real amplitudes {b1:.3g}, {b2:.3g})"
+    else:
+        size = m0.amplitude
+        cycles = m0.omega * T / (2 * math.pi)  # oscillations seen, not the undamped rate
+        if not (cycles < 1.0 and size > 0):
+            return None
+        what = f"less than one oscillation in the record ({cycles:.3g})"
+    rings = [(k, m) for k, m in enumerate(modes[1:], 1)
+             if m.regime == "underdamped" and m.amplitude > RELAX_RING * size
+             and math.sqrt(abs(m.sigma2)) * T / (2 * math.pi) >= FEW_PERIODS]  # fmt: skip
+    if not rings:
+        return None
+    k, m = max(rings, key=lambda km: km[1].amplitude)
+    return Flag(
+        "relaxation",
+        f"the fundamental is {what}, beside modes[{k}], which rings at sqrt|sigma^2| = "
+        f"{math.sqrt(abs(m.sigma2)):.4g} with {m.amplitude / size:.3g}x its amplitude: a "
+        "relaxation of the sensor or of the equilibrium (creep, temperature, a settling "
+        "offset) looks like this (a kicked overdamped mode starts from rest); "
+        "far from the transition the ringing mode is the fundamental",
+    )
 
 
 def _trend_flag(modes: list[Mode], trend: frozenset[int], T: float) -> Flag | None:

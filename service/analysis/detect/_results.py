@@ -22,6 +22,7 @@ FLAG_CODES = (
     "combination_tone",
     "trend",
     "pretrigger",
+    "relaxation",
 )
 MIN_SAMPLES = 16
 
