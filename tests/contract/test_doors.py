@@ -9,6 +9,7 @@ not merely close: the same numbers go through the same numerics.
 from __future__ import annotations
 
 import asyncio
+import datetime
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +56,14 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     drop = np.ones(t.size, bool)
     drop[1000] = False
     files["dropped"] = _write_csv(d / "dropped.csv", "t,w", t[drop], w[drop], "%.9g")
+    # a scope's file: ISO 8601 timestamps (microseconds) and 800 samples at rest before the kick
+    rest = 0.3 + np.random.default_rng(7).normal(0.0, 1e-5, 800)
+    start = datetime.datetime(2026, 11, 27, 9, 30, 0)
+    stamps = [(start + datetime.timedelta(seconds=k * DT)).isoformat(timespec="microseconds")
+              for k in range(800 + t.size)]  # fmt: skip
+    body = "".join(f"{s},{v:.9g}\n" for s, v in zip(stamps, np.r_[rest, w].tolist()))
+    (d / "scope.csv").write_text("Timestamp,w [mm]\n" + body)
+    files["scope"] = d / "scope.csv"
     (d / "unknown.csv").write_text("foo,bar\n" + "".join(f"{k},{k}\n" for k in range(5)))
     files["unknown"] = d / "unknown.csv"
     manifest = d / "manifest.csv"
@@ -75,7 +84,8 @@ async def _api_detect(api, path: Path, **form: Any) -> tuple[int, dict[str, Any]
 
 @pytest.mark.parametrize(
     "name, dt, flagged",
-    [("s_6g", None, True), ("ms_9g", None, False), ("npy1d", DT, False), ("npy2d", None, False)],
+    [("s_6g", None, True), ("ms_9g", None, False), ("npy1d", DT, False), ("npy2d", None, False),
+     ("scope", None, True)],
 )
 async def test_a_lab_file_gives_one_detection_through_cli_and_api(api, lab, name, dt, flagged):  # noqa: ANN001
     path = lab[name]
@@ -91,8 +101,12 @@ async def test_a_lab_file_gives_one_detection_through_cli_and_api(api, lab, name
     scale = 1e-3 if name == "ms_9g" else 1.0  # rad/ms for a record in milliseconds
     assert cli_doc["fundamental"]["omega"] == pytest.approx(omega * scale, rel=1e-4)
     # the document says the unit its numbers are in, as the file named it (none for .npy)
-    units = {"ms_9g": ("ms", "mm"), "s_6g": ("s", "mV")}.get(name, (None, None))
+    units = {"ms_9g": ("ms", "mm"), "s_6g": ("s", "mV"), "scope": ("s", "mm")}.get(
+        name, (None, None)
+    )
     assert (cli_doc["time_unit"], cli_doc["value_unit"]) == units
+    assert ("pretrigger" in codes) == (name == "scope")
+    assert cli_doc["start"] == (800 if name == "scope" else 0)
     if name == "ms_9g":
         text = run_cli("detect", str(path))[1]
         assert "rad/ms" in text and "1/ms^2" in text, text
