@@ -134,7 +134,7 @@ class ModelFit:
 _K_CRITERION = "aicc"
 _XI_EVIDENCE = 25.0  # chi^2 drop that identifies a damping nobody gave (5 standard deviations)
 _XI_DOF = 2  # degrees of freedom a damping nobody gave must leave in its window
-_XI_UNDER = 0.25  # share of the sweep a damping nobody gave must leave under-damped (>= 3 points)
+_XI_UNDER = 0.5  # share of the sweep a damping nobody gave must leave under-damped (>= 3 points)
 _NO_PROFILE = _Profile(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
 
 
