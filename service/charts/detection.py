@@ -89,8 +89,7 @@ def fit_figure(
     modes = list(_get(detection, "modes") or [])
     fit = None
     if kind == "impulse" and modes:
-        start = int(_get(detection, "start") or 0) if _has(detection, "start") else 0
-        ts = tr - (tr[start] if 0 < start < tr.size else 0.0)
+        ts = tr - tr[_start(detection, tr.size)]
         fit = model_curve(ts, modes, _get(detection, "static_level"))
         fit[ts < 0] = np.nan  # the pre-trigger: before the kick the model says nothing
     tlabel = label("t", time_unit)
@@ -172,12 +171,17 @@ def _first_periods(t: np.ndarray, detection: Any, periods: float) -> slice:
     s2 = _get(f, "sigma2") if f is not None else None
     if s2 is None or not math.isfinite(s2) or s2 >= 0:
         return slice(None)
-    start = int(_get(detection, "start") or 0) if _has(detection, "start") else 0
-    start = start if 0 <= start < t.size else 0
+    start = _start(detection, t.size)
     span = periods * 2 * math.pi / math.sqrt(-s2)
     n = int(np.searchsorted(t, t[start] + span)) + 1
     first = max(0, start - max(n - start, 20) // 4)  # a little of the pre-trigger too
     return slice(first, max(n, first + 20))
+
+
+def _start(detection: Any, size: int) -> int:
+    """The first sample the detector analysed (after a pre-trigger; 0 for older documents)."""
+    start = int(_get(detection, "start") or 0) if _has(detection, "start") else 0
+    return start if 0 <= start < size else 0
 
 
 def _has(obj: Any, name: str) -> bool:

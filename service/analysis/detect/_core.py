@@ -122,6 +122,20 @@ def _pretrigger(arr: np.ndarray) -> int:
     return i0 if quiet >= m and quiet >= _SHARP * (i0 - quiet) else 0
 
 
+def _cut_pretrigger(arr: np.ndarray, dt: float, kind: str) -> tuple[np.ndarray, int, Flag | None]:
+    """The record from its kick on (an impulse record's pre-trigger cut, :func:`_pretrigger`),
+    the index it starts at, and the flag that says so (None: nothing cut)."""
+    start = _pretrigger(arr) if kind == "impulse" else 0
+    if not start:
+        return arr, 0, None
+    return arr[start:], start, Flag(
+        "pretrigger",
+        f"the record is quiet for its first {start} samples (to t = {start * dt:.6g} from its "
+        "first sample) before the response: a pre-trigger, or the strip at rest before the "
+        "kick; analysed from there (amplitudes and phases at that sample)",
+    )
+
+
 _SAFE = (2.0**-400, 2.0**400)  # magnitudes whose squares summed over any record stay finite
 
 
@@ -229,17 +243,9 @@ def detect(
         w, dt, method, kind, max_modes, common_damping, max_iter
     )
     resolved = ALIASES.get(method, method)
-    start = _pretrigger(arr) if kind == "impulse" else 0
-    if start:
-        lead = Flag(
-            "pretrigger",
-            f"the record is quiet for its first {start} samples (to t = {start * dt:.6g} from "
-            "its first sample) before the response: a pre-trigger, or the strip at rest before "
-            "the kick; analysed from there (amplitudes and phases at that sample)",
-        )
-        arr = arr[start:]
+    arr, start, lead = _cut_pretrigger(arr, dt, kind)
     rec = _prepare(arr, kind, max_modes)
-    if start:
+    if lead is not None:
         rec.flags.append(lead)
     opts = Options(max_modes, bool(common_damping), int(max_iter), bool(check_linearity))
     if rec.scale == 0.0:
