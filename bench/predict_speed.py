@@ -6,8 +6,8 @@ CPU of one ``warn`` sweep per actuation, all measured in this process.
 ``predict``: 25 exact Euler-beam spectra of each actuation (geometric approach to mu*, 1e-4
 relative noise, ``sigma2_std`` and ``w_static`` given, the law not given: classification and
 model average), warm (one call first). ``detect``: a damped two-mode record of 1e5 samples
-with noise, default method, warm. Each time is the best of 5 batches of ``--repeat`` calls. The issue's target: predict <= 1.5 x detect; warn <= 1.5 s
-CPU per actuation (warm).
+with noise, default method, warm. Each time is the best of 5 batches of ``--repeat`` calls.
+The issue's target: predict <= 1.5 x detect; warn <= 1.5 s CPU per actuation (warm).
 """
 
 from __future__ import annotations

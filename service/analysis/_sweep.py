@@ -19,7 +19,7 @@ import numpy as np
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
 
-__all__ = ["Sweep", "prepare_sweep"]
+__all__ = ["Sweep", "average_repeats", "group_mean", "prepare_sweep"]
 
 
 @dataclass(frozen=True)
@@ -113,7 +113,7 @@ def drop_past(
     return float(np.asarray(mu, dtype=float)[k]), cut[0], cut[1], tuple(cut[2:])
 
 
-def _group_mean(
+def group_mean(
     v: np.ndarray, sd: np.ndarray | None, starts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Per group (rows ``starts[g]`` to ``starts[g + 1]``): the mean of ``v`` weighted by
@@ -166,7 +166,7 @@ def average_repeats(
     out_v = dict(values)
     out_s = dict(stds)
     for k, c in cols.items():
-        out_v[k], sd = _group_mean(c, sds.get(k), starts)
+        out_v[k], sd = group_mean(c, sds.get(k), starts)
         if sd is not None:
             out_s[k] = sd
     counts = np.diff(np.append(starts, m.size))

@@ -17,9 +17,9 @@ here the experiment drives itself and every record arrives with its control valu
 
 The lab may do something else than advised: a record at or below a control already measured
 (``out_of_order``, ``repeated_control``) or beyond the last advised value (``past_safe_value``)
-is accepted and flagged, never reordered in the record list. The fit itself needs distinct,
-increasing controls: it uses the records with a fundamental in increasing control order, the
-first of repeated controls only.
+is accepted and flagged, never reordered in the record list. The fit uses the records with a
+fundamental in increasing control order; records at one control are averaged into one point
+(:func:`_fit_set`), as a batch sweep of the same records averages them.
 
 The module is pure numerics (numpy, the detector and the predictor); storing records, streaming
 updates and the HTTP door live in ``service.api``.
@@ -30,11 +30,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from service.analysis._sweep import group_mean
 from service.analysis.alarm import (
     Alarm,
     NextMeasurement,
@@ -221,10 +222,8 @@ class LiveUpdate:
 
     @property
     def used_in_fit(self) -> bool:
-        """The record has a fundamental and a control not measured before."""
-        return self.record.measurement is not None and not any(
-            f.code == "repeated_control" for f in self.record.flags
-        )
+        """The record has a fundamental (a repeated control is averaged with the others)."""
+        return self.record.measurement is not None
 
 
 # ----------------------------------------------------------------------------------- steps
@@ -277,19 +276,40 @@ def _past(records: Sequence[LiveRecord]) -> float:
     )
 
 
-def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
-    """Measurements of the fit: a fundamental, increasing control, first of repeated ones,
-    below any record that grew (past the transition)."""
-    seen: set[float] = set()
+def _fit_records(records: Sequence[LiveRecord]) -> list[Measurement]:
+    """The records' measurements the fit uses: a fundamental, below any record that grew (past
+    the transition), in increasing control (arrival order within one control)."""
     past = _past(records)
-    out = []
-    for r in records:
-        if r.measurement is None or r.control in seen or r.control >= past:
-            continue
-        seen.add(r.control)
-        out.append(r.measurement)
-    out.sort(key=lambda m: m.mu)
+    out = [r.measurement for r in records if r.measurement is not None and r.control < past]
+    out.sort(key=lambda m: m.mu)  # stable
     return out
+
+
+def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
+    """Measurements of the fit, one per control: the records at one control averaged as the
+    predictor averages a table's repeated rows (:func:`service.analysis._sweep.group_mean`:
+    weights ``1/std^2`` when every record has its std, else plain means), so that a live sweep
+    and a batch sweep of the same records fit the same points."""
+    ms = _fit_records(records)
+    if len({m.mu for m in ms}) == len(ms):
+        return ms
+    mu = np.array([m.mu for m in ms])
+    starts = np.flatnonzero(np.r_[True, np.diff(mu) != 0])
+
+    def mean(name: str, std: str) -> tuple[np.ndarray, np.ndarray]:
+        v, sd = np.array([getattr(m, name) for m in ms]), np.array([getattr(m, std) for m in ms])
+        ok = bool(np.all(np.isfinite(sd) & (sd > 0)))
+        avg, avg_sd = group_mean(v, sd if ok else None, starts)
+        return avg, (avg_sd if avg_sd is not None else np.full(starts.size, np.nan))
+
+    s2, s2_sd = mean("sigma2", "sigma2_std")
+    w, w_sd = mean("w_static", "w_static_std")
+    return [
+        replace(ms[i], sigma2=float(s2[g]), sigma2_std=float(s2_sd[g]),
+                omega=math.sqrt(abs(float(s2[g]))), w_static=float(w[g]),
+                w_static_std=float(w_sd[g]))  # fmt: skip
+        for g, i in enumerate(starts)
+    ]
 
 
 def _predict(ms: Sequence[Measurement], level: float) -> tuple[Prediction | None, list[Flag]]:
@@ -322,8 +342,8 @@ def _record_flags(
         flags.append(
             Flag(
                 "repeated_control",
-                f"control {control!r} was already measured (record {k}); this record is kept "
-                "but the fit uses the first one",
+                f"control {control!r} was already measured (record {k}); the fit averages "
+                "the records at this control into one point",
             )
         )
     elif done and control < max(done):
@@ -439,7 +459,7 @@ def assess(
         record=record,
         detection=detection,
         n_records=seq,
-        n_used=len(ms),
+        n_used=len(_fit_records([*previous, provisional])),
         prediction=pred,
         alarm=alarm,
         next=nxt,

@@ -72,7 +72,8 @@ def test_flags_and_fit_set() -> None:
     codes = [[f.code for f in u.record.flags] for u in ups]
     assert codes[0] == [] and "past_safe_value" in codes[1]
     assert "out_of_order" in codes[2] and "repeated_control" in codes[3]
-    assert ups[3].n_used == 3 and not ups[3].used_in_fit and ups[2].used_in_fit
+    # the repeated control is averaged into its point (as a batch sweep does): 4 records used
+    assert ups[3].n_used == 4 and ups[3].used_in_fit and ups[2].used_in_fit
 
 
 def test_no_mode_is_a_flag_not_an_error() -> None:
@@ -166,3 +167,28 @@ def test_a_record_that_grows_is_past_the_transition() -> None:
     assert "past_transition" in [f.code for f in u.record.flags]
     lo, hi = u.prediction.mu_star_interval
     assert lo <= MU_STAR <= hi
+
+
+def test_repeated_controls_are_averaged_as_a_batch_sweep_averages_them() -> None:
+    """Two kicks at each control (different noise): the live sweep fits one point per control,
+    the average a batch sweep of the same records makes (the predictor's inverse-variance
+    mean), so both doors give the same mu*; before, the live fit kept the first record."""
+    from service.analysis.pipeline import sweep_from_signals
+
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72]
+    rng = np.random.default_rng(11)
+    recs, ups, batch = [], [], []
+    for mu in controls:
+        for _ in range(2):
+            _, w = record(mu)
+            w = w + 1e-4 * rng.standard_normal(w.size)
+            u = live.update(recs, w, dt=DT, control=mu, plan=live.LivePlan(step=0.3))
+            recs.append(u.record)
+            ups.append(u)
+            batch.append((w, DT, mu))
+    last = ups[-1]
+    assert last.n_used == 16 and last.used_in_fit
+    ref = sweep_from_signals(batch)
+    assert last.prediction.transition == ref.prediction.transition
+    assert last.prediction.mu_star == pytest.approx(ref.prediction.mu_star, rel=1e-9)
+    assert "repeated_points_averaged" in [f.code for f in ref.prediction.flags]
