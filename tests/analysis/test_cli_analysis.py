@@ -165,12 +165,13 @@ def test_predict_reads_a_frequency_or_a_period_as_omega(tmp_path, capsys, header
     want = run_json(capsys, "predict", str(ref))
     got = run_json(capsys, "predict", str(p))
     assert got["transition"] == want["transition"] == "saddle-node"
-    # the same answer to 1e-6 of its own interval: the columns differ in their last bits
-    # (2 pi f, 2 pi / T), and on noise-free data the profile's crossings move by ~1e-9
+    # the same answer to 1e-5 of its own interval: the columns differ in their last bits
+    # (2 pi f, 2 pi / T), and on these noise-free rates (the noise read from the laws' own
+    # misfit) one ulp moves the interval's upper end by 4e-7 of its width (measured, kHz)
     width = want["mu_star_interval"][1] - want["mu_star_interval"][0]
-    assert abs(got["mu_star"] - want["mu_star"]) < 1e-6 * width
+    assert abs(got["mu_star"] - want["mu_star"]) < 1e-5 * width
     for a, b in zip(got["mu_star_interval"], want["mu_star_interval"], strict=True):
-        assert abs(a - b) < 1e-6 * width
+        assert abs(a - b) < 1e-5 * width
 
 
 def test_predict_refuses_a_period_that_is_not_positive(tmp_path, capsys) -> None:
