@@ -42,6 +42,7 @@ from service.analysis._likelihood import (
     _exp_grid,
     _free_exponent,
     _nll_u,
+    _polynomial_bound,
     _Profile,
     _profile,
     _sigma_comp,
@@ -144,19 +145,6 @@ def _crit(nll: float, bic: float, k: int, m: int) -> float:
     if _K_CRITERION == "bic":
         return bic
     return nll + 2 * k + (2 * k * (k + 1) / (m - k - 1) if m - k - 1 > 0 else math.inf)
-
-
-def _polynomial_bound(mu: np.ndarray, y: np.ndarray, wt: np.ndarray, degree: int) -> float:
-    """A lower bound of the chi^2 of a plain pitchfork law with ``degree - 1`` corrections at
-    every mu*: its terms ``x, ..., x^degree`` (``x = mu* - mu``) are polynomials of that degree
-    in ``mu``, so no mu* fits better than the best polynomial (weighted least squares, less
-    a rounding margin). Exact, and costs one small fit instead of a profile search."""
-    t = (mu - mu.mean()) / max(float(np.ptp(mu)), 1e-300)
-    A = np.vander(t, degree + 1) * wt[:, None]
-    b = y * wt
-    coef, *_ = np.linalg.lstsq(A, b, rcond=None)
-    r = b - A @ coef
-    return max(float(r @ r) - 1e-9 * float(b @ b), 0.0)
 
 
 def _sigma_bound(sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool) -> float:

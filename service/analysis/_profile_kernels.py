@@ -25,6 +25,7 @@ from service.analysis._laws_kernels import (
     _profile_u,
     _profile_u_from,
     _profile_u_walk,
+    _profile_u_warm,
     _total,
     _work,
 )
@@ -53,26 +54,45 @@ def _row(ms, P, mu_last, logu, W, cf, refine):
 
 
 @njit(cache=True, error_model="numpy")
-def _row_near(ms, P, mu_last, logu, W, cf, H):
-    """:func:`_row` (refined) for the successive steps of a minimisation or root finder: a
-    conformal law's fold parameter searched by descent from the best grid index of the
-    previous step, ``H[0]`` (-1: the whole grid), which it updates. Neighbouring steps have
-    nearly the same optimal u: some four fits instead of the grid's twelve."""
+def _row_exact(ms, P, mu_last, logu, W, cf, S, j):
+    """:func:`_row` (refined) at grid point ``j`` of a scan, the conformal optimum's grid
+    index and log u kept in ``S[:, j]`` (where a search from that point starts)."""
     if not cf:
         return _row(ms, P, mu_last, logu, W, False, True)
     D, E, M = P
     WK, RK = W
-    v, _, jb = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, H[0])
-    H[0] = jb
+    v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, -1)
+    S[0, j] = jb
+    S[1, j] = lu
     return v if math.isfinite(v) else BIG
 
 
 @njit(cache=True, error_model="numpy")
-def _minimise(a, b, xatol, P, mu_last, logu, W, cf):
-    """Brent's bounded minimisation of the refined profile on ``[a, b]`` (in t); (t, value)."""
-    H = np.full(1, -1, dtype=np.int64)  # fold parameter's grid index of the last step
+def _row_near(ms, P, mu_last, logu, W, cf, H, L):
+    """:func:`_row` (refined) for the successive steps of a minimisation or root finder: a
+    conformal law's fold parameter searched from the previous step's optimum, ``H[0]`` (its
+    grid index; -1: none yet, the whole grid) and ``L[0]`` (its log u), which it updates.
+    Neighbouring steps have nearly the same optimal u: a parabola around the previous one
+    (:func:`_profile_u_warm`, four fits) instead of the grid's twelve and a refinement."""
+    if not cf:
+        return _row(ms, P, mu_last, logu, W, False, True)
+    D, E, M = P
+    WK, RK = W
+    if H[0] < 0:
+        v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, -1)
+    else:
+        v, _, jb, lu = _profile_u_warm(ms, D, E, M, mu_last, logu, WK, RK, H[0], L[0])
+    H[0] = jb
+    L[0] = lu
+    return v if math.isfinite(v) else BIG
+
+
+@njit(cache=True, error_model="numpy")
+def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L):
+    """Brent's bounded minimisation of the refined profile on ``[a, b]`` (in t); (t, value).
+    ``H``, ``L``: the fold parameter's state (:func:`_row_near`) to start from, updated."""
     x = a + _GOLD * (b - a)
-    fx = _row_near(mu_last + math.exp(x), P, mu_last, logu, W, cf, H)
+    fx = _row_near(mu_last + math.exp(x), P, mu_last, logu, W, cf, H, L)
     v, w, fv, fw = x, x, fx, fx
     d = 0.0
     e = 0.0
@@ -103,7 +123,7 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf):
             e = (b - x) if x < xm else (a - x)
             d = _GOLD * e
         u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
-        fu = _row_near(mu_last + math.exp(u), P, mu_last, logu, W, cf, H)
+        fu = _row_near(mu_last + math.exp(u), P, mu_last, logu, W, cf, H, L)
         if fu <= fx:
             if u < x:
                 b = x
@@ -123,11 +143,13 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf):
 
 
 @njit(cache=True, error_model="numpy")
-def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf):
+def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf, H0, L0):
     """t in [a, b] where the refined profile equals ``level`` (Brent's root finder on
-    ``f - level``; ``fa``, ``fb``: the differences at the ends, of opposite signs)."""
+    ``f - level``; ``fa``, ``fb``: the differences at the ends, of opposite signs), the fold
+    parameter started from the state ``H0``, ``L0`` (:func:`_row_near`; not modified)."""
     xtol = 1e-9
-    H = np.full(1, -1, dtype=np.int64)  # fold parameter's grid index of the last step
+    H = H0.copy()
+    L = L0.copy()
     c, fc = a, fa
     d = b - a
     e = d
@@ -168,15 +190,16 @@ def _crossing(a, b, fa, fb, level, P, mu_last, logu, W, cf):
                 e = m
         a, fa = b, fb
         b += d if abs(d) > tol else (tol if m > 0.0 else -tol)
-        fb = _row_near(mu_last + math.exp(b), P, mu_last, logu, W, cf, H) - level
+        fb = _row_near(mu_last + math.exp(b), P, mu_last, logu, W, cf, H, L) - level
     return b
 
 
 @njit(cache=True, error_model="numpy")
-def _scan(t, P, mu_last, logu, W, cf, f, exact):
+def _scan(t, P, mu_last, logu, W, cf, f, exact, S):
     """Fill ``f`` with the profile on the grid ``t``: a conformal law's fold parameter by a
     descent on its own grid continued from the previous point (an upper bound) except at the
-    five lowest points, profiled over its whole grid and refined."""
+    five lowest points, profiled over its whole grid and refined (their fold parameter's
+    optimum kept in ``S``)."""
     G = t.size
     if not cf:
         for j in range(G):
@@ -193,65 +216,76 @@ def _scan(t, P, mu_last, logu, W, cf, f, exact):
     order = np.argsort(f)
     for r in range(min(5, G)):
         j = order[r]
-        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, True, True)
+        f[j] = _row_exact(mu_last + math.exp(t[j]), P, mu_last, logu, W, True, S, j)
         exact[j] = True
 
 
 @njit(cache=True, error_model="numpy")
-def _fval(j, t, f, exact, P, mu_last, logu, W, cf):
+def _fval(j, t, f, exact, S, P, mu_last, logu, W, cf):
     if not exact[j]:
-        f[j] = _row(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, True)
+        f[j] = _row_exact(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, S, j)
         exact[j] = True
     return f[j]
 
 
 @njit(cache=True, error_model="numpy")
-def _ends(th, fh, delta, t, f, exact, P, mu_last, logu, W, cf):
-    """Interval ends (in t) where the profile rises ``delta`` above ``fh``; open ends as NaN."""
+def _ends(th, fh, delta, t, f, exact, S, P, mu_last, logu, W, cf, H, L):
+    """Interval ends (in t) where the profile rises ``delta`` above ``fh``; open ends as NaN.
+    ``H``, ``L``: the fold parameter's state at the minimum, where each crossing starts."""
     G = t.size
     j = np.searchsorted(t, th) - 1
-    while j >= 0 and _fval(j, t, f, exact, P, mu_last, logu, W, cf) - fh < delta:
+    while j >= 0 and _fval(j, t, f, exact, S, P, mu_last, logu, W, cf) - fh < delta:
         j -= 1
     lo = math.nan
     if j >= 0:
         lo = _crossing(
-            t[j], th, f[j] - fh - delta, -delta, fh + delta, P, mu_last, logu, W, cf
+            t[j], th, f[j] - fh - delta, -delta, fh + delta, P, mu_last, logu, W, cf, H, L
         )
     j = np.searchsorted(t, th)
-    while j < G and _fval(j, t, f, exact, P, mu_last, logu, W, cf) - fh < delta:
+    while j < G and _fval(j, t, f, exact, S, P, mu_last, logu, W, cf) - fh < delta:
         j += 1
     hi = math.nan
     if j < G:
         hi = _crossing(
-            th, t[j], -delta, f[j] - fh - delta, fh + delta, P, mu_last, logu, W, cf
+            th, t[j], -delta, f[j] - fh - delta, fh + delta, P, mu_last, logu, W, cf, H, L
         )
     return lo, hi
 
 
 @njit(cache=True, error_model="numpy")
-def _polish(i, t, f, xatol, P, mu_last, logu, W, cf):
-    """Minimum in the bracket of grid point ``i`` (its neighbours), never above ``f[i]``."""
+def _polish(i, t, f, S, xatol, P, mu_last, logu, W, cf):
+    """Minimum in the bracket of grid point ``i`` (its neighbours), never above ``f[i]``, and
+    the fold parameter's state there (:func:`_row_near`; started from grid point ``i``'s)."""
     G = t.size
     a = t[i - 1] if i > 0 else t[0]
     b = t[i + 1] if i < G - 1 else t[G - 1]
-    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf)
+    H = np.full(1, np.int64(S[0, i]), dtype=np.int64)
+    L = np.full(1, S[1, i])
+    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L)
     if not fh <= f[i]:
         th, fh = t[i], f[i]
-    return th, fh
+        H[0] = np.int64(S[0, i])
+        L[0] = S[1, i]
+    return th, fh, H, L
 
 
 @njit(cache=True, error_model="numpy")
 def profile_scan(t, P, mu_last, logu, cf):
-    """The scan of :func:`profile_search` alone: ``(f, exact)``, the profile on the grid ``t``
-    and which of its values are exact (a conformal law's others are upper bounds). It depends
-    on the grid and the data only, not on the search's tolerance or intervals: a scan kept
-    serves every later search of the same grid and data (:func:`profile_search_scanned`)."""
+    """The scan of :func:`profile_search` alone: ``(f, exact, S)``, the profile on the grid
+    ``t``, which of its values are exact (a conformal law's others are upper bounds) and, at
+    those, the fold parameter's optimum (``S[0]`` its ``logu`` grid index, ``S[1]`` its log u;
+    -1 and NaN elsewhere). It depends on the grid and the data only, not on the search's
+    tolerance or intervals: a scan kept serves every later search of the same grid and data
+    (:func:`profile_search_scanned`)."""
     W = _work(P[0], P[2])
     G = t.size
     f = np.empty(G)
     exact = np.zeros(G, dtype=np.bool_)
-    _scan(t, P, mu_last, logu, W, cf, f, exact)
-    return f, exact
+    S = np.empty((2, G))
+    S[0, :] = -1.0
+    S[1, :] = math.nan
+    _scan(t, P, mu_last, logu, W, cf, f, exact, S)
+    return f, exact, S
 
 
 @njit(cache=True, error_model="numpy")
@@ -276,7 +310,7 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         Rises of ``-2 log L`` that end the intervals; an interval whose rise is ``<= 0`` is not
         searched (its ends NaN). Each interval's ends are the same whether or not the other is
         searched: the grid values the walks make exact are the same refined rows, and each
-        crossing starts its own fold-parameter descent.
+        crossing starts from the same fold-parameter state, the minimum's.
 
     Returns
     -------
@@ -285,19 +319,20 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         NaN where the profile does not rise that far within the grid; ``i_grid`` the index of the
         grid's lowest point.
     """
-    f, exact = profile_scan(t, P, mu_last, logu, cf)
-    return profile_search_scanned(t, f, exact, P, mu_last, logu, cf, xatol, d95, d68, polish)
+    f, exact, S = profile_scan(t, P, mu_last, logu, cf)
+    return profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish)
 
 
 @njit(cache=True, error_model="numpy")
-def profile_search_scanned(t, f, exact, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
-    """:func:`profile_search` after its scan, ``(f, exact)`` of :func:`profile_scan` on the
-    same grid and data (the same result, to the bit). ``f`` and ``exact`` are updated in place
-    (the interval walks make values exact): pass copies to keep a scan for another search."""
+def profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
+    """:func:`profile_search` after its scan, ``(f, exact, S)`` of :func:`profile_scan` on the
+    same grid and data (the same result, to the bit). ``f``, ``exact`` and ``S`` are updated in
+    place (the interval walks make values exact): pass copies to keep a scan for another
+    search."""
     W = _work(P[0], P[2])
     G = t.size
     i = int(np.argmin(f))
-    th, fh = _polish(i, t, f, xatol, P, mu_last, logu, W, cf)
+    th, fh, H, L = _polish(i, t, f, S, xatol, P, mu_last, logu, W, cf)
     if polish > 1:
         # the next lowest local minima of the scan: a narrow valley between grid points may
         # hold a lower minimum than the basin of the lowest grid point
@@ -314,15 +349,15 @@ def profile_search_scanned(t, f, exact, P, mu_last, logu, cf, xatol, d95, d68, p
         for r in range(min(polish - 1, nc)):
             j = cand[order[r]]
             # a coarse refinement tells whether this basin goes lower; only then the full one
-            tj, fj = _polish(j, t, f, max(xatol, _XTOL_PROBE), P, mu_last, logu, W, cf)
+            tj, fj, _, _ = _polish(j, t, f, S, max(xatol, _XTOL_PROBE), P, mu_last, logu, W, cf)
             if fj < fh:
-                tj, fj = _polish(j, t, f, xatol, P, mu_last, logu, W, cf)
+                tj, fj, Hj, Lj = _polish(j, t, f, S, xatol, P, mu_last, logu, W, cf)
                 if fj < fh:
-                    th, fh, i = tj, fj, j
+                    th, fh, i, H, L = tj, fj, j, Hj, Lj
     out = np.full(7, math.nan)
     out[0], out[1], out[2] = th, fh, i
     if d95 > 0.0:
-        out[3], out[4] = _ends(th, fh, d95, t, f, exact, P, mu_last, logu, W, cf)
+        out[3], out[4] = _ends(th, fh, d95, t, f, exact, S, P, mu_last, logu, W, cf, H, L)
     if d68 > 0.0:
-        out[5], out[6] = _ends(th, fh, d68, t, f, exact, P, mu_last, logu, W, cf)
+        out[5], out[6] = _ends(th, fh, d68, t, f, exact, S, P, mu_last, logu, W, cf, H, L)
     return out

@@ -20,6 +20,7 @@ from service.analysis._laws_kernels import REL_FLOOR as _REL_FLOOR
 from service.analysis._likelihood import (
     _Comp,
     _nll,
+    _polynomial_bound,
     _profile,
     _profile_screen,
     _sigma_comp,
@@ -100,6 +101,15 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
                 # known without a search (on a long sweep, most of the K = 0 searches)
                 lb = floor.get((K, cf), -math.inf)
                 pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
+                if fallback is not None and not cf and p == 1.0 and h == 1.0 and not (
+                    pv_lb < _ALPHA and pv_lb <= fallback.pvalue
+                ):
+                    # a plain pitchfork law is a polynomial of degree K + 1 in mu: the best
+                    # polynomial's chi^2 bounds it at every mu* (exact, one small fit)
+                    poly = _polynomial_bound(sw.mu[idx], sw.y[idx], 1.0 / sw.sd[idx], K + 1)
+                    if poly > lb:
+                        lb = poly
+                        pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
                 if pv_lb < _ALPHA and fallback is not None and pv_lb <= fallback.pvalue:
                     continue
                 comp = _sigma_comp(sw, idx, p, h, K, cf)

@@ -196,10 +196,12 @@ def test_a_kept_scan_gives_the_full_search(seed: int, fold: bool) -> None:
     intervals and at either tolerance, gives the full search's result to the bit; so does
     ``_profile`` in a memo scope, where a window's searches share their scan."""
     mu, comps, scale, t, P, last, d95 = _search_case(seed, fold)
-    f, exact = profile_scan(t, P, last, _LOGU, fold)
+    f, exact, S = profile_scan(t, P, last, _LOGU, fold)
     for tol, a, b in ((1e-5, 0.0, 0.0), (1e-10, d95, 1.0), (1e-10, 0.0, 1.0)):
         full = profile_search(t, P, last, _LOGU, fold, tol, a, b, 3)
-        kept = profile_search_scanned(t, f.copy(), exact.copy(), P, last, _LOGU, fold, tol, a, b, 3)
+        kept = profile_search_scanned(
+            t, f.copy(), exact.copy(), S.copy(), P, last, _LOGU, fold, tol, a, b, 3
+        )
         np.testing.assert_array_equal(kept, full)
     plain = [_profile(mu, comps, scale, with_interval=w) for w in (False, True)]
     with profile_memo():

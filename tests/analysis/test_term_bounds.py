@@ -2,7 +2,8 @@
 
 * the term choice: the polynomial lower bound of a plain pitchfork law, the eigenvalue law's
   own minimum inside a joint fit with the static law, and 0 for a static law's chi^2;
-* the window choice: a smaller window's minimum bounds a larger one's (K = 0);
+* the window choice: a smaller window's minimum bounds a larger one's (K = 0), and the
+  polynomial bound a plain pitchfork law's;
 * the free exponent: the walk along the exponent grid stops where the profile has risen far.
 
 Reference: the law's -2 log L evaluated by the kernels at every mu* of a fine grid (and the
@@ -15,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.analysis._laws import _polynomial_bound
 from service.analysis._laws_kernels import nll_fixed_u
-from service.analysis._likelihood import _Comp, _pack, _profile, _sigma_exps
+from service.analysis._likelihood import _Comp, _pack, _polynomial_bound, _profile, _sigma_exps
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -127,7 +127,8 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
     act: str, step: float, stop: float, rel: float, seed: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The informative window and terms of both selection laws are the same whether a smaller
-    window's minimum skips the searches it rules out or every search is run."""
+    window's minimum and the polynomial bound skip the searches they rule out or every search
+    is run."""
     from service.analysis import _windows
     from service.analysis._likelihood import profile_memo
 
@@ -142,8 +143,12 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
 
     monkeypatch.setattr(_windows, "_profile", counted)
     out = {}
+    poly = _windows._polynomial_bound
     for nested in (0, -1):
         monkeypatch.setattr(_windows, "_NESTED_K", nested)
+        monkeypatch.setattr(
+            _windows, "_polynomial_bound", poly if nested == 0 else (lambda *a, **k: 0.0)
+        )
         calls["n"] = 0
         with profile_memo():
             out[nested] = ([_windows._select_window(sw, p, h, scale) for p, h in
