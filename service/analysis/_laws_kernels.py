@@ -260,6 +260,56 @@ def _refine_u(ms, a, c, xb, fxb, fa, fc, D, E, M, x_last, WK, RK, tol):
 
 
 @njit(cache=True, error_model="numpy")
+def _refine_narrow(ms, a, c, xb, fxb, fa, fc, D, E, M, x_last, WK, RK):
+    """The log fold parameter's minimum in a narrow bracket ``a < xb < c`` whose middle point
+    is the lowest (``fxb <= fa, fc``): successive parabolic interpolation through the lowest
+    point and its two nearest neighbours on either side (the bracket kept), until the next
+    vertex lies within ``_U_TOL`` of the lowest point and both neighbours within ``100
+    _U_TOL`` (a far neighbour is brought in by a probe ``10 _U_TOL`` beyond the lowest point),
+    that vertex evaluated last. In a narrow bracket the profile is a parabola to high
+    accuracy: some four fits, where the
+    golden-section safeguards of :func:`_refine_u` take seven to shrink the bracket itself to
+    the tolerance. Returns the lowest (log u, -2 log L) seen; a vertex outside the bracket
+    (rounding) ends it."""
+    x0, f0, x1, f1, x2, f2 = a, fa, xb, fxb, c, fc
+    for _ in range(20):
+        d0 = x1 - x0
+        d2 = x1 - x2
+        num = d0 * d0 * (f1 - f2) - d2 * d2 * (f1 - f0)
+        den = d0 * (f1 - f2) - d2 * (f1 - f0)
+        if not den != 0.0:
+            break
+        v = x1 - 0.5 * num / den
+        if not x0 < v < x2:
+            break
+        if abs(v - x1) < _U_TOL:
+            if max(x1 - x0, x2 - x1) <= 100 * _U_TOL:
+                # converged: the vertex itself (a parabola through near points: its error
+                # is far below the step, which the valley's curvature makes count)
+                fv = _total(ms, math.exp(v), D, E, M, x_last, WK, RK)
+                if fv < f1:
+                    x1, f1 = v, fv
+                break
+            # a vertex from a parabola through a far end can stall next to the lowest point:
+            # a probe just beyond the lowest point on that side brings the end in
+            v = x1 - 10 * _U_TOL if x1 - x0 > x2 - x1 else x1 + 10 * _U_TOL
+        fv = _total(ms, math.exp(v), D, E, M, x_last, WK, RK)
+        if not math.isfinite(fv):
+            break
+        if fv < f1:
+            if v < x1:
+                x2, f2 = x1, f1
+            else:
+                x0, f0 = x1, f1
+            x1, f1 = v, fv
+        elif v < x1:
+            x0, f0 = v, fv
+        else:
+            x2, f2 = v, fv
+    return x1, f1
+
+
+@njit(cache=True, error_model="numpy")
 def _grid_u(ms, g, D, E, M, x_last, logu, WK, RK):
     """-2 log L at grid point ``g`` of the log fold parameter (1e300 if not finite)."""
     v = _total(ms, math.exp(logu[g]), D, E, M, x_last, WK, RK)
@@ -357,8 +407,8 @@ def _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, j0):
         fm = _total(ms, math.exp(xb - h), D, E, M, x_last, WK, RK)
         fp = _total(ms, math.exp(xb + h), D, E, M, x_last, WK, RK)
         if fxb <= fm and fxb <= fp:
-            xb, fxb = _refine_u(ms, xb - h, xb + h, xb, fxb, fm, fp, D, E, M, x_last, WK, RK,
-                                _U_TOL)  # fmt: skip
+            xb, fxb = _refine_narrow(ms, xb - h, xb + h, xb, fxb, fm, fp, D, E, M, x_last,
+                                     WK, RK)  # fmt: skip
     if fxb < best:
         best = fxb
         best_u = math.exp(xb)
@@ -388,7 +438,7 @@ def _profile_u_warm(ms, D, E, M, mu_last, logu, WK, RK, j0, lu0):
     fp = _total(ms, math.exp(lu0 + h), D, E, M, x_last, WK, RK)
     if not (f0 <= fm and f0 <= fp and math.isfinite(fm) and math.isfinite(fp)):
         return _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, j0)
-    xb, fxb = _refine_u(ms, lu0 - h, lu0 + h, lu0, f0, fm, fp, D, E, M, x_last, WK, RK, _U_TOL)
+    xb, fxb = _refine_narrow(ms, lu0 - h, lu0 + h, lu0, f0, fm, fp, D, E, M, x_last, WK, RK)
     best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     best_u = 0.0
     if fxb < best:
