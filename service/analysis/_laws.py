@@ -36,11 +36,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import optimize
 
+from service.analysis._exponents import exponent_grid, free_exponent
 from service.analysis._likelihood import (
     _MEMO,
     _Comp,
-    _exp_grid,
-    _free_exponent,
     _nll_u,
     _polynomial_bound,
     _Profile,
@@ -606,8 +605,8 @@ def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
                   conformal=fit.conformal)
         ]  # fmt: skip
 
-    a2, a2_se = _free_exponent(
-        sweep.mu[idx], make, _exp_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale, center=2 * fit.a
+    a2, a2_se = free_exponent(
+        sweep.mu[idx], make, exponent_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale, center=2 * fit.a
     )
     return a2 / 2, a2_se / 2
 
@@ -630,7 +629,7 @@ def free_exponent_b(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
         # w - w* = g x^b (1 + corrections): the x^b term must lead inside the window
         return [_Comp(w[iw], wt, e, known, True, 1, False, conformal=fit.conformal)]
 
-    return _free_exponent(
-        sweep.mu[iw], make, _exp_grid(0.25, 1.9, [0.5, 1.0]), scale,
+    return free_exponent(
+        sweep.mu[iw], make, exponent_grid(0.25, 1.9, [0.5, 1.0]), scale,
         fixed_mu=fit.profile.mu_star,
     )  # fmt: skip

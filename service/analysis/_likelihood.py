@@ -13,12 +13,12 @@ from __future__ import annotations
 import contextvars
 import functools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import stats
 
 from service.analysis._laws_kernels import nll_rows, poly_rss
 from service.analysis._profile_kernels import (
@@ -418,13 +418,6 @@ def _w_comp(
     )  # fmt: skip
 
 
-def _exp_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
-    """Grid for a free exponent: uniform, plus the candidate values and their close neighbours
-    (precise data give valleys far narrower than the uniform step)."""
-    extra = [c + d for c in cands for d in (-0.02, -0.005, 0.0, 0.005, 0.02)]
-    return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
-
-
 def _profile_near(
     mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float, xatol: float
 ) -> tuple[float, float]:
@@ -474,83 +467,3 @@ def _profile_screen(
     if key is not None:
         memo[key] = res  # type: ignore[assignment]
     return res
-
-
-_FAR = 100.0  # rise of -2 log L above its minimum that ends the walk along an exponent grid
-
-
-def _free_exponent(
-    mu_w: np.ndarray,
-    make: Callable[[float], list[_Comp]],
-    grid: np.ndarray,
-    scale: float,
-    fixed_mu: float | None = None,
-    center: float | None = None,
-) -> tuple[float, float]:
-    """Profile -2 log L over an exponent; return (estimate, standard error from Delta = 1).
-
-    With mu* profiled, the profile at each exponent is searched near the optimum of the
-    neighbouring exponent (continuation from ``center``, the law's own exponent, whose profile
-    gets the full search): the optimum moves smoothly with the exponent. The grid is walked
-    from ``center`` each way until the profile, rising, stands ``_FAR`` above the lowest value
-    seen (a minimum beyond such a ridge is not looked for: on precise data the profile rises
-    by 1e4-1e8 within a few grid points, and every point of it cost a search). Without a
-    ``center`` every grid point is evaluated (the static exponent's profile has a second
-    valley at the grid's low edge, where a series in x^(b/2) fits too)."""
-    last = float(mu_w[-1])
-    known: dict[float, float] = {}  # exponent -> log(mu* - mu_last) at its optimum
-
-    values: dict[float, float] = {}  # exponent -> profile value (a point is searched once)
-
-    def prof(e: float) -> float:
-        e = float(e)
-        if e in values:
-            return values[e]
-        comps = make(e)
-        if fixed_mu is not None:
-            v = float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
-        elif not known:
-            pr = _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7)
-            known[e] = math.log(max(pr.mu_star - last, 1e-300))
-            v = pr.nll
-        else:
-            near = min(known, key=lambda k: abs(k - e))
-            known[e], v = _profile_near(mu_w, comps, scale, known[near], 1e-6)
-        values[e] = v
-        return v
-
-    c = float(grid[np.argmin(np.abs(grid - center))]) if center is not None else float(grid[0])
-    ic = int(np.searchsorted(grid, c))
-    f = np.full(grid.size, np.inf)  # inf: beyond the walk (the profile risen out of reach)
-    f[ic] = prof(float(grid[ic]))
-    for step in (1, -1):  # walk each way while the profile is within reach of its minimum
-        j = ic + step
-        while 0 <= j < grid.size:
-            f[j] = prof(float(grid[j]))
-            lowest = float(np.min(f[np.isfinite(f)], initial=np.inf))
-            if center is not None and f[j] - lowest > _FAR and f[j] >= f[j - step]:
-                break
-            j += step
-    f = np.where(np.isfinite(f), f, np.inf)
-    i = int(np.argmin(f))
-    a_, b_ = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    res = optimize.minimize_scalar(prof, bounds=(a_, b_), method="bounded", options={"xatol": 1e-4})
-    eh, fh = (float(res.x), float(res.fun)) if res.fun <= f[i] else (float(grid[i]), float(f[i]))
-
-    def cross(sign: int) -> float:
-        j = int(np.searchsorted(grid, eh)) + (0 if sign > 0 else -1)
-        while 0 <= j < grid.size and f[j] - fh < 1.0:
-            j += sign
-        if not 0 <= j < grid.size:
-            return math.inf
-        try:
-            root = optimize.brentq(
-                lambda e: prof(e) - fh - 1.0, min(eh, grid[j]), max(eh, grid[j]), xtol=1e-5
-            )
-        except ValueError:  # a profile value not finite inside the bracket: not bounded there
-            return math.inf
-        return abs(root - eh)
-
-    up, dn = cross(+1), cross(-1)
-    se = 0.5 * (up + dn) if math.isfinite(up) and math.isfinite(dn) else min(up, dn)
-    return eh, se

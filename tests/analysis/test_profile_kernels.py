@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
+from service.analysis._exponents import free_exponent
 from service.analysis._laws_kernels import nll_rows
 from service.analysis._likelihood import (
     _GRID,
     _GRID_CF,
     _LOGU,
     _Comp,
-    _free_exponent,
     _pack,
     _profile,
     _profile_screen,
@@ -124,7 +124,7 @@ def test_continued_exponent_profile_matches_the_full_one() -> None:
         return [_Comp(y, 1.0 / sd, _sigma_exps(p, 1.0, 1), True, True)]
 
     grid = np.unique(np.concatenate([np.linspace(0.2, 2.5, 16), [0.48, 0.5, 0.52, 1.0, 2.0]]))
-    e_cont, se_cont = _free_exponent(mu, make, grid, scale, center=1.0)
+    e_cont, se_cont = free_exponent(mu, make, grid, scale, center=1.0)
 
     def full(p: float) -> float:
         return _profile(mu, make(p), scale, with_interval=False, xatol=1e-7).nll

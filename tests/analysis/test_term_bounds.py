@@ -166,14 +166,14 @@ def test_free_exponent_walk_equals_the_whole_grid(
     """The free exponent a and its standard error are the same when the exponent grid is
     walked from the law's exponent until the profile has risen ``_FAR`` as when every grid
     point is searched (reference: ``_FAR = inf``)."""
-    from service.analysis import _laws, _likelihood
+    from service.analysis import _exponents, _laws
     from service.analysis._likelihood import profile_memo
 
     sw = _beam_sweep(act, 25, 1e-4, 5)
     _, fits, n_c, _ = _laws.analyse(sw)
     with profile_memo():
         walk = _laws.free_exponent_a(sw, fits[0], n_c)
-    monkeypatch.setattr(_likelihood, "_FAR", np.inf)
+    monkeypatch.setattr(_exponents, "_FAR", np.inf)
     with profile_memo():
         full = _laws.free_exponent_a(sw, fits[0], n_c)
     assert walk == pytest.approx(full, rel=1e-9, abs=1e-12)
