@@ -71,6 +71,13 @@ def _range_grid(scale: float, n: int) -> np.ndarray:
     return lo + (_T_HI - _T_LO) * _UNIT[n]
 
 
+def _sorted_unique(t: np.ndarray) -> np.ndarray:
+    """``np.unique(t)`` of a fresh array (sorted in place), without its wrapper's cost (some
+    5 us a call, paid by every search)."""
+    t.sort()
+    return t[np.concatenate(([True], t[1:] != t[:-1]))] if t.size else t
+
+
 def _clip(t: np.ndarray, scale: float) -> np.ndarray:
     ls = math.log(scale)
     return t[(t >= ls + _T_MIN) & (t <= ls + _T_HI)]
@@ -83,10 +90,10 @@ def _pack(mu_w: np.ndarray, comps: list[_Comp]) -> tuple[np.ndarray, np.ndarray,
     nc = len(comps)
     if nc == 1 and comps[0].mu is None:  # the common case, without the general loop's cost
         c = comps[0]
-        D = np.empty((3, mu_w.size))
-        D[0], D[1], D[2] = mu_w, c.y, c.wt
+        D = np.array((mu_w, c.y, c.wt), dtype=float)
         row = (0, mu_w.size, c.exps.size, c.known, c.lead, c.lead_col, c.signed, c.conformal)
-        return D, c.exps.astype(float).reshape(1, -1), np.array([row], dtype=np.int64)
+        E = np.array(c.exps, dtype=float).reshape(1, -1)  # a writable copy: one kernel type
+        return D, E, np.array([row], dtype=np.int64)
     mus = [mu_w if c.mu is None else c.mu for c in comps]
     N = sum(m.size for m in mus)
     D = np.empty((3, N))
@@ -321,7 +328,7 @@ def _search_grid(mu_w: np.ndarray, c: _Comp, scale: float, cf: bool) -> np.ndarr
     if seeds:
         centres = [math.log(d0) for d0 in seeds]
         parts = [g for half, k in _SEED_GRIDS[cf] for g in _seed_grid(centres, half, k)]
-        t = _clip(np.unique(np.concatenate([t, *parts])), scale)
+        t = _clip(_sorted_unique(np.concatenate([t, *parts])), scale)
     t = np.ascontiguousarray(t)
     if key is not None:
         memo[key] = t  # type: ignore[assignment]
@@ -333,12 +340,13 @@ def _seeds(mu_w: np.ndarray, c: _Comp) -> list[float]:
     the last pairs of points: starting points that bracket the (possibly very narrow) valley of
     the profile likelihood of precise data."""
     p = float(c.exps[0])
-    z = c.y ** (1.0 / p)
+    z = (c.y[-4:] ** (1.0 / p)).tolist()  # the last pairs only, as Python floats (cheaper)
+    m = mu_w[-4:].tolist()
     out = []
     for k in range(1, min(4, mu_w.size)):
         dz = z[-k - 1] - z[-k]
         if dz > 0:
-            d = z[-k] * (mu_w[-k] - mu_w[-k - 1]) / dz + (mu_w[-k] - mu_w[-1])
+            d = z[-k] * (m[-k] - m[-k - 1]) / dz + (m[-k] - m[-1])
             if d > 0 and math.isfinite(d):
                 out.append(float(d))
     return out
@@ -356,8 +364,12 @@ def _polynomial_bound(mu: np.ndarray, y: np.ndarray, wt: np.ndarray, degree: int
     return max(rss - 1e-9 * float(b @ b), 0.0)
 
 
+@functools.lru_cache(maxsize=256)
 def _sigma_exps(p: float, h: float, K: int) -> np.ndarray:
-    return p + h * np.arange(K + 1, dtype=float)
+    """Exponents ``p, p + h, ..., p + K h`` of the eigenvalue law (read-only: memoised)."""
+    e = p + h * np.arange(K + 1, dtype=float)
+    e.flags.writeable = False
+    return e
 
 
 def _w_exps(b: float, Kw: int) -> np.ndarray:
@@ -460,7 +472,7 @@ def _profile_screen(
         parts.append(t0 + _NEAR)
     if comps[0].lead:
         parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
-    t = _clip(np.unique(np.concatenate(parts)), scale)
+    t = _clip(_sorted_unique(np.concatenate(parts)), scale)
     cf = any(c.conformal for c in comps)
     out = profile_search(t, packed, last, _LOGU, cf, 1e-4, 0.0, 0.0)
     res = (float(out[0]), float(out[1]))

@@ -10,6 +10,7 @@ strip are mapped to ``|sigma^2|`` (:func:`_with_damping`). Used by :mod:`service
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -67,8 +68,10 @@ def _chi2_sf(x: float, dof: int) -> float:
     return 1.0 if x < 0 else float(special.chdtrc(dof, x))
 
 
+@functools.lru_cache(maxsize=1024)
 def _chi2_isf(alpha: float, dof: int) -> float:
-    """Critical chi^2 value exceeded with probability ``alpha`` (``scipy.stats.chi2.isf``)."""
+    """Critical chi^2 value exceeded with probability ``alpha`` (``scipy.stats.chi2.isf``;
+    memoised: the same few are asked for hundreds of times per prediction)."""
     return float(special.chdtri(dof, alpha))
 
 
