@@ -416,34 +416,82 @@ def _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, j0):
 
 
 _H_WARM = 0.01  # step (in log u) of the parabola around a nearby mu*'s optimal fold parameter
+_WARM_DOUBLINGS = 6  # steps of the descent from there (to 1.27 in log u) before the grid's
 
 
 @njit(cache=True, error_model="numpy")
 def _profile_u_warm(ms, D, E, M, mu_last, logu, WK, RK, j0, lu0):
     """:func:`_profile_u_from` (refined) for a mu* next to one whose conformal optimum was
     ``lu0`` (log u) at grid index ``j0``: when ``lu0`` is lower than ``lu0 +- _H_WARM``, the
-    refinement of :func:`_refine_u` in that bracket, starting from the parabola through the
-    three (some seven fits instead of the grid descent's and the wide bracket's fifteen or
-    so, to the same tolerance); otherwise (the optimum moved farther, or ``lu0`` lies within
-    two steps of the grid's ends) the search of :func:`_profile_u_from` from ``j0``. Returns
-    ``(value, u, j, lu)`` as it does."""
+    refinement of :func:`_refine_narrow` in that bracket (some six fits instead of the grid
+    descent's and the wide bracket's twenty or so, to the same tolerance); when one of them is
+    lower, the descent followed with doubling steps (at most ``_WARM_DOUBLINGS``) to a
+    bracket first; an ``lu0`` within two steps of the range's ends stays there while the
+    profile still falls toward that end (two fits); otherwise (a local maximum, no bracket
+    within reach, an end the optimum left) the search of :func:`_profile_u_from` from ``j0``.
+    Returns ``(value, u, j, lu)`` as it does."""
     G = logu.size
     h = _H_WARM
-    if not (0 <= j0 < G and math.isfinite(lu0)
-            and logu[0] + 2 * h <= lu0 <= logu[G - 1] - 2 * h):  # fmt: skip
+    if not (0 <= j0 < G and math.isfinite(lu0)):
         return _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, j0)
     x_last = max(ms - mu_last, 1e-300)
+    lo, hi = logu[0], logu[G - 1]
+    if lu0 < lo + 2 * h or lu0 > hi - 2 * h:
+        # pinned at an end of the range: still pinned if the profile still falls toward it
+        end = lo if lu0 < lo + 2 * h else hi
+        fe = _total(ms, math.exp(end), D, E, M, x_last, WK, RK)
+        fi = _total(ms, math.exp(end + (h if end == lo else -h)), D, E, M, x_last, WK, RK)
+        if not (math.isfinite(fe) and fe <= fi):
+            return _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, j0)
+        return _u_result(ms, D, E, M, x_last, logu, WK, RK, end, fe)
     f0 = _total(ms, math.exp(lu0), D, E, M, x_last, WK, RK)
     fm = _total(ms, math.exp(lu0 - h), D, E, M, x_last, WK, RK)
     fp = _total(ms, math.exp(lu0 + h), D, E, M, x_last, WK, RK)
-    if not (f0 <= fm and f0 <= fp and math.isfinite(fm) and math.isfinite(fp)):
+    if not (math.isfinite(f0) and math.isfinite(fm) and math.isfinite(fp)) or (
+        f0 > fm and f0 > fp
+    ):
         return _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, j0)
-    xb, fxb = _refine_narrow(ms, lu0 - h, lu0 + h, lu0, f0, fm, fp, D, E, M, x_last, WK, RK)
+    if f0 <= fm and f0 <= fp:
+        a, fa, xb, fxb, c, fc = lu0 - h, fm, lu0, f0, lu0 + h, fp
+    else:
+        # the optimum moved beyond a step: follow the descent with doubling steps until
+        # the profile rises again (a bracket), or fall back to the grid's search
+        sgn = -1.0 if fm < fp else 1.0
+        xa, fa_, xm, fm_ = lu0, f0, lu0 + sgn * h, (fm if sgn < 0 else fp)
+        step = h
+        found = False
+        for _ in range(_WARM_DOUBLINGS):
+            step *= 2.0
+            xc = xm + sgn * step
+            if not logu[0] <= xc <= logu[G - 1]:
+                break
+            fc_ = _total(ms, math.exp(xc), D, E, M, x_last, WK, RK)
+            if not math.isfinite(fc_):
+                break
+            if fc_ >= fm_:
+                found = True
+                break
+            xa, fa_, xm, fm_ = xm, fm_, xc, fc_
+        if not found:
+            return _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, j0)
+        if sgn > 0:
+            a, fa, xb, fxb, c, fc = xa, fa_, xm, fm_, xc, fc_
+        else:
+            a, fa, xb, fxb, c, fc = xc, fc_, xm, fm_, xa, fa_
+    xb, fxb = _refine_narrow(ms, a, c, xb, fxb, fa, fc, D, E, M, x_last, WK, RK)
+    return _u_result(ms, D, E, M, x_last, logu, WK, RK, xb, fxb)
+
+
+@njit(cache=True, error_model="numpy")
+def _u_result(ms, D, E, M, x_last, logu, WK, RK, xb, fxb):
+    """``(value, u, j, lu)`` of :func:`_profile_u_from` from the conformal optimum ``xb``
+    (log u; value ``fxb``): the plain law (u = 0) when better, ``j`` the nearest grid index."""
     best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     best_u = 0.0
     if fxb < best:
         best = fxb
         best_u = math.exp(xb)
+    G = logu.size
     jb = int(round((xb - logu[0]) / (logu[1] - logu[0])))
     jb = min(max(jb, 0), G - 1)
     return best, best_u, jb, xb

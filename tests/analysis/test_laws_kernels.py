@@ -178,7 +178,9 @@ def test_warm_fold_parameter_equals_the_cold_search() -> None:
     """Along the small steps of a minimisation over mu*, the fold parameter refined from the
     previous step's optimum (:func:`_profile_u_warm`) gives the cold search's value (whole
     grid and refinement) to 1e-3 in -2 log L (both within that of the valley's floor), on
-    precise and on noisier data."""
+    precise and on noisier data; so do larger steps (the optimum followed beyond the first
+    bracket) and steps far past mu* (where the precise data's fold parameter is pinned at its
+    range's end)."""
     from service.analysis._laws_kernels import _profile_u_from, _profile_u_warm, _work
 
     for rel in (1e-6, 1e-3):
@@ -188,7 +190,12 @@ def test_warm_fold_parameter_equals_the_cold_search() -> None:
         last = float(mu[-1])
         t0 = math.log(2.0 - last)
         j, lu = -1, math.nan
-        for t in t0 + np.array([-2e-3, -1e-3, -1e-4, -1e-5, -1e-6, 0.0, 1e-6, 1e-4, 2e-3]):
+        # (between, where the profile over u has two basins, a warm start follows its own as
+        # the grid's descent from the previous index did: at t0 + 0.2 its value is 3.8e10
+        # where the whole grid's is 3.4e10, both far from the minimum's 30)
+        steps = [-2e-3, -1e-3, -1e-4, -1e-5, -1e-6, 0.0, 1e-6, 1e-4, 2e-3, 0.05, 0.02, -0.05,
+                 0.0, 1.0, 2.0, 3.0, 2.5]  # fmt: skip
+        for t in t0 + np.array(steps):
             m = last + math.exp(t)
             cold = _profile_u_from(m, D, E, M, last, _LOGU, WK, RK, True, -1)[0]
             if j < 0:
