@@ -37,6 +37,8 @@ def _brent_min(
     steps, tolerance ``xatol``) started from the bracket's three known values, the middle one
     the lowest: its first step is the parabola through them, where ``fminbound`` starts with
     golden sections from nothing (on precise data some six evaluations instead of twelve).
+    The steps are those of the compiled searches' Brent (``_profile_kernels._minimise``),
+    here for a Python callable: the profile at an exponent is itself a search.
     Returns ``(x, fn(x), curvature)``: the lowest point and the second derivative of the
     parabola through the last three points (NaN if they do not make one)."""
     a, x, c = x3
