@@ -72,8 +72,9 @@ def _row_near(ms, P, mu_last, logu, W, cf, H, L):
     """:func:`_row` (refined) for the successive steps of a minimisation or root finder: a
     conformal law's fold parameter searched from the previous step's optimum, ``H[0]`` (its
     grid index; -1: none yet, the whole grid) and ``L[0]`` (its log u), which it updates.
-    Neighbouring steps have nearly the same optimal u: a parabola around the previous one
-    (:func:`_profile_u_warm`, four fits) instead of the grid's twelve and a refinement."""
+    Neighbouring steps have nearly the same optimal u: a narrow bracket around the previous
+    one (:func:`_profile_u_warm`, some six fits) instead of the grid and a refinement across
+    a grid step (some 25)."""
     if not cf:
         return _row(ms, P, mu_last, logu, W, False, True)
     D, E, M = P
