@@ -312,3 +312,18 @@ BACKENDS: dict[str, Backend] = {
     "cosserat": Backend("cosserat", 3, _rod_simulate, _rod_bifurcation, _rod_equilibria,
                         _rod_spectrum, _rod_resolution, lambda s, **_: _rod_error(s)),
 }
+
+
+def preload() -> None:
+    """Import every backend's package now, in the calling thread.
+
+    The backends import their packages lazily, inside the functions that need them. A server
+    runs those functions in worker threads; two threads importing one package and one of its
+    submodules at once (``sim.cosserat`` in one, ``sim.cosserat.dynamics`` in the other) take
+    Python's module locks in opposite orders, and the import system breaks the deadlock by
+    handing one of them a partially initialised module: an ImportError, an HTTP 500 (found by
+    the fuzz on a fresh server: POST /v1/snaps and /v1/simulations). A server calls this once
+    before it serves."""
+    import sim.cosserat  # noqa: F401
+    import sim.euler_beam  # noqa: F401
+    import sim.normal_form  # noqa: F401

@@ -41,6 +41,7 @@ from service.api.state import AppState
 from service.api.storage import Store
 from service.schemas import DetectionRequest, PredictionRequest, Problem, SignalIn
 from service.schemas.common import PROBLEM_MEDIA_TYPE
+from sim.backends import preload as preload_backends
 
 log = logging.getLogger("snapwarn.api")
 
@@ -62,6 +63,8 @@ def _lifespan(settings: Settings) -> Any:
         # each hand-off to them waits up to 5 ms. 0.5 ms keeps them moving. (The analysis
         # pool, a LightPool, is fed by the event loop itself: no thread per call.)
         sys.setswitchinterval(settings.gil_switch_interval_s)
+        # the simulators' packages, before any worker thread imports them lazily (see preload)
+        preload_backends()
         store = Store(settings.db_url)
         await to_thread.run_sync(store.create_all)
         pool = make_analysis_pool(settings.executor, settings.analysis_workers)
