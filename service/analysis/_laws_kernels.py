@@ -499,11 +499,13 @@ def _u_result(ms, D, E, M, x_last, logu, WK, RK, xb, fxb):
 
 @njit(cache=True, error_model="numpy")
 def _profile_u_walk(ms, D, E, M, mu_last, logu, WK, RK, j0):
-    """Upper bound of the profile over u at one mu* for a scan along mu*: u = 0 and the grid
-    point reached by descending the ``logu`` grid from index ``j0`` (the best grid point of
-    the previous mu*; ``j0 < 0``: the whole grid). The optimal u moves little between
-    neighbouring mu*, so the walk costs some four fits instead of twelve; a scan's lowest
-    points are then profiled over the whole grid and refined (:func:`_profile_u`).
+    """Upper bound of the profile over u at one mu* for a scan along mu*: the grid point
+    reached by descending the ``logu`` grid from index ``j0`` (the best grid point of the
+    previous mu*; ``j0 < 0``: the whole grid), and u = 0 where that is the grid's first
+    point (the profile falling toward u -> 0). The optimal u moves little between
+    neighbouring mu*, so the walk costs some three fits instead of twelve; a scan's lowest
+    points are then profiled over the whole grid (u = 0 included) and refined
+    (:func:`_profile_u`).
 
     Returns
     -------
@@ -512,12 +514,13 @@ def _profile_u_walk(ms, D, E, M, mu_last, logu, WK, RK, j0):
         Index of the best grid point (the next mu*'s start).
     """
     x_last = max(ms - mu_last, 1e-300)
-    best = _total(ms, 0.0, D, E, M, x_last, WK, RK)
     if 0 <= j0 < logu.size:
         fb, jb, _, _ = _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0)
     else:
         fb, jb, _, _ = _scan_u(ms, D, E, M, x_last, logu, WK, RK)
-    return min(best, fb), jb
+    if jb > 0:
+        return fb, jb  # an interior grid minimum: the plain law (u -> 0) left to exact rows
+    return min(_total(ms, 0.0, D, E, M, x_last, WK, RK), fb), jb
 
 
 @njit(cache=True, error_model="numpy")

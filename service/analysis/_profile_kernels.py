@@ -89,14 +89,33 @@ def _row_near(ms, P, mu_last, logu, W, cf, H, L):
 
 
 @njit(cache=True, error_model="numpy")
-def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L):
+def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, x0, f0, fa, fb):
     """Brent's bounded minimisation of the refined profile on ``[a, b]`` (in t); (t, value).
-    ``H``, ``L``: the fold parameter's state (:func:`_row_near`) to start from, updated."""
-    x = a + _GOLD * (b - a)
-    fx = _row_near(mu_last + math.exp(x), P, mu_last, logu, W, cf, H, L)
-    v, w, fv, fw = x, x, fx, fx
-    d = 0.0
-    e = 0.0
+    ``H``, ``L``: the fold parameter's state (:func:`_row_near`) to start from, updated.
+
+    ``x0`` inside ``(a, b)`` with a finite value ``f0`` (a grid point's exact value, ``H`` and
+    ``L`` its state): the search starts there instead of at a golden-section point, and with
+    the ends' values ``fa``, ``fb`` (its grid neighbours', finite) its first step is the
+    parabola through the three (an end's value may be an upper bound, which only moves that
+    first trial point). Measured on the symmetric bench sweep's prediction: 2455 -> 2086 rows
+    over its 205 minimisations. Otherwise (``f0`` NaN) Brent's own start."""
+    if a < x0 < b and math.isfinite(f0):
+        x, fx = x0, f0
+        if fa < BIG and fb < BIG:
+            if fa <= fb:
+                w, fw, v, fv = a, fa, b, fb
+            else:
+                w, fw, v, fv = b, fb, a, fa
+            d = e = b - a
+        else:
+            v, w, fv, fw = x, x, fx, fx
+            d = e = 0.0
+    else:
+        x = a + _GOLD * (b - a)
+        fx = _row_near(mu_last + math.exp(x), P, mu_last, logu, W, cf, H, L)
+        v, w, fv, fw = x, x, fx, fx
+        d = 0.0
+        e = 0.0
     for _ in range(500):
         xm = 0.5 * (a + b)
         tol1 = _SQRT_EPS * abs(x) + xatol / 3.0
@@ -254,7 +273,7 @@ def _ends(th, fh, delta, t, f, exact, S, P, mu_last, logu, W, cf, H, L):
 
 
 @njit(cache=True, error_model="numpy")
-def _polish(i, t, f, S, xatol, P, mu_last, logu, W, cf):
+def _polish(i, t, f, exact, S, xatol, P, mu_last, logu, W, cf):
     """Minimum in the bracket of grid point ``i`` (its neighbours), never above ``f[i]``, and
     the fold parameter's state there (:func:`_row_near`; started from grid point ``i``'s)."""
     G = t.size
@@ -262,7 +281,10 @@ def _polish(i, t, f, S, xatol, P, mu_last, logu, W, cf):
     b = t[i + 1] if i < G - 1 else t[G - 1]
     H = np.full(1, np.int64(S[0, i]), dtype=np.int64)
     L = np.full(1, S[1, i])
-    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L)
+    f0 = fa = fb = math.nan
+    if exact[i] and 0 < i < G - 1:
+        f0, fa, fb = f[i], f[i - 1], f[i + 1]
+    th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t[i], f0, fa, fb)
     if not fh <= f[i]:
         th, fh = t[i], f[i]
         H[0] = np.int64(S[0, i])
@@ -315,10 +337,12 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
 
     Returns
     -------
-    out : ndarray, shape (7,)
-        ``(t_hat, nll_hat, i_grid, t_lo95, t_hi95, t_lo68, t_hi68)``: the interval ends in t,
-        NaN where the profile does not rise that far within the grid; ``i_grid`` the index of the
-        grid's lowest point.
+    out : ndarray, shape (9,)
+        ``(t_hat, nll_hat, i_grid, t_lo95, t_hi95, t_lo68, t_hi68, j_u, log_u)``: the interval
+        ends in t, NaN where the profile does not rise that far within the grid; ``i_grid`` the
+        index of the grid's lowest point; ``j_u``, ``log_u``: a conformal law's fold parameter
+        near the minimum (its ``logu`` grid index and log u, where a search of a neighbouring
+        window can start: :func:`profile_local`; NaN for plain laws).
     """
     f, exact, S = profile_scan(t, P, mu_last, logu, cf)
     return profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish)
@@ -333,7 +357,7 @@ def profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68
     W = _work(P[0], P[2])
     G = t.size
     i = int(np.argmin(f))
-    th, fh, H, L = _polish(i, t, f, S, xatol, P, mu_last, logu, W, cf)
+    th, fh, H, L = _polish(i, t, f, exact, S, xatol, P, mu_last, logu, W, cf)
     if polish > 1:
         # the next lowest local minima of the scan: a narrow valley between grid points may
         # hold a lower minimum than the basin of the lowest grid point
@@ -350,15 +374,75 @@ def profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68
         for r in range(min(polish - 1, nc)):
             j = cand[order[r]]
             # a coarse refinement tells whether this basin goes lower; only then the full one
-            tj, fj, _, _ = _polish(j, t, f, S, max(xatol, _XTOL_PROBE), P, mu_last, logu, W, cf)
+            tj, fj, _, _ = _polish(
+                j, t, f, exact, S, max(xatol, _XTOL_PROBE), P, mu_last, logu, W, cf
+            )
             if fj < fh:
-                tj, fj, Hj, Lj = _polish(j, t, f, S, xatol, P, mu_last, logu, W, cf)
+                tj, fj, Hj, Lj = _polish(j, t, f, exact, S, xatol, P, mu_last, logu, W, cf)
                 if fj < fh:
                     th, fh, i, H, L = tj, fj, j, Hj, Lj
-    out = np.full(7, math.nan)
+    out = np.full(9, math.nan)
     out[0], out[1], out[2] = th, fh, i
+    if cf:
+        out[7], out[8] = H[0], L[0]
     if d95 > 0.0:
         out[3], out[4] = _ends(th, fh, d95, t, f, exact, S, P, mu_last, logu, W, cf, H, L)
     if d68 > 0.0:
         out[5], out[6] = _ends(th, fh, d68, t, f, exact, S, P, mu_last, logu, W, cf, H, L)
     return out
+
+
+_H_LOCAL = 0.01  # first step (in t) of a local search's bracketing
+_LOCAL_DOUBLINGS = 6  # its doubling steps at most (to 0.64 in t)
+
+
+@njit(cache=True, error_model="numpy")
+def profile_local(t0, a, b, P, mu_last, logu, cf, xatol, j0, lu0):
+    """Minimum of the refined profile near ``t0`` inside ``[a, b]`` (in t, ``a < t0 < b``):
+    ``t0 +- _H_LOCAL`` first, doubling steps downhill until the profile rises again (a
+    bracket), then Brent's method from the bracket's three points; a conformal law's fold
+    parameter searched at ``t0`` from ``j0``, ``lu0`` (its ``logu`` grid index and log u at a
+    neighbouring window's or law's optimum; ``j0 < 0``: the whole grid) and from each step's
+    optimum after it (:func:`_row_near`). Where a neighbour's optimum is known the minimum
+    usually lies within a step or two: measured on the symmetric bench sweep's window
+    choice, 60-125 fits of the conformal law where the screen's global search takes
+    325-400. Any value it returns is an
+    upper bound of the global minimum; without a bracket within reach (``[a, b]``, the
+    doublings) the lowest point seen. Returns ``(t, value, j_u, log_u)``."""
+    W = _work(P[0], P[2])
+    H = np.full(1, j0, dtype=np.int64)
+    L = np.full(1, lu0)
+    h = _H_LOCAL
+    f0 = _row_near(mu_last + math.exp(t0), P, mu_last, logu, W, cf, H, L)
+    if not (a < t0 - h and t0 + h < b):
+        th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t0, f0, math.nan, math.nan)
+        return th, fh, H[0], L[0]
+    fm = _row_near(mu_last + math.exp(t0 - h), P, mu_last, logu, W, cf, H, L)
+    fp = _row_near(mu_last + math.exp(t0 + h), P, mu_last, logu, W, cf, H, L)
+    if f0 <= fm and f0 <= fp:
+        lo, flo, xm, fxm, hi, fhi = t0 - h, fm, t0, f0, t0 + h, fp
+    else:
+        sgn = -1.0 if fm < fp else 1.0
+        xa, fa, xm, fxm = t0, f0, t0 + sgn * h, min(fm, fp)
+        step = h
+        found = False
+        for _ in range(_LOCAL_DOUBLINGS):
+            step *= 2.0
+            xc = xm + sgn * step
+            if not a < xc < b:
+                break
+            fc = _row_near(mu_last + math.exp(xc), P, mu_last, logu, W, cf, H, L)
+            if fc >= fxm:
+                found = True
+                break
+            xa, fa, xm, fxm = xm, fxm, xc, fc
+        if not found:
+            return xm, fxm, H[0], L[0]
+        if sgn > 0:
+            lo, flo, hi, fhi = xa, fa, xc, fc
+        else:
+            lo, flo, hi, fhi = xc, fc, xa, fa
+    th, fh = _minimise(lo, hi, xatol, P, mu_last, logu, W, cf, H, L, xm, fxm, flo, fhi)
+    if not fh <= fxm:
+        th, fh = xm, fxm
+    return th, fh, H[0], L[0]

@@ -75,72 +75,154 @@ def _chi2_isf(alpha: float, dof: int) -> float:
     return float(special.chdtri(dof, alpha))
 
 
+class _Screens:
+    """The tests of one law's windows (:func:`_select_window`) and what they carry from one
+    window to the next: the last optimum (continuation of the searches), the (K, variant)
+    that passed on the last window tried, the lower bounds of nested windows and the best
+    failing window so far."""
+
+    def __init__(self, sw: Sweep, p: float, h: float, scale: float) -> None:
+        self.sw, self.p, self.h, self.scale = sw, p, h, scale
+        self.last = float(sw.mu[-1])
+        self.t_prev: float | None = None  # log(mu* - mu_last) of the last fit
+        self.lu_prev = math.nan  # and a conformal law's log fold parameter there
+        self.held: set[tuple[int, bool]] = set()
+        self.floor: dict[tuple[int, bool], float] = {}  # (K, variant) -> bound of -2 log L
+        self.fallback: _Sel | None = None
+
+    def ruled_out(self, n: int, K: int, cf: bool) -> bool:
+        """Whether a lower bound of -2 log L fails the test on ``n`` points, with no better
+        fallback: a failure known without a search.
+
+        A window holds every smaller one's points (and the same nearest point, so the same
+        fold parameter u means the same delta): at every mu* and u its least-squares misfit
+        is at least theirs, and with K = 0 (no correction to constrain) -2 log L is that
+        misfit, so a smaller window's minimum bounds it (on a long sweep, most of the K = 0
+        searches). A plain pitchfork law is a polynomial of degree K + 1 in mu: the best
+        polynomial's chi^2 bounds it at every mu* (exact, one small fit)."""
+        sw, fb = self.sw, self.fallback
+        if fb is None:
+            return False
+        dof = n - K - 2 - int(cf)
+        lb = self.floor.get((K, cf), -math.inf)
+        pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
+        if not cf and self.p == 1.0 and self.h == 1.0 and not (
+            pv_lb < _ALPHA and pv_lb <= fb.pvalue
+        ):
+            N = sw.mu.size
+            idx = slice(N - n, N)
+            poly = _polynomial_bound(sw.mu[idx], sw.y[idx], 1.0 / sw.sd[idx], K + 1)
+            if poly > lb:
+                pv_lb = _chi2_sf(poly, dof) if poly > 0 else 1.0
+        return pv_lb < _ALPHA and pv_lb <= fb.pvalue
+
+    def _comp(self, n: int, K: int, cf: bool) -> tuple[np.ndarray, _Comp]:
+        N = self.sw.mu.size
+        idx = slice(N - n, N)
+        return self.sw.mu[idx], _sigma_comp(self.sw, idx, self.p, self.h, K, cf)
+
+    def screen(self, n: int, K: int, cf: bool) -> float:
+        """-2 log L of a cheap search (an upper bound of the minimum; a local one first where
+        this (K, variant) held on the last window, see :func:`_profile_screen`)."""
+        crit = _chi2_isf(_ALPHA, n - K - 2 - int(cf))
+        local = crit if (K, cf) in self.held else None
+        mu, comp = self._comp(n, K, cf)
+        self.t_prev, nll, lu = _profile_screen(
+            mu, [comp], self.scale, self.t_prev, self.lu_prev, local
+        )
+        self.lu_prev = lu if cf else self.lu_prev
+        return nll
+
+    def full(self, n: int, K: int, cf: bool) -> float:
+        """-2 log L of the full search (a screen can miss the narrow valley of precise data:
+        a rejection comes from this one only); its minimum bounds larger windows' (K = 0)."""
+        mu, comp = self._comp(n, K, cf)
+        prof = _profile(mu, [comp], self.scale, with_interval=False)
+        self.t_prev = math.log(max(prof.mu_star - self.last, 1e-300))
+        self.lu_prev = prof.log_u if cf else self.lu_prev
+        if K <= _NESTED_K:
+            self.floor[(K, cf)] = prof.nll
+        return prof.nll
+
+    def record(self, n: int, K: int, cf: bool, nll: float) -> _Sel:
+        """The test's verdict on ``nll`` (the fallback kept: the best p-value seen)."""
+        pv = _chi2_sf(nll, n - K - 2 - int(cf))
+        ok = pv >= _ALPHA
+        if ok:
+            self.held.add((K, cf))
+        else:
+            self.held.discard((K, cf))
+        if self.fallback is None or pv > self.fallback.pvalue:
+            self.fallback = _Sel(n, K, False, pv, cf)
+        return _Sel(n, K, ok, pv, cf)
+
+    def window(self, n: int) -> tuple[_Sel | None, list[tuple[int, bool]]]:
+        """Whether some (K, variant) passes on the nearest ``n`` points: the passing one (or
+        None) and the fewer ones not proven to fail (searched fully only for the window
+        :func:`_select_window` returns).
+
+        The (K, variant) that held on the last window are screened first, by local searches
+        (the law usually holds on, its optimum close by); then the others, fewest
+        corrections first; a window is accepted on the first screen passed. Where none
+        passes, the full searches decide, fewest corrections first."""
+        combos = [
+            (K, cf) for K in range(_KMAX + 1) for cf in _variants(self.p, self.h, K)
+            if n - K - 2 - int(cf) >= 1
+        ]  # fmt: skip
+        failed: list[tuple[int, bool]] = []  # screens failed, full searches put off
+        order = [c for c in combos if c in self.held] + [c for c in combos if c not in self.held]
+        for c in order:
+            if self.ruled_out(n, *c):
+                continue
+            nll = self.screen(n, *c)
+            if nll > _chi2_isf(_ALPHA, n - c[0] - 2 - int(c[1])) and c[0] <= _NESTED_K:
+                nll = self.full(n, *c)  # now: its minimum bounds the larger windows
+            sel = self.record(n, *c, nll)
+            if sel.accepted:
+                return sel, [f for f in combos if f < c]
+            if c[0] > _NESTED_K:
+                failed.append(c)
+        for c in sorted(failed):
+            sel = self.record(n, *c, self.full(n, *c))
+            if sel.accepted:
+                return sel, [f for f in combos if f < c]
+        return None, []
+
+
 def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
-    """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2.
+    """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2,
+    with the fewest corrections that pass there.
 
     Windows grow from the 3 nearest points; the scan stops after ``patience`` consecutive
-    window sizes that no number of corrections can fit (the law has stopped holding)."""
+    window sizes that no number of corrections can fit (the law has stopped holding). A
+    window passes on its first screen passed (:meth:`_Screens.window`); the full searches
+    that tell the fewest corrections are run for the window returned alone (measured on
+    the symmetric bench sweep: some 8 full searches of the conformal law fewer)."""
     N = sw.mu.size
+    scr = _Screens(sw, p, h, scale)
     best: _Sel | None = None
-    fallback: _Sel | None = None
+    below: list[tuple[int, bool]] = []
     misses = 0
-    t_prev: float | None = None  # log(mu* - mu_last) of the last fit (continuation)
-    last = float(sw.mu[-1])
-    floor: dict[tuple[int, bool], float] = {}  # (K, variant) -> a lower bound of -2 log L
     for n in _window_sizes(N):
-        idx = slice(N - n, N)
-        ok = False
-        for K in range(_KMAX + 1):
-            for cf in _variants(p, h, K):
-                dof = n - K - 2 - int(cf)
-                if dof < 1:
-                    break
-                crit = _chi2_isf(_ALPHA, dof)
-                # a window holds every smaller one's points (and the same nearest point, so
-                # the same fold parameter u means the same delta): at every mu* and u its
-                # least-squares misfit is at least theirs, and with K = 0 (no correction to
-                # constrain) -2 log L is that misfit. A smaller window's minimum is thus a
-                # lower bound here; one failing the test, and no better fallback, is a failure
-                # known without a search (on a long sweep, most of the K = 0 searches)
-                lb = floor.get((K, cf), -math.inf)
-                pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
-                if fallback is not None and not cf and p == 1.0 and h == 1.0 and not (
-                    pv_lb < _ALPHA and pv_lb <= fallback.pvalue
-                ):
-                    # a plain pitchfork law is a polynomial of degree K + 1 in mu: the best
-                    # polynomial's chi^2 bounds it at every mu* (exact, one small fit)
-                    poly = _polynomial_bound(sw.mu[idx], sw.y[idx], 1.0 / sw.sd[idx], K + 1)
-                    if poly > lb:
-                        lb = poly
-                        pv_lb = _chi2_sf(lb, dof) if lb > 0 else 1.0
-                if pv_lb < _ALPHA and fallback is not None and pv_lb <= fallback.pvalue:
-                    continue
-                comp = _sigma_comp(sw, idx, p, h, K, cf)
-                # screening: a cheap search accepts a window that passes at its best point (an
-                # upper bound of the minimum); the full search decides the rest (a screening
-                # search can miss the narrow valley of precise data: never a rejection from it)
-                t_prev, nll = _profile_screen(sw.mu[idx], [comp], scale, t_prev)
-                if nll > crit:
-                    prof = _profile(sw.mu[idx], [comp], scale, with_interval=False)
-                    nll, t_prev = prof.nll, math.log(max(prof.mu_star - last, 1e-300))
-                if K <= _NESTED_K and nll > crit:
-                    floor[(K, cf)] = nll  # the full search's minimum (after a failed screen)
-                pv = _chi2_sf(nll, dof)
-                if fallback is None or pv > fallback.pvalue:
-                    fallback = _Sel(n, K, False, pv, cf)
-                if pv >= _ALPHA:
-                    best = _Sel(n, K, True, pv, cf)
-                    ok = True
-                    break
-            if ok:
-                break
-        misses = 0 if ok else misses + 1
+        sel, lower = scr.window(n)
+        if sel is not None:
+            best, below = sel, lower
+        misses = 0 if sel is not None else misses + 1
         if misses >= patience and (best is not None or n >= 8):
             break
-    if best is not None:
-        return best
-    assert fallback is not None
-    return fallback
+    if best is None:
+        assert scr.fallback is not None
+        return scr.fallback
+    for K, cf in below:
+        if scr.ruled_out(best.n, K, cf):
+            continue
+        nll = scr.screen(best.n, K, cf)
+        if nll > _chi2_isf(_ALPHA, best.n - K - 2 - int(cf)):
+            nll = scr.full(best.n, K, cf)
+        sel = scr.record(best.n, K, cf, nll)
+        if sel.accepted:
+            return sel
+    return best
 
 
 def _sigma_chi2(

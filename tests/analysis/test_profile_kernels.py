@@ -22,6 +22,7 @@ from service.analysis._likelihood import (
     _GRID_CF,
     _LOGU,
     _Comp,
+    _nll,
     _pack,
     _profile,
     _profile_screen,
@@ -29,7 +30,12 @@ from service.analysis._likelihood import (
     _sigma_exps,
     profile_memo,
 )
-from service.analysis._profile_kernels import profile_scan, profile_search, profile_search_scanned
+from service.analysis._profile_kernels import (
+    profile_local,
+    profile_scan,
+    profile_search,
+    profile_search_scanned,
+)
 
 
 def _sweep(seed: int, n: int = 16, rel: float = 1e-4, fold: bool = False):
@@ -108,10 +114,54 @@ def test_screening_search_bounds_the_full_search_from_above(seed: int) -> None:
     for K in (0, 1, 2):
         comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True)]
         full = _profile(mu, comps, scale, with_interval=False)
-        _, screen = _profile_screen(mu, comps, scale, None)
+        t_screen, screen, _ = _profile_screen(mu, comps, scale, None)
         assert screen >= full.nll - 1e-6 * max(1.0, full.nll)
-        # on a smooth single-valley profile both find the same minimum
-        assert screen == pytest.approx(full.nll, rel=1e-6, abs=1e-6)
+        # on a smooth single-valley profile both find the same minimum: the screen's point
+        # within its tolerance in t (1e-4, Brent's stop: within twice that of the minimum),
+        # and its value within what the valley's curvature makes of that distance
+        t_full = math.log(full.mu_star - float(mu[-1]))
+        assert abs(t_screen - t_full) <= 2e-4
+        last, h = float(mu[-1]), 1e-3
+        f = _nll(mu, comps, last + np.exp(t_full + np.array([-h, 0.0, h])))
+        curv = (f[0] - 2 * f[1] + f[2]) / h**2
+        assert screen - full.nll <= 0.5 * abs(curv) * (2e-4) ** 2 + 1e-9 * max(1.0, full.nll)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("fold", [False, True])
+def test_local_search_finds_the_minimum_near_a_neighbours_optimum(seed: int, fold: bool) -> None:
+    """``profile_local`` started 0.05 (in t) off the minimum, the fold parameter from a grid
+    index two steps off: the minimum of the reference (cold rows, scipy's bounded Brent) to
+    the same tolerance; and a screen with the critical value returns it when it passes."""
+    mu, y, sd = _sweep(seed, fold=fold)
+    K = 1
+    comps = [_Comp(y, 1.0 / sd, _sigma_exps(1.0, 1.0, K), True, True, conformal=fold)]
+    scale = float(mu[-1] - mu[0])
+    last = float(mu[-1])
+    full = _profile(mu, comps, scale, with_interval=False, xatol=1e-10)
+    t_min = math.log(full.mu_star - last)
+    packed = _pack(mu, comps)
+
+    def g(tt: float) -> float:
+        return float(nll_rows(np.array([last + math.exp(tt)]), *packed, last, _LOGU)[0][0])
+
+    t0 = t_min + 0.05
+    j0 = int(np.argmin(np.abs(_LOGU - full.log_u))) + 2 if fold else -1
+    j0 = min(j0, _LOGU.size - 1)
+    lu0 = float(_LOGU[j0]) if fold else math.nan
+    th, fh, _, lu = profile_local(t0, t0 - 0.3, t0 + 0.3, packed, last, _LOGU, fold, 1e-8, j0, lu0)
+    ref = optimize.minimize_scalar(g, bounds=(t0 - 0.3, t0 + 0.3), method="bounded",
+                                   options={"xatol": 1e-8})  # fmt: skip
+    assert fh == pytest.approx(float(ref.fun), rel=1e-9, abs=1e-9)
+    assert th == pytest.approx(float(ref.x), abs=1e-5)
+    assert fh == pytest.approx(full.nll, rel=1e-9, abs=1e-9)
+    if fold:
+        assert lu == pytest.approx(full.log_u, abs=1e-4)
+    # the screen: the local search's value when it passes, the global one's otherwise
+    t_s, f_s, _ = _profile_screen(mu, comps, scale, t0, lu0, crit=fh + 1.0)
+    assert f_s == pytest.approx(fh, rel=1e-6, abs=1e-6) and abs(t_s - th) <= 2e-4
+    t_g, f_g, _ = _profile_screen(mu, comps, scale, t0, lu0, crit=fh - 1.0)
+    assert f_g >= full.nll - 1e-9 and (t_g, f_g) == _profile_screen(mu, comps, scale, t0)[:2]
 
 
 def test_continued_exponent_profile_matches_the_full_one() -> None:

@@ -159,6 +159,80 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
     assert n_fast <= n_full
 
 
+def _plain_selection(sw, p: float, h: float, scale: float, patience: int = 4):
+    """The window choice done the plain way: every window, every (K, variant) fewest
+    corrections first, a screen (global, no continuation) and the full search where it
+    fails, no bound, nothing put off. Returns ``(n, K, accepted, conformal)``."""
+    from service.analysis._likelihood import _profile_screen, _sigma_comp, _variants
+    from service.analysis._windows import _ALPHA, _KMAX, _chi2_sf, _window_sizes
+
+    N = sw.mu.size
+    best = fallback = None
+    misses = 0
+    for n in _window_sizes(N):
+        idx = slice(N - n, N)
+        ok = False
+        for K in range(_KMAX + 1):
+            for cf in _variants(p, h, K):
+                dof = n - K - 2 - int(cf)
+                if dof < 1:
+                    break
+                comp = _sigma_comp(sw, idx, p, h, K, cf)
+                _, nll, _ = _profile_screen(sw.mu[idx], [comp], scale, None)
+                if _chi2_sf(nll, dof) < _ALPHA:
+                    nll = _profile(sw.mu[idx], [comp], scale, with_interval=False).nll
+                pv = _chi2_sf(nll, dof)
+                if fallback is None or pv > fallback[0]:
+                    fallback = (pv, (n, K, False, cf))
+                if pv >= _ALPHA:
+                    best, ok = (n, K, True, cf), True
+                    break
+            if ok:
+                break
+        misses = 0 if ok else misses + 1
+        if misses >= patience and (best is not None or n >= 8):
+            break
+    return best if best is not None else fallback[1]
+
+
+@pytest.mark.parametrize(("act", "step", "stop", "rel", "seed"), _PLANS)
+def test_window_choice_equals_the_plain_one(
+    act: str, step: float, stop: float, rel: float, seed: int
+) -> None:
+    """The selection's shortcuts (bounds, the laws that held screened first by local searches,
+    the full searches of fewer corrections put off to the window returned) leave the window
+    and terms of the plain choice (:func:`_plain_selection`) on the lab plans and on the
+    bench's geometric sweeps of every actuation."""
+    from service.analysis import _windows
+    from service.analysis._likelihood import profile_memo
+
+    sweeps = [_beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)]
+    if seed == 3:
+        sweeps.append(_geometric_sweep(act))
+    for sw in sweeps:
+        scale = float(sw.mu[-1] - sw.mu[0])
+        for p, h in ((0.5, 0.5), (1.0, 1.0)):
+            with profile_memo():
+                got = _windows._select_window(sw, p, h, scale)
+            with profile_memo():
+                ref = _plain_selection(sw, p, h, scale)
+            assert (got.n, got.K, got.accepted, got.conformal) == ref
+
+
+def _geometric_sweep(act: str, n: int = 25, rel: float = 1e-4):
+    """The bench's sweep (``bench/predict_speed.py``): 25 points approaching mu* geometrically
+    to 1e-4, relative noise ``rel``."""
+    from service.analysis._sweep import prepare_sweep
+    from sim.euler_beam import bifurcation, spectrum
+
+    b = bifurcation(act)
+    mu = b.mu_star - np.geomspace(0.999 * b.mu_star, 1e-4, n)
+    s2 = np.array([spectrum(act, m, "U_A", modes=1).sigma2[0] for m in mu])
+    sd = rel * np.abs(s2)
+    s2 = s2 + sd * np.random.default_rng(0).standard_normal(n)
+    return prepare_sweep(mu, s2, sigma2_std=sd)
+
+
 @pytest.mark.parametrize("act", ["asymmetric", "symmetric"])
 def test_free_exponent_walk_equals_the_whole_grid(
     act: str, monkeypatch: pytest.MonkeyPatch
