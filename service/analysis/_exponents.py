@@ -15,7 +15,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from service.analysis._likelihood import _Comp, _nll, _profile, _profile_near
+from service.analysis._laws_kernels import nll_exponent_rows
+from service.analysis._likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
 
 def exponent_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
@@ -102,6 +103,7 @@ def free_exponent(
     scale: float,
     fixed_mu: float | None = None,
     center: float | None = None,
+    hint: tuple[float, float] | None = None,
 ) -> tuple[float, float]:
     """Profile -2 log L over an exponent; return (estimate, standard error from Delta = 1).
 
@@ -112,11 +114,22 @@ def free_exponent(
     seen (a minimum beyond such a ridge is not looked for: on precise data the profile rises
     by 1e4-1e8 within a few grid points, and every point of it cost a search). Without a
     ``center`` every grid point is evaluated (the static exponent's profile has a second
-    valley at the grid's low edge, where a series in x^(b/2) fits too)."""
+    valley at the grid's low edge, where a series in x^(b/2) fits too). ``hint``: ``(t, log
+    u)`` of the law's own optimum (its fit's), where the search at ``center`` starts as well
+    (see :func:`~service.analysis._likelihood._profile`)."""
     last = float(mu_w[-1])
     known: dict[float, float] = {}  # exponent -> log(mu* - mu_last) at its optimum
 
     values: dict[float, float] = {}  # exponent -> profile value (a point is searched once)
+    if fixed_mu is not None and center is None:
+        # every grid point is evaluated: in one kernel call (make's component differs from
+        # one exponent to the next in its exponents alone)
+        comps0 = make(float(grid[0]))
+        if len(comps0) == 1:
+            rows = np.array([make(float(e))[0].exps for e in grid], dtype=float)
+            D, E, M = _pack(mu_w, comps0)
+            vals = nll_exponent_rows(float(fixed_mu), D, rows, M, last, _LOGU)
+            values.update(zip(grid.tolist(), vals.tolist(), strict=True))
 
     def prof(e: float) -> float:
         e = float(e)
@@ -126,7 +139,7 @@ def free_exponent(
         if fixed_mu is not None:
             v = float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
         elif not known:
-            pr = _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7)
+            pr = _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7, hint=hint)
             known[e] = math.log(max(pr.mu_star - last, 1e-300))
             v = pr.nll
         else:

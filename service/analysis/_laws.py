@@ -155,7 +155,8 @@ def _sigma_bound(sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool) ->
 
 
 def _sigma_floor(
-    sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool, scale: float, joint: bool
+    sw: Sweep, idx: slice, a: float, h: float, K: int, cf: bool, scale: float, joint: bool,
+    hint: tuple[float, float] | None = None,
 ) -> float:
     """Lower bound of the eigenvalue law's -2 log L inside a joint fit with the static law:
     the eigenvalue law's own minimum over mu* (the joint -2 log L is the sum of the two at
@@ -164,7 +165,8 @@ def _sigma_floor(
     lb = _sigma_bound(sw, idx, a, h, K, cf)
     if joint:
         comp = _sigma_comp(sw, idx, 2 * a, h, K, cf)
-        lb = max(lb, _profile(sw.mu[idx], [comp], float(scale), with_interval=False).nll)
+        prof = _profile(sw.mu[idx], [comp], float(scale), with_interval=False, hint=hint)
+        lb = max(lb, prof.nll)
     return lb
 
 
@@ -190,9 +192,12 @@ def _fit_candidate(
     scale: float,
     level: float = 0.95,
     n_w: int | None = None,
+    hints: dict[tuple, tuple[float, float]] | None = None,
 ) -> ModelFit:
     """Fit one candidate: sigma^2 law on the nearest ``n`` points, static law (if any) on the
-    nearest ``n_w``; corrections chosen by BIC; mu* profiled jointly."""
+    nearest ``n_w``; corrections chosen by BIC; mu* profiled jointly. ``hints``: optima found
+    by the window choice, ``(p, h, n, K, conformal) -> (t, log u)`` (see :func:`_profile`)."""
+    hints = hints or {}
     N = sw.mu.size
     idx = slice(N - n, N)
     n_w = n if n_w is None else n_w
@@ -211,7 +216,8 @@ def _fit_candidate(
         for cf in cfs:
             if n - K - 2 - int(cf) < 1:
                 break
-            lb_s = _sigma_floor(sw, idx, a, h, K, cf, scale, joint=kw_range != [0])
+            lb_s = _sigma_floor(sw, idx, a, h, K, cf, scale, joint=kw_range != [0],
+                                hint=hints.get((2 * a, h, n, K, cf)))  # fmt: skip
             for Kw in kw_range:
                 lb = lb_s
                 if Kw:
@@ -235,7 +241,8 @@ def _fit_candidate(
         # the full search: the terms are chosen on these values, and a screening
         # search misses the narrow valley of precise data with enough corrections
         # (measured: a beam plan at 1.5e-5 noise chose 2 corrections and mu* 5.7 away)
-        nll = _profile(sw.mu[idx], comps, scale, with_interval=False).nll
+        hint = hints.get((2 * a, h, n, K, cf))
+        nll = _profile(sw.mu[idx], comps, scale, with_interval=False, hint=hint).nll
         bic = nll + bic_pen
         crit = _crit(nll, bic, k_all, m_all)
         if best is None or crit < best_crit or (crit == best_crit and (K, cf, Kw) < key):
@@ -254,7 +261,8 @@ def _fit_candidate(
     # series holds) widens its interval by the reduced chi-square (Birge ratio)
     inflate = 1.0
     fl: list[Flag] = []
-    chi = _profile(sw.mu[idx], comps, scale, with_interval=False).nll
+    hint = hints.get((2 * a, h, n, best.K, best.conformal))
+    chi = _profile(sw.mu[idx], comps, scale, with_interval=False, hint=hint).nll
     if all(c.known for c in comps):
         dof = n - best.K - 2 - int(best.conformal) + (n_w - best.Kw - 1 if best.Kw else 0)
         if dof >= 1 and chi > dof and _chi2_sf(chi, dof) < 0.01:
@@ -266,7 +274,7 @@ def _fit_candidate(
                     f"{chi:.3g} for {dof} degrees of freedom): interval widened by that ratio",
                 )
             )
-    prof = _profile(sw.mu[idx], comps, scale, level=level, inflate=inflate)
+    prof = _profile(sw.mu[idx], comps, scale, level=level, inflate=inflate, hint=hint)
     if fl:
         prof = replace(prof, flags=(*prof.flags, *fl))
     return ModelFit(
@@ -357,10 +365,17 @@ def _compare(
         sw, n_w, fl = _static_window(sw, n_c, pre.mu_star)
         flags.extend(fl)
     cands = _candidates(sw) if law is None else [(law[0], law[1], law[2], law[3])]
+    hints = {
+        (p, h, s.n, s.K, s.conformal): (s.t, s.log_u)
+        for nm, (p, h) in sel_laws.items()
+        for s in (sels[nm],)
+        if s.accepted and math.isfinite(s.t)
+    }
     fits = [
-        _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_c, scale, level, n_w)
+        _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_c, scale, level, n_w,
+                       hints)
         for name, a, b, h in cands
-    ]
+    ]  # fmt: skip
     probs = _bic_weights(fits)
     if law is None and acc and max(acc) > n_c:
         # the candidates hold over different windows: compare them on the larger one as well.
@@ -371,7 +386,7 @@ def _compare(
         n_x = max(acc)
         wide = [
             _fit_candidate(sw, name, a, (b if sw.w is not None else None), h, n_x, scale,
-                           level, max(n_w, n_x))
+                           level, max(n_w, n_x), hints)
             for name, a, b, h in cands
         ]  # fmt: skip
         pw = _bic_weights(wide)
@@ -605,9 +620,14 @@ def free_exponent_a(sweep: Sweep, fit: ModelFit, n: int) -> tuple[float, float]:
                   conformal=fit.conformal)
         ]  # fmt: skip
 
+    last = float(sweep.mu[-1])
+    hint = None
+    if fit.profile.mu_star > last:  # the fit's optimum: where the law's own search starts too
+        hint = (math.log(fit.profile.mu_star - last), fit.profile.log_u)
     a2, a2_se = free_exponent(
-        sweep.mu[idx], make, exponent_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale, center=2 * fit.a
-    )
+        sweep.mu[idx], make, exponent_grid(0.2, 2.5, [0.5, 1.0, 2.0]), scale, center=2 * fit.a,
+        hint=hint,
+    )  # fmt: skip
     return a2 / 2, a2_se / 2
 
 

@@ -557,6 +557,27 @@ def nll_rows(mu_star, D, E, M, mu_last, logu, refine=True):
 
 
 @njit(cache=True, error_model="numpy")
+def nll_exponent_rows(ms, D, Erows, M, mu_last, logu):
+    """-2 log L at one ``ms`` (mu*) of a single component for each row of exponents ``Erows``
+    (shape (G, k), k = ``M[0, 2]``), its fold parameter profiled when conformal: an exponent's
+    profile at a fixed mu* in one call (some 60 us of Python per exponent otherwise)."""
+    G = Erows.shape[0]
+    k = Erows.shape[1]
+    out = np.empty(G)
+    WK, RK = _work(D, M)
+    E = np.empty((1, k))
+    x_last = max(ms - mu_last, 1e-300)
+    for g in range(G):
+        for j in range(k):
+            E[0, j] = Erows[g, j]
+        if M[0, 7] == 1:
+            out[g], _ = _profile_u(ms, D, E, M, mu_last, logu, WK, RK, True)
+        else:
+            out[g] = _total(ms, 0.0, D, E, M, x_last, WK, RK)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def nll_fixed_u(mu_star, u, D, E, M, mu_last):
     """-2 log L at each ``mu_star`` with the fold parameter fixed at ``u`` (0: plain laws)."""
     G = mu_star.size

@@ -38,6 +38,9 @@ _GRID_CF = 61  # for a conformal law (the fold parameter profiled at every point
 # mu* - mu_last = 0.0288 with -2 log L = 12.9, missed for 2513 at 5.7 when only the lowest
 # grid point was refined)
 _POLISH = 3
+# the kernels' optional arguments, all passed: numba's dispatcher types a call that leaves
+# one out in Python (measured: some 0.4 ms a call, more than most searches cost)
+_NO_HINT = (1, math.nan, -1, math.nan)  # polish, hint's t, fold grid index, log u
 
 @dataclass(frozen=True)
 class _Comp:
@@ -146,8 +149,13 @@ def _profile(
     with_interval: bool = True,
     xatol: float | None = None,
     only68: bool = False,
+    hint: tuple[float, float] | None = None,
 ) -> _Profile:
     """Minimise the profile -2 log L over mu* > mu_w[-1] and read off profile intervals.
+
+    ``hint``: ``(t, log u)`` of a minimum of the same law on the same window found before
+    (the window choice's local searches): searched from as well (``profile_search``), so
+    that a fit never misses a valley its window was accepted on.
 
     ``only68`` (with ``with_interval``): the 68 % interval alone, ``lo`` and ``hi`` NaN (and
     without their flags); mu*, -2 log L and the 68 % ends are those of the full profile (the
@@ -162,9 +170,11 @@ def _profile(
     memo = _MEMO.get()
     if memo is None:
         return _profile_uncached(
-            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68, hint
         )
     key = _memo_key(mu_w, comps, packed, scale, level, inflate, with_interval, xatol)
+    if hint is not None:
+        key = (*key, "hint", *hint)
     if only68:
         hit = memo.get(key)  # the full profile, if computed: the same 68 % interval
         if hit is not None:
@@ -173,7 +183,7 @@ def _profile(
     hit = memo.get(key)
     if hit is None:
         hit = memo[key] = _profile_uncached(
-            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68
+            mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68, hint
         )
     return hit
 
@@ -219,6 +229,7 @@ def _profile_uncached(
     with_interval: bool,
     xatol: float | None,
     only68: bool = False,
+    hint: tuple[float, float] | None = None,
 ) -> _Profile:
     last = float(mu_w[-1])
     cf = any(c.conformal for c in comps)
@@ -227,7 +238,9 @@ def _profile_uncached(
     tol = xatol if xatol is not None else (1e-10 if with_interval else 1e-5)
     d95 = _chi2_1_quantile(level) * inflate if with_interval and not only68 else 0.0
     d68 = 1.0 * inflate if with_interval else 0.0
-    th, fh, ig, tl, tu, tl68, tu68, _, lu = _search(mu_w, t, packed, last, cf, tol, d95, d68)
+    th, fh, ig, tl, tu, tl68, tu68, _, lu = _search(
+        mu_w, t, packed, last, cf, tol, d95, d68, hint
+    )
     i, G = int(ig), t.size
     flags: list[Flag] = []
     if i == 0:
@@ -261,7 +274,7 @@ def _profile_uncached(
 
 def _search(
     mu_w: np.ndarray, t: np.ndarray, packed: tuple, last: float, cf: bool, tol: float,
-    d95: float, d68: float,
+    d95: float, d68: float, hint: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """The kernel's full search (:func:`profile_search`), its scan of the grid kept in a
     :func:`profile_memo` scope: a window and law searched again with another tolerance or
@@ -269,9 +282,13 @@ def _search(
     grid once. The scan depends on the grid and the data alone, and the search after it is
     given copies (its interval walks update them): the same result to the bit."""
     t = np.ascontiguousarray(t)
+    ht, hlu = hint if hint is not None else (math.nan, math.nan)
+    hj = _u_index(hlu) if math.isfinite(hlu) else -1
     memo = _MEMO.get()
     if memo is None:
-        return profile_search(t, packed, last, _LOGU, cf, tol, d95, d68, _POLISH)
+        return profile_search(
+            t, packed, last, _LOGU, cf, tol, d95, d68, _POLISH, ht, hj, hlu
+        )
     D, E, M = packed
     key = ("scan", mu_w.tobytes(), t.tobytes(), D.tobytes(), E.tobytes(), E.shape,
            M.tobytes(), cf)  # fmt: skip
@@ -280,8 +297,9 @@ def _search(
         hit = memo[key] = profile_scan(t, packed, last, _LOGU, cf)  # type: ignore[assignment]
     f, exact, S = hit  # type: ignore[misc]
     return profile_search_scanned(
-        t, f.copy(), exact.copy(), S.copy(), packed, last, _LOGU, cf, tol, d95, d68, _POLISH
-    )
+        t, f.copy(), exact.copy(), S.copy(), packed, last, _LOGU, cf, tol, d95, d68, _POLISH,
+        ht, hj, hlu,
+    )  # fmt: skip
 
 
 @functools.lru_cache(maxsize=16)
@@ -444,7 +462,7 @@ def _profile_near(
     packed = _pack(mu_w, comps)
     for _ in range(4):  # follow the valley while it leaves the local grid
         t = t0 + _CLOSE
-        out = profile_search(t, packed, last, _LOGU, cf, xatol, 0.0, 0.0)
+        out = profile_search(t, packed, last, _LOGU, cf, xatol, 0.0, 0.0, *_NO_HINT)
         th, fh, ig = float(out[0]), float(out[1]), int(out[2])
         if 0 < ig < t.size - 1:
             return th, fh
@@ -503,7 +521,7 @@ def _profile_screen(
         if comps[0].lead:
             parts += [math.log(d0) + _FINE for d0 in _seeds(mu_w, comps[0])]
         t = _clip(_sorted_unique(np.concatenate(parts)), scale)
-        out = profile_search(t, packed, last, _LOGU, cf, 1e-4, 0.0, 0.0)
+        out = profile_search(t, packed, last, _LOGU, cf, 1e-4, 0.0, 0.0, *_NO_HINT)
         res = (float(out[0]), float(out[1]), float(out[8]))
     if key is not None:
         memo[key] = res  # type: ignore[assignment]

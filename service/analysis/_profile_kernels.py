@@ -35,6 +35,7 @@ _SQRT_EPS = 1.4901161193847656e-08
 _EPS = 2.220446049250313e-16
 BIG = 1e300  # value of a non-finite -2 log L inside the searches
 _XTOL_PROBE = 1e-4  # tolerance (in t) of the refinement probing a further local minimum
+_HINT_HALF = 0.3  # half-width (in t) of the local search from a minimum found before
 
 
 @njit(cache=True, error_model="numpy")
@@ -312,7 +313,9 @@ def profile_scan(t, P, mu_last, logu, cf):
 
 
 @njit(cache=True, error_model="numpy")
-def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
+def profile_search(
+    t, P, mu_last, logu, cf, xatol, d95, d68, polish=1, ht=math.nan, hj=-1, hlu=math.nan
+):
     """Minimum of the profile over the grid ``t`` (log distances, increasing) and its intervals.
 
     Parameters
@@ -334,6 +337,14 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         searched (its ends NaN). Each interval's ends are the same whether or not the other is
         searched: the grid values the walks make exact are the same refined rows, and each
         crossing starts from the same fold-parameter state, the minimum's.
+    polish : int
+        Local minima of the scan refined (the lowest, then the next lowest ones).
+    ht, hj, hlu : float, int, float
+        A hint: ``t`` of a minimum found before (NaN: none) and a conformal law's fold
+        parameter there (grid index, log u; -1 and NaN: unknown). The minimum is also searched
+        locally from there (Brent's method within ``_HINT_HALF``) and kept where lower: a
+        valley narrower than the grid can lie where the walk's grid of the fold parameter
+        overestimates the profile by orders of magnitude, out of the scan's lowest points.
 
     Returns
     -------
@@ -345,11 +356,16 @@ def profile_search(t, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
         window can start: :func:`profile_local`; NaN for plain laws).
     """
     f, exact, S = profile_scan(t, P, mu_last, logu, cf)
-    return profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish)
+    return profile_search_scanned(
+        t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish, ht, hj, hlu
+    )
 
 
 @njit(cache=True, error_model="numpy")
-def profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish=1):
+def profile_search_scanned(
+    t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68, polish=1, ht=math.nan, hj=-1,
+    hlu=math.nan,
+):
     """:func:`profile_search` after its scan, ``(f, exact, S)`` of :func:`profile_scan` on the
     same grid and data (the same result, to the bit). ``f``, ``exact`` and ``S`` are updated in
     place (the interval walks make values exact): pass copies to keep a scan for another
@@ -381,6 +397,18 @@ def profile_search_scanned(t, f, exact, S, P, mu_last, logu, cf, xatol, d95, d68
                 tj, fj, Hj, Lj = _polish(j, t, f, exact, S, xatol, P, mu_last, logu, W, cf)
                 if fj < fh:
                     th, fh, i, H, L = tj, fj, j, Hj, Lj
+    if math.isfinite(ht):
+        # a minimum found before (a window choice's local search): a valley narrower than
+        # the grid that the scan's walk passed over is searched from there
+        a = max(ht - _HINT_HALF, t[0])
+        b = min(ht + _HINT_HALF, t[G - 1])
+        if a < ht < b:
+            Hh = np.full(1, hj, dtype=np.int64)
+            Lh = np.full(1, hlu)
+            tj, fj = _local(ht, a, b, P, mu_last, logu, W, cf, xatol, Hh, Lh)
+            if fj < fh:
+                th, fh, H, L = tj, fj, Hh, Lh
+                i = min(max(int(np.searchsorted(t, th)), 0), G - 1)
     out = np.full(9, math.nan)
     out[0], out[1], out[2] = th, fh, i
     if cf:
@@ -406,17 +434,24 @@ def profile_local(t0, a, b, P, mu_last, logu, cf, xatol, j0, lu0):
     optimum after it (:func:`_row_near`). Where a neighbour's optimum is known the minimum
     usually lies within a step or two: measured on the symmetric bench sweep's window
     choice, 60-125 fits of the conformal law where the screen's global search takes
-    325-400. Any value it returns is an
-    upper bound of the global minimum; without a bracket within reach (``[a, b]``, the
-    doublings) the lowest point seen. Returns ``(t, value, j_u, log_u)``."""
+    325-400. Any value it returns is an upper bound of the global minimum; without a bracket
+    within reach (``[a, b]``, the doublings) the lowest point seen. Returns
+    ``(t, value, j_u, log_u)``."""
     W = _work(P[0], P[2])
     H = np.full(1, j0, dtype=np.int64)
     L = np.full(1, lu0)
+    th, fh = _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L)
+    return th, fh, H[0], L[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L):
+    """:func:`profile_local` on the work arrays ``W``, the fold parameter's state ``H``, ``L``
+    (updated: the last row's). Returns ``(t, value)``."""
     h = _H_LOCAL
     f0 = _row_near(mu_last + math.exp(t0), P, mu_last, logu, W, cf, H, L)
     if not (a < t0 - h and t0 + h < b):
-        th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t0, f0, math.nan, math.nan)
-        return th, fh, H[0], L[0]
+        return _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t0, f0, math.nan, math.nan)
     fm = _row_near(mu_last + math.exp(t0 - h), P, mu_last, logu, W, cf, H, L)
     fp = _row_near(mu_last + math.exp(t0 + h), P, mu_last, logu, W, cf, H, L)
     if f0 <= fm and f0 <= fp:
@@ -437,7 +472,7 @@ def profile_local(t0, a, b, P, mu_last, logu, cf, xatol, j0, lu0):
                 break
             xa, fa, xm, fxm = xm, fxm, xc, fc
         if not found:
-            return xm, fxm, H[0], L[0]
+            return xm, fxm
         if sgn > 0:
             lo, flo, hi, fhi = xa, fa, xc, fc
         else:
@@ -445,4 +480,4 @@ def profile_local(t0, a, b, P, mu_last, logu, cf, xatol, j0, lu0):
     th, fh = _minimise(lo, hi, xatol, P, mu_last, logu, W, cf, H, L, xm, fxm, flo, fhi)
     if not fh <= fxm:
         th, fh = xm, fxm
-    return th, fh, H[0], L[0]
+    return th, fh

@@ -60,6 +60,10 @@ class _Sel:
     accepted: bool
     pvalue: float
     conformal: bool = False
+    # the optimum the verdict was read at: log(mu* - mu_last) and a conformal law's log u (a
+    # later fit of the same law on the window searches from there too)
+    t: float = math.nan
+    log_u: float = math.nan
 
 
 def _chi2_sf(x: float, dof: int) -> float:
@@ -152,9 +156,11 @@ class _Screens:
             self.held.add((K, cf))
         else:
             self.held.discard((K, cf))
+        t = self.t_prev if self.t_prev is not None else math.nan
+        lu = self.lu_prev if cf else math.nan
         if self.fallback is None or pv > self.fallback.pvalue:
-            self.fallback = _Sel(n, K, False, pv, cf)
-        return _Sel(n, K, ok, pv, cf)
+            self.fallback = _Sel(n, K, False, pv, cf, t, lu)
+        return _Sel(n, K, ok, pv, cf, t, lu)
 
     def window(self, n: int) -> tuple[_Sel | None, list[tuple[int, bool]]]:
         """Whether some (K, variant) passes on the nearest ``n`` points: the passing one (or

@@ -13,7 +13,13 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis._laws_kernels import REL_FLOOR, RHO, nll_fixed_u, nll_rows
+from service.analysis._laws_kernels import (
+    REL_FLOOR,
+    RHO,
+    nll_exponent_rows,
+    nll_fixed_u,
+    nll_rows,
+)
 from service.analysis._likelihood import _LOGU, _Comp, _pack
 
 
@@ -203,3 +209,26 @@ def test_warm_fold_parameter_equals_the_cold_search() -> None:
             else:
                 v, _, j, lu = _profile_u_warm(m, D, E, M, last, _LOGU, WK, RK, j, lu)
             assert v == pytest.approx(cold, rel=1e-9, abs=1e-3)
+
+
+@pytest.mark.parametrize("conformal", [False, True])
+def test_exponent_rows_equal_one_exponent_at_a_time(conformal: bool) -> None:
+    """``nll_exponent_rows`` (every exponent of a grid at one mu* in one call) against
+    ``nll_rows`` called with each exponent's own packed component."""
+    rng = np.random.default_rng(3)
+    mu = np.sort(rng.uniform(0.0, 1.9, 14))
+    x = 2.0 - mu
+    w = 0.3 + 1.2 * np.sqrt(x) * (1 + 0.1 * x) + 1e-4 * rng.standard_normal(mu.size)
+    grid = np.linspace(0.25, 1.9, 12)
+
+    def comp(b: float) -> _Comp:
+        return _Comp(w, np.full(mu.size, 1e4), np.array([0.0, b, 2 * b]), True, True, 1,
+                     False, conformal=conformal)  # fmt: skip
+
+    D, _, M = _pack(mu, [comp(grid[0])])
+    rows = np.array([comp(b).exps for b in grid])
+    got = nll_exponent_rows(2.0, D, rows, M, float(mu[-1]), _LOGU)
+    ref = [float(nll_rows(np.array([2.0]), *_pack(mu, [comp(b)]), float(mu[-1]), _LOGU)[0][0])
+           for b in grid]  # fmt: skip
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+    assert np.ptp(got) > 1.0  # the exponents matter: a grid of distinct values

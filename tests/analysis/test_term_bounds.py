@@ -13,6 +13,8 @@ data are a polynomial of the same degree (the bound is then attained in the limi
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -251,3 +253,33 @@ def test_free_exponent_walk_equals_the_whole_grid(
     with profile_memo():
         full = _laws.free_exponent_a(sw, fits[0], n_c)
     assert walk == pytest.approx(full, rel=1e-9, abs=1e-12)
+
+
+def test_a_fit_searches_from_the_optimum_its_window_was_accepted_on() -> None:
+    """A lab plan (symmetric beam, grid step 0.088, last point 0.0022 before mu*, noise
+    3.9e-4) whose 21 nearest points the conformal pitchfork law with 2 corrections fits at
+    chi^2 = 25.15 (a dense scan of mu* says so; the test passes below 26.3): the window choice
+    finds that minimum by its local searches and hands it on; the full search started from
+    the hint finds it too, where its scan's walk over the fold parameter's grid can pass over
+    that valley. A hint never makes a search worse: from a far point it changes nothing."""
+    from service.analysis import _windows
+    from service.analysis._likelihood import _nll_u, _sigma_comp, profile_memo
+
+    sw = _beam_sweep("symmetric", 60, 0.0003858145395579972, 853510190, with_w=False,
+                     step=0.08807646349095118, stop=0.0021586462116093513)  # fmt: skip
+    N = sw.mu.size
+    scale = float(sw.mu[-1] - sw.mu[0])
+    with profile_memo():
+        sel = _windows._select_window(sw, 1.0, 1.0, scale)
+    assert (sel.n, sel.K, sel.accepted, sel.conformal) == (21, 2, True, True)
+    idx = slice(N - 21, N)
+    comp = _sigma_comp(sw, idx, 1.0, 1.0, 2, True)
+    mu_w = sw.mu[idx]
+    ms = 2.0 + np.linspace(-3e-4, 3e-4, 601)  # the reference: every mu* of a dense grid
+    ref = float(_nll_u(mu_w, [comp], ms)[0].min())
+    hinted = _profile(mu_w, [comp], scale, with_interval=False, hint=(sel.t, sel.log_u))
+    plain = _profile(mu_w, [comp], scale, with_interval=False)
+    assert hinted.nll <= ref + 1e-6 and hinted.nll <= plain.nll
+    assert abs(hinted.mu_star - ms[np.argmin(_nll_u(mu_w, [comp], ms)[0])]) < 2e-6
+    far = math.log(0.05)  # mu* 0.05 beyond the last point: another, worse valley's side
+    assert _profile(mu_w, [comp], scale, with_interval=False, hint=(far, math.nan)) == plain
