@@ -279,8 +279,9 @@ def _search(
     """The kernel's full search (:func:`profile_search`), its scan of the grid kept in a
     :func:`profile_memo` scope: a window and law searched again with another tolerance or
     intervals (a model-selection search, then the final fit or a truncation refit) scans its
-    grid once. The scan depends on the grid and the data alone, and the search after it is
-    given copies (its interval walks update them): the same result to the bit."""
+    grid once, and probes its further basins once. The scan depends on the grid and the data
+    alone, and the search after it is given copies (its interval walks update them) and the
+    scan's probes: the same result to the bit."""
     t = np.ascontiguousarray(t)
     ht, hlu = hint if hint is not None else (math.nan, math.nan)
     hj = _u_index(hlu) if math.isfinite(hlu) else -1
@@ -294,11 +295,12 @@ def _search(
            M.tobytes(), cf)  # fmt: skip
     hit = memo.get(key)
     if hit is None:
-        hit = memo[key] = profile_scan(t, packed, last, _LOGU, cf)  # type: ignore[assignment]
-    f, exact, S = hit  # type: ignore[misc]
+        scan = profile_scan(t, packed, last, _LOGU, cf)
+        hit = memo[key] = (*scan, np.full((2, t.size), math.nan))  # type: ignore[assignment]
+    f, exact, S, Q = hit  # type: ignore[misc]
     return profile_search_scanned(
-        t, f.copy(), exact.copy(), S.copy(), packed, last, _LOGU, cf, tol, d95, d68, _POLISH,
-        ht, hj, hlu,
+        t, f.copy(), exact.copy(), S.copy(), Q, packed, last, _LOGU, cf, tol, d95, d68,
+        _POLISH, ht, hj, hlu,
     )  # fmt: skip
 
 

@@ -243,16 +243,19 @@ def test_the_68_interval_alone_is_the_full_profiles(seed: int, fold: bool) -> No
 @pytest.mark.parametrize("seed", range(3))
 def test_a_kept_scan_gives_the_full_search(seed: int, fold: bool) -> None:
     """The scan kept and searched again (copies: the walks update them), with and without
-    intervals and at either tolerance, gives the full search's result to the bit; so does
+    intervals and at either tolerance, its probes kept from one search to the next, gives the
+    full search's result to the bit; so does
     ``_profile`` in a memo scope, where a window's searches share their scan."""
     mu, comps, scale, t, P, last, d95 = _search_case(seed, fold)
     f, exact, S = profile_scan(t, P, last, _LOGU, fold)
+    Q = np.full((2, t.size), np.nan)  # the probes, shared by every search of the scan
     for tol, a, b in ((1e-5, 0.0, 0.0), (1e-10, d95, 1.0), (1e-10, 0.0, 1.0)):
         full = profile_search(t, P, last, _LOGU, fold, tol, a, b, 3)
         kept = profile_search_scanned(
-            t, f.copy(), exact.copy(), S.copy(), P, last, _LOGU, fold, tol, a, b, 3
+            t, f.copy(), exact.copy(), S.copy(), Q, P, last, _LOGU, fold, tol, a, b, 3
         )
         np.testing.assert_array_equal(kept, full)
+    assert np.isfinite(Q[1]).sum() >= 1  # the probes were kept (and read by the later ones)
     plain = [_profile(mu, comps, scale, with_interval=w) for w in (False, True)]
     with profile_memo():
         shared = [_profile(mu, comps, scale, with_interval=w) for w in (False, True)]
