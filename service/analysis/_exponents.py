@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from service.analysis._laws_kernels import nll_exponent_rows
+from service.analysis._fold_kernels import nll_exponent_rows
 from service.analysis._likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
 

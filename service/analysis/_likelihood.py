@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from service.analysis._laws_kernels import nll_rows, poly_rss
+from service.analysis._fold_kernels import nll_rows
+from service.analysis._laws_kernels import poly_rss
 from service.analysis._profile_kernels import (
     profile_local,
     profile_scan,

@@ -21,14 +21,13 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._laws_kernels import (
+from service.analysis._fold_kernels import (
     _profile_u,
     _profile_u_from,
     _profile_u_walk,
     _profile_u_warm,
-    _total,
-    _work,
 )
+from service.analysis._laws_kernels import _total, _work
 
 _GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08

@@ -16,7 +16,7 @@ import pytest
 from scipy import optimize, stats
 
 from service.analysis._exponents import free_exponent
-from service.analysis._laws_kernels import nll_rows
+from service.analysis._fold_kernels import nll_rows
 from service.analysis._likelihood import (
     _GRID,
     _GRID_CF,
