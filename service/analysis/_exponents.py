@@ -118,7 +118,7 @@ def free_exponent(
     u)`` of the law's own optimum (its fit's), where the search at ``center`` starts as well
     (see :func:`~service.analysis._likelihood._profile`)."""
     last = float(mu_w[-1])
-    known: dict[float, float] = {}  # exponent -> log(mu* - mu_last) at its optimum
+    known: dict[float, tuple[float, float]] = {}  # exponent -> (t, log u) at its optimum
 
     values: dict[float, float] = {}  # exponent -> profile value (a point is searched once)
     if fixed_mu is not None and center is None:
@@ -140,11 +140,13 @@ def free_exponent(
             v = float(_nll(mu_w, comps, np.array([fixed_mu]))[0])
         elif not known:
             pr = _profile(mu_w, comps, scale, with_interval=False, xatol=1e-7, hint=hint)
-            known[e] = math.log(max(pr.mu_star - last, 1e-300))
+            known[e] = (math.log(max(pr.mu_star - last, 1e-300)), pr.log_u)
             v = pr.nll
         else:
             near = min(known, key=lambda k: abs(k - e))
-            known[e], v = _profile_near(mu_w, comps, scale, known[near], 1e-6)
+            t_near, lu_near = known[near]
+            t_e, v, lu_e = _profile_near(mu_w, comps, scale, t_near, 1e-6, lu_near)
+            known[e] = (t_e, lu_e)
         values[e] = v
         return v
 

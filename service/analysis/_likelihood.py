@@ -455,23 +455,34 @@ def _w_comp(
 
 
 def _profile_near(
-    mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float, xatol: float
-) -> tuple[float, float]:
+    mu_w: np.ndarray, comps: list[_Comp], scale: float, t0: float, xatol: float,
+    lu0: float = math.nan,
+) -> tuple[float, float, float]:
     """Minimum of the profile near ``t0 = log(mu* - mu_w[-1])`` (a law close to one whose
     optimum is known): a local grid of +-0.3 around ``t0`` (moved while the minimum sits on its
-    edge; the full search after four moves), then Brent's method. Returns ``(t, -2 log L)``."""
+    edge; the full search after four moves), then Brent's method. A conformal law with the
+    neighbour's log fold parameter ``lu0`` is first searched from there (:func:`profile_local`,
+    its rows starting from ``lu0``: the grid's five points are each profiled over the fold
+    parameter's whole grid, some 27 fits a point); a bracketed minimum inside ``t0 +- 0.3``
+    ends it. Returns ``(t, -2 log L, log u)`` (log u NaN for plain laws)."""
     last = float(mu_w[-1])
     cf = any(c.conformal for c in comps)
     packed = _pack(mu_w, comps)
+    if cf and math.isfinite(lu0):
+        a, b = t0 + float(_CLOSE[0]), t0 + float(_CLOSE[-1])
+        th, fh, _, lu, ok = profile_local(t0, a, b, packed, last, _LOGU, cf, xatol,
+                                          _u_index(lu0), lu0)  # fmt: skip
+        if ok and a < th < b:
+            return float(th), float(fh), float(lu)
     for _ in range(4):  # follow the valley while it leaves the local grid
         t = t0 + _CLOSE
         out = profile_search(t, packed, last, _LOGU, cf, xatol, 0.0, 0.0, *_NO_HINT)
         th, fh, ig = float(out[0]), float(out[1]), int(out[2])
         if 0 < ig < t.size - 1:
-            return th, fh
+            return th, fh, float(out[8])
         t0 = float(t[ig])
     pr = _profile(mu_w, comps, scale, with_interval=False, xatol=xatol)
-    return math.log(max(pr.mu_star - last, 1e-300)), pr.nll
+    return math.log(max(pr.mu_star - last, 1e-300)), pr.nll, pr.log_u
 
 
 def _profile_screen(
@@ -514,7 +525,7 @@ def _profile_screen(
         b = min(t0 + _LOCAL, ls + _T_HI)
         if a < t0 < b:
             j0 = -1 if math.isnan(lu0) else _u_index(lu0)
-            th, fh, _, lu = profile_local(t0, a, b, packed, last, _LOGU, cf, 1e-4, j0, lu0)
+            th, fh, _, lu, _ = profile_local(t0, a, b, packed, last, _LOGU, cf, 1e-4, j0, lu0)
             if fh <= crit:
                 res = (float(th), float(fh), float(lu) if cf else math.nan)
     if res is None:

@@ -414,7 +414,7 @@ def profile_search_scanned(
         if a < ht < b:
             Hh = np.full(1, hj, dtype=np.int64)
             Lh = np.full(1, hlu)
-            tj, fj = _local(ht, a, b, P, mu_last, logu, W, cf, xatol, Hh, Lh)
+            tj, fj, _ = _local(ht, a, b, P, mu_last, logu, W, cf, xatol, Hh, Lh)
             if fj < fh:
                 th, fh, H, L = tj, fj, Hh, Lh
                 i = min(max(int(np.searchsorted(t, th)), 0), G - 1)
@@ -445,22 +445,24 @@ def profile_local(t0, a, b, P, mu_last, logu, cf, xatol, j0, lu0):
     choice, 60-125 fits of the conformal law where the screen's global search takes
     325-400. Any value it returns is an upper bound of the global minimum; without a bracket
     within reach (``[a, b]``, the doublings) the lowest point seen. Returns
-    ``(t, value, j_u, log_u)``."""
+    ``(t, value, j_u, log_u, bracketed)``: ``bracketed`` whether a minimum was bracketed (a
+    point below its two neighbours) and refined, rather than the lowest point seen."""
     W = _work(P[0], P[2])
     H = np.full(1, j0, dtype=np.int64)
     L = np.full(1, lu0)
-    th, fh = _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L)
-    return th, fh, H[0], L[0]
+    th, fh, ok = _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L)
+    return th, fh, H[0], L[0], ok
 
 
 @njit(cache=True, error_model="numpy")
 def _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L):
     """:func:`profile_local` on the work arrays ``W``, the fold parameter's state ``H``, ``L``
-    (updated: the last row's). Returns ``(t, value)``."""
+    (updated: the last row's). Returns ``(t, value, bracketed)``."""
     h = _H_LOCAL
     f0 = _row_near(mu_last + math.exp(t0), P, mu_last, logu, W, cf, H, L)
     if not (a < t0 - h and t0 + h < b):
-        return _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t0, f0, math.nan, math.nan)
+        th, fh = _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, t0, f0, math.nan, math.nan)
+        return th, fh, False
     fm = _row_near(mu_last + math.exp(t0 - h), P, mu_last, logu, W, cf, H, L)
     fp = _row_near(mu_last + math.exp(t0 + h), P, mu_last, logu, W, cf, H, L)
     if f0 <= fm and f0 <= fp:
@@ -481,7 +483,7 @@ def _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L):
                 break
             xa, fa, xm, fxm = xm, fxm, xc, fc
         if not found:
-            return xm, fxm
+            return xm, fxm, False
         if sgn > 0:
             lo, flo, hi, fhi = xa, fa, xc, fc
         else:
@@ -489,4 +491,4 @@ def _local(t0, a, b, P, mu_last, logu, W, cf, xatol, H, L):
     th, fh = _minimise(lo, hi, xatol, P, mu_last, logu, W, cf, H, L, xm, fxm, flo, fhi)
     if not fh <= fxm:
         th, fh = xm, fxm
-    return th, fh
+    return th, fh, True

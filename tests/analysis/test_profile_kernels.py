@@ -149,7 +149,9 @@ def test_local_search_finds_the_minimum_near_a_neighbours_optimum(seed: int, fol
     j0 = int(np.argmin(np.abs(_LOGU - full.log_u))) + 2 if fold else -1
     j0 = min(j0, _LOGU.size - 1)
     lu0 = float(_LOGU[j0]) if fold else math.nan
-    th, fh, _, lu = profile_local(t0, t0 - 0.3, t0 + 0.3, packed, last, _LOGU, fold, 1e-8, j0, lu0)
+    th, fh, _, lu, ok = profile_local(t0, t0 - 0.3, t0 + 0.3, packed, last, _LOGU, fold, 1e-8,
+                                      j0, lu0)  # fmt: skip
+    assert ok
     ref = optimize.minimize_scalar(g, bounds=(t0 - 0.3, t0 + 0.3), method="bounded",
                                    options={"xatol": 1e-8})  # fmt: skip
     assert fh == pytest.approx(float(ref.fun), rel=1e-9, abs=1e-9)
