@@ -22,7 +22,7 @@ from service.analysis.predict import paper_rule, predict
 
 pytest.importorskip("sim.euler_beam")
 
-from test_predict_lab import A_OF, lab_sweep  # noqa: E402
+from test_predict_lab import A_OF, _exact, lab_sweep  # noqa: E402
 
 
 def test_local_scatter_is_the_residual_of_local_cubics() -> None:
@@ -105,6 +105,26 @@ def test_rates_without_damping_are_not_called_overdamped(
     ps = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"])
     lo, hi = ps.mu_star_interval
     assert lo <= p.mu_star <= hi
+
+
+def test_rates_and_no_noise_do_not_invent_a_damping_from_an_underestimated_noise() -> None:
+    """Calibration plan 854 (beam, antisymmetric: step 0.0424, last record 0.0015 before mu*,
+    relative noise 9.6e-5 on sigma^2 and w) given as omega = sqrt|sigma^2| with w_static and
+    no std at all. The noise read from the sweep's scatter is half the true one here; at that
+    noise a damping of 45.7 beat the undamped laws by 26.6 in chi^2 and the supercritical
+    pitchfork was named a saddle-node with probability 1.0. The damped law's own scatter
+    (chi^2 7.7 on 5 degrees of freedom) says the estimate is too low: read at that scale the
+    evidence is not decisive and no damping is invented."""
+    mu_star, kind, mu, s2, w = _exact("antisymmetric", 0.04242644005818502, 0.0014998120140889161)
+    rel = 9.572055944306135e-05
+    rng = np.random.default_rng(1608109496)  # the plan's own noise (bench/calibration.py)
+    s2n = s2 + rel * np.abs(s2) * rng.standard_normal(mu.size)
+    wn = w + rel * float(np.max(np.abs(w))) * rng.standard_normal(mu.size)
+    p = predict(mu, omega=np.sqrt(-s2n), w_static=wn)
+    assert "overdamped" not in {f.code for f in p.flags}
+    assert p.transition in (kind, "pitchfork", "undetermined")
+    lo, hi = p.mu_star_interval
+    assert lo <= mu_star <= hi
 
 
 def test_local_scatter_survives_extreme_grids() -> None:
