@@ -2,15 +2,14 @@
 
 Two estimators:
 
-* :func:`paper_rule` -- the paper's baseline (Discussion, Fig. "Anticipate shape transitions" and
-  Table 2), kept as is: measure ``T = 1/sqrt|sigma^2|`` at increasing ``mu``; at the first point
-  where ``T > 10 T(0)`` extrapolate ``T^(-1/a)`` linearly to zero through that point and the
-  previous one.
+* :func:`paper_rule` -- the paper's baseline (Discussion, Table 2), kept as published
+  (:mod:`service.analysis.paper_rule`, re-exported here).
 * :func:`predict` -- a weighted least-squares fit of ``|sigma^2| = x^(2a) sum_k c_k x^(k h)``,
   ``x = mu* - mu`` (``h = 1/2`` near a fold, ``1`` near a pitchfork; see
   :mod:`service.analysis.classify`), over the informative window of nearest points, the number of
   correction terms chosen by a chi-square test, ``mu*`` profiled (variable projection) and the
-  interval read from the profile likelihood. When neither ``a`` nor ``transition`` is given the
+  interval read from the profile likelihood and widened by the truncation spread
+  (:mod:`service.analysis._mu_star`). When neither ``a`` nor ``transition`` is given the
   candidates are averaged with their model probabilities.
 
 The predictor is unit-agnostic: ``mu`` may be an angle, a load, a voltage; ``sigma2`` is in
@@ -19,17 +18,15 @@ The predictor is unit-agnostic: ``mu`` may be an angle, a load, a voltage; ``sig
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy import optimize, stats
 
-from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
 from service.analysis._likelihood import profile_memo
+from service.analysis._mu_star import fit_sweep, interval
 from service.analysis._sweep import (
     Sweep,
     average_repeats,
@@ -38,117 +35,19 @@ from service.analysis._sweep import (
     prepare_sweep,
 )
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
-from service.analysis.classify import Classification, classify_sweep
+from service.analysis.classify import Classification
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
+from service.analysis.paper_rule import PaperRule, check_exponent, paper_rule
 
 __all__ = ["PaperRule", "Prediction", "bounded_by", "paper_rule", "predict"]
 
-_PAPER_FACTOR = 10.0
-_FLOOR = 0.05  # least weight of a candidate while the type is not named for lack of slowdown
 #: A table with both ``sigma2`` and ``omega``: the |sigma^2| they tell may differ by this many
 #: standard deviations of their difference (the noises given, ``sigma2_std`` and ``omega_std``)
 _AGREE_Z = 5.0
 #: ... and always by this relative amount: the digits a table keeps (six significant digits
 #: round omega^2 and sigma2 by up to 1.5e-5 together), the whole tolerance when no std is given
 _AGREE_RTOL = 1e-4
-
-
-# --------------------------------------------------------------------------------------------
-# the paper's rule
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class PaperRule:
-    """Result of :func:`paper_rule`.
-
-    Attributes
-    ----------
-    mu_star : float
-        Extrapolated mu* (unit of ``mu``).
-    stop_index : int
-        Index of the first point with ``T > 10 T(0)`` (the red dot of the paper's figure); the
-        last index when the threshold was never reached (flag ``threshold_not_reached``).
-    t_ratio : float
-        ``T / T(0)`` at ``stop_index``.
-    a : float
-        Exponent used.
-    flags : tuple of Flag
-    """
-
-    mu_star: float
-    stop_index: int
-    t_ratio: float
-    a: float
-    flags: tuple[Flag, ...] = ()
-
-
-def _check_a(a: Any) -> float:
-    try:
-        af = float(a)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError("a", a, f"a must be a positive number, got a={a!r}") from exc
-    if not math.isfinite(af) or af <= 0:
-        raise ParameterError("a", a, f"a must be a positive number, got a={a!r}")
-    return af
-
-
-def paper_rule(
-    mu: Sequence[float] | np.ndarray,
-    sigma2: Sequence[float] | np.ndarray,
-    a: float,
-    *,
-    factor: float = _PAPER_FACTOR,
-) -> PaperRule:
-    """The paper's early-warning rule (Discussion; Table 2), as published.
-
-    Parameters
-    ----------
-    mu : array_like, shape (n,)
-        Control parameter, strictly increasing (the first point plays ``mu = 0``).
-    sigma2 : array_like, shape (n,)
-        Eigenvalue of the fundamental (1/time^2), negative.
-    a : float
-        Time exponent (1/4 saddle-node, 1/2 pitchfork; doubled when over-damped).
-    factor : float
-        Threshold on ``T / T(0)`` (10 in the paper).
-
-    Returns
-    -------
-    PaperRule
-        ``mu* = mu_i + f_i (mu_i - mu_{i-1}) / (f_{i-1} - f_i)`` with ``f = T^(-1/a)
-        = |sigma^2|^(1/(2a))`` and ``i`` the first index with ``T_i > factor T_0``.
-    """
-    af = _check_a(a)
-    if not (math.isfinite(factor) and factor > 1):
-        raise ParameterError("factor", factor, f"factor must be > 1, got factor={factor!r}")
-    sw = prepare_sweep(mu, sigma2)
-    T = 1.0 / np.sqrt(sw.y)
-    ratio = T / T[0]
-    hit = np.flatnonzero(ratio > factor)
-    flags: list[Flag] = []
-    if hit.size:
-        i = int(hit[0])
-    else:
-        i = sw.mu.size - 1
-        flags.append(
-            Flag(
-                "threshold_not_reached",
-                f"T never exceeded {factor:g} T(0) (max {ratio.max():.3g} T(0)): extrapolated "
-                "through the last two points",
-            )
-        )
-    f = sw.y ** (1.0 / (2.0 * af))  # T^(-1/a)
-    df = f[i - 1] - f[i]
-    if df <= 0:
-        flags.append(
-            Flag("not_decreasing", f"T^(-1/a) does not decrease between points {i - 1} and {i}")
-        )
-        m = math.nan
-    else:
-        m = float(sw.mu[i] + f[i] * (sw.mu[i] - sw.mu[i - 1]) / df)
-    return PaperRule(m, i, float(ratio[i]), af, tuple(flags))
 
 
 # --------------------------------------------------------------------------------------------
@@ -214,142 +113,6 @@ class Prediction:
     n_terms: int = 0
     baseline: PaperRule | None = None
     classification: Classification | None = field(default=None, repr=False, compare=False)
-
-
-def _mixture(
-    fits: Sequence[ModelFit], probs: Sequence[float], level: float
-) -> tuple[float, float, float, float]:
-    """Mean, std and ``level`` quantile interval of a mixture of two-piece normals (one per
-    candidate: centre mu*, left/right widths from its profile interval)."""
-    z = float(stats.norm.ppf(0.5 + level / 2))
-    cs = np.array([f.profile.mu_star for f in fits])
-    # widths floored at a few ulps of mu* (noise-free data give zero widths, and a mixture of
-    # zero-width pieces has no bracket for the quantiles)
-    floor = 8 * np.finfo(float).eps * np.maximum(np.abs(cs), 1.0)
-    sl = np.maximum([(f.profile.mu_star - f.profile.lo) / z for f in fits], floor)
-    sr = np.maximum([(f.profile.hi - f.profile.mu_star) / z for f in fits], floor)
-    p = np.asarray(probs, dtype=float)
-    p = p / p.sum()
-
-    def cdf(v: float) -> float:
-        left = 2 * sl / (sl + sr) * stats.norm.cdf((v - cs) / sl)
-        right = 2 * sl / (sl + sr) * 0.5 + 2 * sr / (sl + sr) * (
-            stats.norm.cdf((v - cs) / sr) - 0.5
-        )
-        return float(np.sum(p * np.where(v < cs, left, right)))
-
-    lo_b = float(np.min(cs - 10 * sl))
-    hi_b = float(np.max(cs + 10 * sr))
-    q_lo = optimize.brentq(lambda v: cdf(v) - (0.5 - level / 2), lo_b, hi_b, xtol=1e-14)
-    q_hi = optimize.brentq(lambda v: cdf(v) - (0.5 + level / 2), lo_b, hi_b, xtol=1e-14)
-    s68 = np.array([0.5 * (f.profile.hi68 - f.profile.lo68) for f in fits])
-    mean = float(np.sum(p * cs))
-    std = float(math.sqrt(np.sum(p * (s68**2 + (cs - mean) ** 2))))
-    return mean, std, q_lo, q_hi
-
-
-_RICHARDSON = 2.5  # bias of the main fit over the bias its neighbours reveal
-
-
-def _truncation_spread(sw: Sweep, fit: ModelFit) -> tuple[float, float]:
-    """Downward and upward truncation bias of ``fit``'s mu*, read from neighbouring fits.
-
-    The neighbours are fits that truncate less than ``fit``: one more correction term (same
-    window or one point less), and the window without its one, two or three farthest points or
-    cut to half its size (same terms, and one more on the half window); and, truncating more,
-    the window one or two points larger (same terms): the truncation's effect on mu* is set
-    by the spacing of the points nearest mu*, which every smaller window shares, so on a fixed
-    grid it barely moves as the window shrinks (the beam's fold, 2 corrections on the nearest
-    5-8 points of one plan: -16.6 to -15.8 standard deviations), and shows where the window
-    grows (-13.3, -8.7 at 9 and 10 points). Fits with fewer terms are not neighbours: they
-    measure their own, larger truncation (on the beam they set the width: median |error| /
-    half-width 0.04-0.10 where a calibrated interval gives 0.34).
-
-    A neighbour's difference ``D = mu*_j - mu*`` carries noise as well as bias: both fits are
-    unbiased if the law holds and one of them is the more efficient, so the noise of ``D`` is
-    ``t^2 = |s_j^2 - s^2|`` (their 68 % half-widths; Hausman) and only ``sqrt(D^2 - t^2)``
-    (zero when ``|D| <= t``) counts as bias; counting ``D`` whole counted the noise twice (the
-    normal-form records, whose laws are exact, were covered in 98-100 % of plans).
-
-    A neighbour shares most of ``fit``'s points and is itself biased the same way (measured on
-    300 beam plans: the true error is 1.5-5x the neighbour's difference, same sign in 80-90 %):
-    the bias is taken as ``_RICHARDSON`` = 2.5 times the largest one, on the side it points to
-    (a neighbour keeping 60 % of the bias: Richardson's extrapolation with ratio 0.6). This
-    factor is the one free choice here. Chosen on the calibration's plans of seed 2026 (1 left
-    the beam plans at 66-89 % coverage, 2 at 88-97 % before the larger windows were
-    neighbours, 95-97 % after) and checked on plans it was not chosen on: the beam's fold
-    covered in 93 % (seed 7) and 87 % (seed 11) of 100 plans, 85 % and 81 % before.
-
-    A fold's law that needed every correction allowed (``corrections_exhausted``, K = 3: its
-    half-integer series then reaches only ``x^(3/2)`` beyond the leading term, a pitchfork's
-    ``x^3``) is at its truncation limit: there the larger windows' differences size the
-    truncation's effect but not the side of ``fit``'s own bias, which need not grow
-    monotonically with the window (one beam plan's larger windows came nearer mu*, another's
-    went farther, both on fixed grids), and their allowance widens both sides. Measured on the
-    1800 calibration plans (seed 2026): the beam's folds at K = 3 were covered in 85 % (142
-    plans; 99 % at K <= 2), 21 of their 22 misses with mu* above the interval and the larger
-    windows below the fit; a lab's grid 0, 0.1, ... (last record 0.082 before the fold's mu*,
-    noise 1e-4) was covered in 7 of 20 noise seeds. With both sides: the beam's folds covered in
-    99.3 % of 300 plans, 97 % and 96 % of 100 held-out plans (seeds 7, 11; 93 % and 88 %
-    before), that grid in 20 of 20; the pitchforks and the normal form's exact laws unchanged.
-
-    A fold's series is also refitted with two more terms on the same window (its (n, K + 2)
-    neighbour; a pitchfork's, with terms up to x^5, misfits wildly and is not): on a fine grid
-    the fold's truncation bias is set by the nearest points, shared by every window and by one
-    more term (a lab's grid 0, 0.03, ..., the last record 0.012 before mu*, noise 1e-5: 2
-    corrections on 5 to 10 points all 1.8e-5 early, 15 statistical std, even on exact data), and
-    only the second term beyond reveals it (mu* 1.7e-5 later): that grid was covered in 6 of 20
-    noise seeds, now 19 (grid 0, 0.02, ...: 13, now 20); the 1800 calibration plans keep their
-    coverage.
-    """
-    m0 = fit.profile.mu_star
-    s0 = 0.5 * (fit.profile.hi68 - fit.profile.lo68)
-    down = up = 0.0
-    half = max(int(math.ceil(fit.n / 2)), 3)
-    alternatives = {(fit.n, fit.K + 1), (fit.n - 1, fit.K + 1), (half, fit.K), (half, fit.K + 1)}
-    if fit.h < 1:  # a fold's series: two more half-integer terms (see below)
-        alternatives.add((fit.n, fit.K + 2))
-    alternatives |= {(fit.n + d, fit.K) for d in (-3, -2, -1, 1, 2)}
-    # a fold's half-integer series with every correction the law allows: see above
-    at_limit = fit.corrections_exhausted and fit.h < 1
-    for n2, K2 in sorted(alternatives):
-        alt, s_alt = refit_profile(sw, fit, n2, K2)
-        if not (math.isfinite(alt) and math.isfinite(s_alt) and math.isfinite(s0)):
-            continue
-        d = alt - m0
-        bias = math.sqrt(max(d * d - abs(s_alt * s_alt - s0 * s0), 0.0))
-        own = _RICHARDSON * bias
-        other = own if (n2 > fit.n and at_limit) else 0.0
-        if d < 0:
-            down, up = max(down, own), max(up, other)
-        else:
-            down, up = max(down, other), max(up, own)
-    return down, up
-
-
-def _law_for(transition: str | None, a: float | None) -> tuple[str, float, float | None, float]:
-    """(name, a, b, h) of the law to fit when the caller fixed it."""
-    if transition is not None:
-        if transition in CANDIDATES:
-            aa, bb, h = CANDIDATES[transition]
-            if a is not None and abs(a - aa) > 1e-12 and abs(a - 2 * aa) > 1e-12:
-                raise ParameterError(
-                    "a", a,
-                    f"a={a!r} contradicts transition={transition!r} (a={aa:g}, or {2 * aa:g} "
-                    "over-damped)",
-                )  # fmt: skip
-            return transition, (aa if a is None else a), bb, h
-        if transition == "pitchfork":
-            return "pitchfork", (0.5 if a is None else a), None, 1.0
-        raise ParameterError(
-            "transition", transition,
-            f"transition must be one of {sorted([*CANDIDATES, 'pitchfork'])}, got "
-            f"transition={transition!r}",
-        )  # fmt: skip
-    assert a is not None
-    name = "saddle-node" if abs(a - 0.25) < 1e-12 else ("pitchfork" if a == 0.5 else "custom")
-    h = 0.5 if name == "saddle-node" else 1.0
-    return name, a, None, h
 
 
 @profile_memo()
@@ -424,7 +187,7 @@ def predict(
     """
     _check_policy(level, step_fraction, margin, max_step_growth)
     if a is not None:
-        a = _check_a(a)
+        a = check_exponent(a)
     past = None  # the control of the first row past the transition (sigma2 >= 0 from there)
     repeats = None
     if isinstance(mu, Sweep):
@@ -447,9 +210,9 @@ def predict(
         )  # fmt: skip
         if both:
             _check_rates_agree(sw0, omega, omega_std)
-    fit = _fit(sw0, transition, a, level)
+    fit = fit_sweep(sw0, transition, a, level)
     flags = list(fit.flags) + ([repeats] if repeats is not None else [])
-    m, std, lo, hi = _interval(sw0, fit, level, flags)
+    m, std, lo, hi = interval(sw0, fit, level, flags)
     last = float(sw0.mu[-1])
     # T/T0 as sqrt(y0) / sqrt(y): the same float as the pipeline's omega0 / omega
     t_ratio = float(math.sqrt(sw0.y[0]) / math.sqrt(sw0.y[-1]))
@@ -636,121 +399,6 @@ def _check_policy(level: float, step_fraction: float, margin: float, growth: flo
             "max_step_growth", growth,
             f"max_step_growth must be > 0, got max_step_growth={growth!r}",
         )  # fmt: skip
-
-
-@dataclass(frozen=True)
-class _Fit:
-    """The fits that enter the prediction (one law, or the candidates with their weights)."""
-
-    fits: tuple[ModelFit, ...]
-    probs: tuple[float, ...]
-    sweeps: tuple[Sweep, ...]
-    name: str
-    window: int
-    method: str
-    flags: tuple[Flag, ...]
-    classification: Classification | None
-    point_probs: tuple[float, ...] = ()  # weights of the point estimate (no floor)
-
-
-def _fit(sw0: Sweep, transition: str | None, a: float | None, level: float) -> _Fit:
-    """Fit the law given, or classify and refit each probable candidate on its own window."""
-    if a is None and transition is None:
-        cls = classify_sweep(sw0, level=level)
-        # each candidate that matters is refitted on its own informative window (the
-        # classification compares them on a common one) and averaged with its probability.
-        # mu* comes from the eigenvalue law alone: the static law, fitted over its wider window,
-        # tells b but biases mu* (measured on the beam: rmse 5.4e-8 with it, 2.3e-8 without,
-        # and 90 % instead of 95 % coverage)
-        # before the slowdown has shown (no type named), every candidate keeps at least
-        # _FLOOR of the weight: the interval then covers each type's mu*
-        # (or while a fold explains the records as well as the pitchfork named: the fold's mu*,
-        # before the pitchfork's, must stay inside)
-        slow = any(f.code in ("slowdown_not_reached", "fold_indistinct", "exponent_undecided")
-                   for f in cls.flags)  # fmt: skip
-        fits, probs, sweeps, point = [], [], [], []
-        for f in cls.fits:
-            pr = max(cls.probabilities[f.name], _FLOOR if slow else 0.0)
-            if pr <= 1e-3:
-                continue
-            point.append(cls.probabilities[f.name])
-            sw_fit, own, _, _ = analyse(sw0, (f.name, f.a, None, f.h), level)
-            fits.append(own[0])
-            sweeps.append(sw_fit)
-            probs.append(pr)
-        flags = [f for f in cls.flags if f.code != "no_static_data"]
-        method = "model-average" if len(fits) > 1 else "profile-likelihood"
-        return _Fit(tuple(fits), tuple(probs), tuple(sweeps), cls.transition, cls.window,
-                    method, tuple(flags), cls, tuple(point))  # fmt: skip
-    name, aa, _, hh = _law_for(transition, a)
-    sw_fit, fits, window, fl = analyse(sw0, (name, aa, None, hh), level)
-    flags = [*fl, *fits[0].profile.flags]
-    if window < 5:
-        flags.append(
-            Flag("few_points_near", f"only {window} informative points near mu* (want >= 5)")
-        )
-    return _Fit((fits[0],), (1.0,), (sw_fit,), name, window, "profile-likelihood",
-                tuple(flags), None)  # fmt: skip
-
-
-@functools.lru_cache(maxsize=8)
-def _z(level: float) -> float:
-    """The two-sided normal quantile of ``level`` (1.96 at 0.95)."""
-    return float(stats.norm.ppf(0.5 + level / 2))
-
-
-def _interval(
-    sw0: Sweep, fit: _Fit, level: float, flags: list[Flag]
-) -> tuple[float, float, float, float]:
-    """(mu*, std, lo, hi): the profile or mixture interval widened by the truncation spread."""
-    if len(fit.fits) == 1:
-        f0 = fit.fits[0].profile
-        m, lo, hi = f0.mu_star, f0.lo, f0.hi
-        std = 0.5 * (f0.hi68 - f0.lo68)
-    else:
-        m, std, lo, hi = _mixture(fit.fits, fit.probs, level)
-        pp = np.asarray(fit.point_probs, dtype=float)
-        if pp.size == len(fit.fits) and np.any(pp != np.asarray(fit.probs)):
-            # the floor widens the interval only; mu* and its std keep the model probabilities
-            top = int(np.argmax(pp))
-            if pp[top] >= 0.999 * pp.sum():
-                f0 = fit.fits[top].profile
-                m, std = f0.mu_star, 0.5 * (f0.hi68 - f0.lo68)
-            else:
-                m, std, _, _ = _mixture(fit.fits, tuple(pp), level)
-            lo, hi = min(lo, m), max(hi, m)
-    # truncation uncertainty: the statistical interval assumes the law with K corrections is
-    # exact over its window; the less-truncated neighbouring fits tell how far the truncation
-    # moved mu*, beyond their noise (see _truncation_spread). The interval widens on the side
-    # each bias points to (measured on 600 lab plans: the statistical interval alone covered
-    # 32-50 % of the beam plans, 90-97 % of the normal-form ones whose laws are exact).
-    # The spread is a 95 % allowance (its factor was calibrated at that level), a normal
-    # quantile times a systematic standard deviation: at another level it scales with the
-    # quantile, and the std it adds does not depend on the level.
-    spreads = [_truncation_spread(sw, f) for sw, f, pr in zip(fit.sweeps, fit.fits, fit.probs)
-               if pr >= 0.05]  # fmt: skip
-    z95 = _z(0.95)
-    k = _z(level) / z95
-    down = k * max((d for d, _ in spreads), default=0.0)
-    up = k * max((u for _, u in spreads), default=0.0)
-    sys_spread = max(down, up)
-    if sys_spread > 0:
-        lo, hi = lo - down, hi + up
-        std = math.hypot(std, sys_spread / _z(level))
-    last = float(sw0.mu[-1])
-    lo = max(lo, last)
-    half = 0.5 * (hi - lo)
-    if not (math.isfinite(half) and half > 0):
-        half = math.nan
-    if half > 0.5 * max(m - last, 0) or any(f.code == "interval_unbounded" for f in flags):
-        flags.append(
-            Flag(
-                "interval_huge",
-                f"the {100 * level:.0f}% interval [{lo:.6g}, {hi:.6g}] is wider than the "
-                f"distance to mu* ({m - last:.3g})",
-            )
-        )
-    return m, std, lo, hi
 
 
 def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
