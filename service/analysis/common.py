@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 
@@ -23,3 +24,14 @@ class Flag:
 
     code: str
     message: str
+
+
+def unique_flags(flags: Iterable[Flag]) -> list[Flag]:
+    """``flags`` in order, each code once (its first occurrence kept)."""
+    seen: set[str] = set()
+    out = []
+    for f in flags:
+        if f.code not in seen:
+            seen.add(f.code)
+            out.append(f)
+    return out

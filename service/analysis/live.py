@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -43,7 +43,7 @@ from service.analysis.alarm import (
     interval_trusted,
     next_measurement,
 )
-from service.analysis.common import Flag
+from service.analysis.common import Flag, unique_flags
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement, measurement_from_detection
@@ -58,9 +58,6 @@ __all__ = [
     "assess",
     "finish",
     "measure",
-    "measurement_from_dict",
-    "record_from_dict",
-    "record_to_dict",
     "update",
 ]
 
@@ -467,7 +464,7 @@ def assess(
         converged=converged,
         record_duration=duration,
         record_dt=dt,
-        flags=tuple(_dedupe(uflags)),
+        flags=tuple(unique_flags(uflags)),
     )
 
 
@@ -569,78 +566,4 @@ def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
     for r in records:
         flags.extend(f for f in r.flags if f.code != "no_mode")
     return WarnResult(None, None, tuple(ms), pred, tuple(alarms), stopped, None,
-                      tuple(_dedupe(flags)))  # fmt: skip
-
-
-def measurement_from_dict(d: dict[str, Any] | None) -> Measurement | None:
-    """Inverse of the stored measurement of :func:`record_to_dict` (None and missing numbers
-    become NaN)."""
-    if d is None:
-        return None
-
-    def num(k: str) -> float:
-        v = d.get(k)
-        return math.nan if v is None else float(v)
-
-    return Measurement(
-        mu=num("mu"),
-        omega=num("omega"),
-        sigma2=num("sigma2"),
-        sigma2_std=num("sigma2_std"),
-        w_static=num("w_static"),
-        w_static_std=num("w_static_std"),
-        regime=str(d.get("regime") or "underdamped"),
-        duration=num("duration"),
-        dt=num("dt"),
-        flags=tuple(Flag(f["code"], f["message"]) for f in d.get("flags") or ()),
-    )
-
-
-def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
-    seen: set[str] = set()
-    out = []
-    for f in flags:
-        if f.code not in seen:
-            seen.add(f.code)
-            out.append(f)
-    return out
-
-
-def _measurement_dict(m: Measurement | None) -> dict[str, Any] | None:
-    """A measurement's fields as stored (its flags as ``{code, message}``; NaN kept)."""
-    if m is None:
-        return None
-    d = asdict(m)
-    d["flags"] = list(d["flags"])
-    return d
-
-
-def record_to_dict(r: LiveRecord) -> dict[str, Any]:
-    """The stored form of a :class:`LiveRecord` (plain JSON types; NaN kept as float)."""
-    return {
-        "seq": r.seq,
-        "control": r.control,
-        "measurement": _measurement_dict(r.measurement),
-        "flags": [asdict(f) for f in r.flags],
-        "interval": list(r.interval) if r.interval is not None else None,
-        "next_control": r.next_control,
-        "time_unit": r.time_unit,
-    }
-
-
-def record_from_dict(d: dict[str, Any]) -> LiveRecord:
-    """Inverse of :func:`record_to_dict` (None numbers become NaN)."""
-    iv = d.get("interval")
-    interval = None
-    if iv is not None and all(v is not None for v in iv):
-        interval = (float(iv[0]), float(iv[1]))
-    nxt = d.get("next_control")
-    return LiveRecord(
-        seq=int(d["seq"]),
-        control=float(d["control"]),
-        measurement=measurement_from_dict(d.get("measurement")),
-        flags=tuple(Flag(f["code"], f["message"]) for f in d.get("flags") or ()),
-        interval=interval,
-        next_control=math.nan if nxt is None else float(nxt),
-        time_unit=d.get("time_unit"),
-    )
+                      tuple(unique_flags(flags)))  # fmt: skip

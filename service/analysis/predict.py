@@ -36,7 +36,7 @@ from service.analysis._sweep import (
 )
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.classify import Classification
-from service.analysis.common import Flag
+from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
 from service.analysis.paper_rule import PaperRule, check_exponent, paper_rule
 
@@ -276,7 +276,7 @@ def predict(
         method=fit.method,
         alarm=alarm,
         next_safe_mu=float(nxt.mu),
-        flags=tuple(_dedupe(flags)),
+        flags=tuple(unique_flags(flags)),
         transition=transition,
         probabilities=(
             dict(cls.probabilities)
@@ -399,13 +399,3 @@ def _check_policy(level: float, step_fraction: float, margin: float, growth: flo
             "max_step_growth", growth,
             f"max_step_growth must be > 0, got max_step_growth={growth!r}",
         )  # fmt: skip
-
-
-def _dedupe(flags: Sequence[Flag]) -> list[Flag]:
-    seen: set[str] = set()
-    out = []
-    for f in flags:
-        if f.code not in seen:
-            seen.add(f.code)
-            out.append(f)
-    return out

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from _records import DT, MU_STAR, record, sigma2_of
 
-from service.analysis import live
+from service.analysis import live, live_store
 from service.analysis.alarm import next_measurement
 from service.analysis.errors import ParameterError
 
@@ -87,7 +87,7 @@ def test_no_mode_is_a_flag_not_an_error() -> None:
 
 def test_record_roundtrip_and_finish() -> None:
     recs, ups = sweep([0.0, 0.3, 0.6, 0.9, 1.2])
-    back = [live.record_from_dict(live.record_to_dict(r)) for r in recs]
+    back = [live_store.record_from_dict(live_store.record_to_dict(r)) for r in recs]
     assert back == recs
     res = live.finish(back, stopped="closed")
     assert res.stopped == "closed" and len(res.measurements) == 5

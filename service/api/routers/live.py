@@ -29,6 +29,7 @@ from fastapi.responses import JSONResponse, Response, StreamingResponse
 
 from service import convert, recordings
 from service.analysis import live as numerics
+from service.analysis import live_store
 from service.api.auth import Caller, CallerDep
 from service.api.live_events import MAX_SEQ, event_stream, notify
 from service.api.problems import ApiProblem, invalid, not_found
@@ -251,13 +252,13 @@ def _load_state(store: Any, cache: _RecordCache, sweep_id: str) -> _State | None
         row, new = store_live.records_after(store, sweep_id, hit[0], MAX_SEQ)
         if row is None:
             return None
-        records = [*hit[1], *(numerics.record_from_dict(r.record) for r in new
+        records = [*hit[1], *(live_store.record_from_dict(r.record) for r in new
                               if r.seq <= row.version)]  # fmt: skip
     if records is None or [r.seq for r in records] != list(range(1, row.version + 1)):
         full = store_live.live_state(store, sweep_id)  # first read here (or a gap): all of it
         if full is None:
             return None
-        row, records = full.sweep, [numerics.record_from_dict(d) for d in full.records]
+        row, records = full.sweep, [live_store.record_from_dict(d) for d in full.records]
     cache.put(sweep_id, row.version, records)
     return _State(row, records)
 
@@ -387,7 +388,7 @@ def _update(
                             prediction=u.prediction)  # fmt: skip
         final = convert.sweep_result(r).model_dump(mode="json")
     timing["serialise"] = _since(t)
-    return {"doc": doc, "stored": numerics.record_to_dict(u.record), "record": u.record,
+    return {"doc": doc, "stored": live_store.record_to_dict(u.record), "record": u.record,
             "final": final, "measured": measured, "timing": timing}  # fmt: skip
 
 
