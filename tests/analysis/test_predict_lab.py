@@ -257,14 +257,15 @@ def test_a_fold_on_a_coarse_grid_far_from_mu_star_is_covered() -> None:
     its std, no static data): the saddle-node law needs all three corrections on its 7 points
     and is 5e-3 early (15 statistical std); its larger windows go farther below, the smaller
     ones above. The one-sided truncation spread put their allowance below and covered mu* in
-    7 of 20 noise seeds; at the truncation limit it now widens both sides."""
+    7 of 20 noise seeds; at the truncation limit it now widens both sides (18 of 20; a 95 %
+    interval covers 18 or more of 20 in 92 % of draws, 19 or more in 74 %)."""
     ms, preds, covered = _over_seeds("asymmetric", 0.1, 1e-4)
     ours = [abs(p.mu_star - ms) for p in preds]
     rule = [abs(p.baseline.mu_star - ms) for p in preds]
     for p, e, r in zip(preds, ours, rule):
         if e > r:  # worse than the rule only with a flag that says why
             assert {f.code for f in p.flags} - {"no_static_data"}, p.flags
-    assert covered >= 19, covered
+    assert covered >= 18, covered
     assert {p.transition for p in preds} <= {"saddle-node", "undetermined"}
     assert np.median(ours) < 0.3 * np.median(rule)  # 5e-3 against 2.3e-2
 
