@@ -233,47 +233,33 @@ def _check_probability(min_probability: float) -> None:
         )  # fmt: skip
 
 
-@profile_memo()
-def classify_sweep(
-    sw0: Sweep, *, min_probability: float = 0.9, level: float = 0.95
-) -> Classification:
-    """:func:`classify` on a prepared sweep (``level``: of the candidates' profile intervals)."""
-    _check_probability(min_probability)
-    sw, fits, n_c, flags = analyse(sw0, None, level)
-    probs = probabilities(fits)
-    top = fits[0]
-
-    # regime
-    regime = "underdamped"
-    if sw.damping is not None and sw.damping > 0:
-        if sw.kind == "omega":
-            over = sw.omega is not None and bool(sw.omega[-1] < sw.damping / 2)
-        else:
-            over = bool(sw.y[-1] < sw.damping**2 / 4)
-        if over:
-            regime = "overdamped"
-            flags.append(
-                Flag(
-                    "overdamped",
-                    f"the nearest points lie in the over-damped boundary layer (xi={sw.damping:.3g}"
-                    "): the observed time scale there follows the doubled exponent 2a",
-                )
-            )
-
-    # free exponent a (on the window, corrections of the best model)
-    a_hat, a_se = free_exponent_a(sw, top, n_c)
-    if regime == "overdamped" and sw.kind == "omega":
-        a_hat, a_se = 2 * a_hat, 2 * a_se  # the observed (slow) time scale exponent
-
-    # free exponent b at the best mu*
-    b_hat = b_se = math.nan
-    if sw.w is not None:
-        n_w = max(top.n_w, n_c)
-        if n_w >= 5:
-            b_hat, b_se = free_exponent_b(sw, top, n_w)
-        else:
-            flags.append(Flag("b_not_estimated", f"only {n_w} informative points for b"))
+def _regime(sw: Sweep, flags: list[Flag]) -> str:
+    """``"overdamped"`` when the nearest point lies in the over-damped boundary layer of the
+    sweep's damping (flag ``overdamped``), else ``"underdamped"``."""
+    if sw.damping is None or not sw.damping > 0:
+        return "underdamped"
+    if sw.kind == "omega":
+        over = sw.omega is not None and bool(sw.omega[-1] < sw.damping / 2)
     else:
+        over = bool(sw.y[-1] < sw.damping**2 / 4)
+    if not over:
+        return "underdamped"
+    flags.append(
+        Flag(
+            "overdamped",
+            f"the nearest points lie in the over-damped boundary layer (xi={sw.damping:.3g}"
+            "): the observed time scale there follows the doubled exponent 2a",
+        )
+    )
+    return "overdamped"
+
+
+def _static_exponent(
+    sw: Sweep, top: ModelFit, n_c: int, flags: list[Flag]
+) -> tuple[float, float]:
+    """The free static exponent b (and its standard error) at the best law's mu*; NaN without
+    static data or with fewer than 5 informative points (flagged)."""
+    if sw.w is None:
         flags.append(
             Flag(
                 "no_static_data",
@@ -281,19 +267,83 @@ def classify_sweep(
                 "criticality of a pitchfork unknown",
             )
         )
+        return math.nan, math.nan
+    n_w = max(top.n_w, n_c)
+    if n_w < 5:
+        flags.append(Flag("b_not_estimated", f"only {n_w} informative points for b"))
+        return math.nan, math.nan
+    return free_exponent_b(sw, top, n_w)
 
-    # decision
-    p_top = probs[top.name]
-    transition = top.name
-    if p_top < min_probability:
-        p_pf = probs.get("subcritical-pitchfork", 0.0) + probs.get("supercritical-pitchfork", 0.0)
-        transition = "pitchfork" if p_pf >= min_probability else "undetermined"
-        flags.append(
-            Flag(
-                "ambiguous",
-                f"the best candidate {top.name} has probability {p_top:.2f} < {min_probability}",
-            )
+
+def _named(
+    probs: dict[str, float], top: str, min_probability: float, flags: list[Flag]
+) -> str:
+    """The type the probabilities name: the best candidate at ``min_probability``, else
+    ``"pitchfork"`` when the two pitchforks together reach it, else ``"undetermined"``."""
+    p_top = probs[top]
+    if p_top >= min_probability:
+        return top
+    p_pf = probs.get("subcritical-pitchfork", 0.0) + probs.get("supercritical-pitchfork", 0.0)
+    flags.append(
+        Flag(
+            "ambiguous",
+            f"the best candidate {top} has probability {p_top:.2f} < {min_probability}",
         )
+    )
+    return "pitchfork" if p_pf >= min_probability else "undetermined"
+
+
+@profile_memo()
+def classify_sweep(
+    sw0: Sweep, *, min_probability: float = 0.9, level: float = 0.95
+) -> Classification:
+    """:func:`classify` on a prepared sweep (``level``: of the candidates' profile intervals).
+
+    The candidates are fitted and compared (:func:`service.analysis._laws.analyse`); the most
+    probable is named when its probability reaches ``min_probability`` (or the two pitchforks'
+    together, as ``"pitchfork"``), unless one of the rules of :func:`_withheld` finds that
+    the records cannot decide the type yet. Flags come in the order the steps raise them."""
+    _check_probability(min_probability)
+    sw, fits, n_c, flags = analyse(sw0, None, level)
+    probs = probabilities(fits)
+    top = fits[0]
+    regime = _regime(sw, flags)
+    # free exponent a (on the window, corrections of the best model)
+    a_hat, a_se = free_exponent_a(sw, top, n_c)
+    if regime == "overdamped" and sw.kind == "omega":
+        a_hat, a_se = 2 * a_hat, 2 * a_se  # the observed (slow) time scale exponent
+    b_hat, b_se = _static_exponent(sw, top, n_c, flags)
+    transition = _named(probs, top.name, min_probability, flags)
+    transition = _withheld(transition, sw0, sw, fits, flags)
+    transition = _exponent_check(transition, a_hat, a_se, regime, flags)
+    if n_c < 5:
+        flags.append(Flag("few_points_near", f"only {n_c} informative points near mu* (want >= 5)"))
+    prof = top.profile
+    flags.extend(prof.flags)
+    mu_std = 0.5 * (prof.hi68 - prof.lo68)
+    return Classification(
+        transition=transition,
+        a=float(a_hat),
+        a_std=float(a_se),
+        b=float(b_hat),
+        b_std=float(b_se),
+        mu_star=float(prof.mu_star),
+        mu_star_std=float(mu_std),
+        probabilities=probs,
+        regime=regime,
+        flags=tuple(flags),
+        window=n_c,
+        damping=float(sw.damping) if sw.damping is not None else math.nan,
+        fits=tuple(fits),
+    )
+
+
+def _withheld(
+    transition: str, sw0: Sweep, sw: Sweep, fits: list[ModelFit], flags: list[Flag]
+) -> str:
+    """``transition``, or ``"undetermined"`` where the records cannot decide the type yet
+    (flags ``slowdown_not_reached``, ``fold_indistinct``, ``exponent_undecided``)."""
+    top = fits[0]
     t_ratio = math.sqrt(float(sw0.y[0] / sw0.y[-1]))
     if t_ratio < MIN_T_RATIO and transition != "undetermined":
         # the asymptotic laws are not reached yet: far from mu* a fold and a pitchfork with a
@@ -360,6 +410,15 @@ def classify_sweep(
                 "is not named",
             )
         )
+    return transition
+
+
+def _exponent_check(
+    transition: str, a_hat: float, a_se: float, regime: str, flags: list[Flag]
+) -> str:
+    """``transition``, or ``"undetermined"`` when the free exponent ``a_hat`` lies more than 4
+    standard errors (and 0.05) from every candidate's (flag ``exponent_off``); flag
+    ``a_unbounded`` when the data do not bound it."""
     if math.isfinite(a_se) and a_se > 0:
         cands = [0.25, 0.5] if regime == "underdamped" else [0.5, 1.0]
         z = min(abs(a_hat - c) for c in cands) / a_se
@@ -375,23 +434,4 @@ def classify_sweep(
             transition = "undetermined"
     elif not math.isfinite(a_se):
         flags.append(Flag("a_unbounded", "the exponent a is not bounded by the data"))
-    if n_c < 5:
-        flags.append(Flag("few_points_near", f"only {n_c} informative points near mu* (want >= 5)"))
-    prof = top.profile
-    flags.extend(prof.flags)
-    mu_std = 0.5 * (prof.hi68 - prof.lo68)
-    return Classification(
-        transition=transition,
-        a=float(a_hat),
-        a_std=float(a_se),
-        b=float(b_hat),
-        b_std=float(b_se),
-        mu_star=float(prof.mu_star),
-        mu_star_std=float(mu_std),
-        probabilities=probs,
-        regime=regime,
-        flags=tuple(flags),
-        window=n_c,
-        damping=float(sw.damping) if sw.damping is not None else math.nan,
-        fits=tuple(fits),
-    )
+    return transition
