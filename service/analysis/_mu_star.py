@@ -3,8 +3,9 @@
 * :func:`fit_sweep` -- the law given, or the classification's candidates each refitted on its
   own informative window and weighted with their probabilities (:class:`Fits`);
 * :func:`interval` -- the profile-likelihood interval of one law, or the mixture of the
-  candidates' intervals, widened by the truncation spread: the bias of mu* that the
-  less-truncated neighbouring fits reveal (:func:`_truncation_spread`).
+  candidates' intervals, each with its fewer-terms rival weighed in (the number of
+  corrections is chosen on the data), widened by the truncation spread: the bias of mu* that
+  the less-truncated neighbouring fits reveal (:func:`_truncation_spread`).
 
 Used by :func:`service.analysis.predict.predict`.
 """
@@ -19,7 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis._laws import CANDIDATES, ModelFit, analyse, refit_profile
+from service.analysis._laws import (
+    CANDIDATES,
+    ModelFit,
+    analyse,
+    fewer_terms_rival,
+    refit_profile,
+)
 from service.analysis._sweep import Sweep
 from service.analysis.classify import Classification, classify_sweep
 from service.analysis.common import Flag
@@ -237,7 +244,8 @@ def _z(level: float) -> float:
 def interval(
     sw0: Sweep, fit: Fits, level: float, flags: list[Flag]
 ) -> tuple[float, float, float, float]:
-    """(mu*, std, lo, hi): the profile or mixture interval widened by the truncation spread."""
+    """(mu*, std, lo, hi): the profile or mixture interval, with the fits' fewer-terms rivals,
+    widened by the truncation spread."""
     if len(fit.fits) == 1:
         f0 = fit.fits[0].profile
         m, lo, hi = f0.mu_star, f0.lo, f0.hi
@@ -254,6 +262,19 @@ def interval(
             else:
                 m, std, _, _ = _mixture(fit.fits, tuple(pp), level)
             lo, hi = min(lo, m), max(hi, m)
+    # the number of corrections was chosen on the data: each fit's law with one correction
+    # fewer keeps its smoothed-AICc weight in the interval (fewer_terms_rival); mu* stays the
+    # chosen fits', the interval and std are the mixture's with the rivals
+    fits, probs = list(fit.fits), list(fit.probs)
+    for i, (sw, f, pr) in enumerate(zip(fit.sweeps, fit.fits, fit.probs)):
+        alt, w = fewer_terms_rival(sw, f, level)
+        if w > 0:
+            fits.append(alt)
+            probs.append(pr * w)
+            probs[i] = pr * (1 - w)
+    if len(fits) > len(fit.fits):
+        _, std_r, lo_r, hi_r = _mixture(fits, probs, level)
+        lo, hi, std = min(lo_r, m), max(hi_r, m), max(std, std_r)
     # truncation uncertainty: the statistical interval assumes the law with K corrections is
     # exact over its window; the less-truncated neighbouring fits tell how far the truncation
     # moved mu*, beyond their noise (see _truncation_spread). The interval widens on the side
