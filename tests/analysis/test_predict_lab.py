@@ -192,6 +192,21 @@ def test_coarse_noisy_fold_named_a_pitchfork_before_is_withheld() -> None:
     assert 0.05 <= row["p_true"] < 0.1  # the comparison alone favours the pitchfork
 
 
+def test_a_fold_with_static_data_far_from_the_disguise_s_fold_is_not_named() -> None:
+    """A held-out calibration plan (seed 7, plan 152: step 0.094, stop 0.0036 before the fold,
+    noise 6.3e-4, static data given): the subcritical pitchfork in the conformal variable beat
+    the fold by 15.4 (-2 log L + BIC penalty, probability 0.9996), its secondary fold 5.7e-4
+    beyond its mu*, the last record 9.4 times that before it; named with the interval wholly
+    past mu* (1.7e-3 to 5.7e-3 late). Static data do not tell them apart there: in the
+    conformal variable the static law also goes as sqrt(x) far from delta (b = 0.446 +-
+    0.017). Now, as without static data, only a decisive ratio names the type."""
+    row = _calibration_plan(index=152, step=0.09423972626320702, stop=0.0036044233608473197,
+                            rel=0.0006268611081527508, with_w=True, seed=1461281404)  # fmt: skip
+    assert row["transition"] == "undetermined", row
+    assert "fold_indistinct" in row["flags"]
+    assert row["covered"]
+
+
 def test_fold_in_disguise_is_not_called_a_pitchfork() -> None:
     """A coarse noisy fold plan (a calibration plan: step 0.095, stop 0.0058 before mu*, noise
     5.6e-4, no static data): the pitchfork law in the conformal variable fits it best by pinning
