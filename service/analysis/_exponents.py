@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
+from service.analysis._brent import GOLD, brent_keep
 from service.analysis._fold_kernels import nll_exponent_rows
 from service.analysis._likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
@@ -26,7 +27,6 @@ def exponent_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
     return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
 
 
-_GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08
 
 
@@ -69,24 +69,10 @@ def _brent_min(
                 golden = False
         if golden:
             e = (c - x) if x < xm else (a - x)
-            d = _GOLD * e
+            d = GOLD * e
         u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
         fu = fn(u)
-        if fu <= fx:
-            if u < x:
-                c = x
-            else:
-                a = x
-            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
-        else:
-            if u < x:
-                a = u
-            else:
-                c = u
-            if fu <= fw or w == x:
-                v, fv, w, fw = w, fw, u, fu
-            elif fu <= fv or v == x or v == w:
-                v, fv = u, fu
+        a, c, x, fx, w, fw, v, fv = brent_keep(a, c, x, fx, w, fw, v, fv, u, fu)
     curv = math.nan
     if len({x, w, v}) == 3 and all(math.isfinite(f) for f in (fx, fw, fv)):
         curv = 2.0 * ((fw - fx) / (w - x) - (fv - fx) / (v - x)) / (w - v)

@@ -18,9 +18,9 @@ import math
 import numpy as np
 from numba import njit
 
+from service.analysis._brent import GOLD, brent_keep
 from service.analysis._laws_kernels import _total, _work
 
-_GOLD = 0.3819660112501051
 # tolerance (in log u) of the fold parameter's refinement: precise data make the profile over
 # u a valley some 1e-4 wide (measured: a beam sweep with 1e-6 noise, -2 log L rising by 80 over
 # 3.5e-4 in log u), so a coarse tolerance leaves errors of tens in -2 log L that vary from one
@@ -67,26 +67,12 @@ def _refine_u(ms, a, c, xb, fxb, fa, fc, D, E, M, x_last, WK, RK, tol):
                 use_golden = False
         if use_golden:
             e = (c - xb) if xb < m else (a - xb)
-            d = _GOLD * e
+            d = GOLD * e
         ut = xb + (d if abs(d) >= tol else (tol if d > 0 else -tol))
         fu = _total(ms, math.exp(ut), D, E, M, x_last, WK, RK)
         if not math.isfinite(fu):
             fu = 1e300
-        if fu <= fxb:
-            if ut < xb:
-                c = xb
-            else:
-                a = xb
-            v, fv, w, fw, xb, fxb = w, fw, xb, fxb, ut, fu
-        else:
-            if ut < xb:
-                a = ut
-            else:
-                c = ut
-            if fu <= fw or w == xb:
-                v, fv, w, fw = w, fw, ut, fu
-            elif fu <= fv or v == xb or v == w:
-                v, fv = ut, fu
+        a, c, xb, fxb, w, fw, v, fv = brent_keep(a, c, xb, fxb, w, fw, v, fv, ut, fu)
     return xb, fxb
 
 

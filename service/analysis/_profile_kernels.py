@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
+from service.analysis._brent import GOLD, brent_keep
 from service.analysis._fold_kernels import (
     _profile_u,
     _profile_u_from,
@@ -29,7 +30,6 @@ from service.analysis._fold_kernels import (
 )
 from service.analysis._laws_kernels import _total, _work
 
-_GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2
 _SQRT_EPS = 1.4901161193847656e-08
 _EPS = 2.220446049250313e-16
 BIG = 1e300  # value of a non-finite -2 log L inside the searches
@@ -111,7 +111,7 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, x0, f0, fa, fb):
             v, w, fv, fw = x, x, fx, fx
             d = e = 0.0
     else:
-        x = a + _GOLD * (b - a)
+        x = a + GOLD * (b - a)
         fx = _row_near(mu_last + math.exp(x), P, mu_last, logu, W, cf, H, L)
         v, w, fv, fw = x, x, fx, fx
         d = 0.0
@@ -141,24 +141,10 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, x0, f0, fa, fb):
                 golden = False
         if golden:
             e = (b - x) if x < xm else (a - x)
-            d = _GOLD * e
+            d = GOLD * e
         u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
         fu = _row_near(mu_last + math.exp(u), P, mu_last, logu, W, cf, H, L)
-        if fu <= fx:
-            if u < x:
-                b = x
-            else:
-                a = x
-            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
-        else:
-            if u < x:
-                a = u
-            else:
-                b = u
-            if fu <= fw or w == x:
-                v, fv, w, fw = w, fw, u, fu
-            elif fu <= fv or v == x or v == w:
-                v, fv = u, fu
+        a, b, x, fx, w, fw, v, fv = brent_keep(a, b, x, fx, w, fw, v, fv, u, fu)
     return x, fx
 
 

@@ -1,0 +1,41 @@
+"""Brent's minimisation, the bookkeeping its three searches share.
+
+The fold parameter's refinement (:mod:`service.analysis._fold_kernels`), the search over mu*
+(:mod:`service.analysis._profile_kernels`) and the free exponent's (a Python objective,
+:mod:`service.analysis._exponents`) each choose their own trial point (their tolerances and
+starts differ) and keep the bracket and the three best points with :func:`brent_keep`
+(Brent 1973, ch. 5; the steps of scipy's ``fminbound``).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["GOLD", "brent_keep"]
+
+GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2: the golden section's step
+
+
+@njit(cache=True, inline="always")
+def brent_keep(
+    a: float, b: float, x: float, fx: float, w: float, fw: float, v: float, fv: float,
+    u: float, fu: float,
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """The bracket ``[a, b]`` and the lowest, second and third lowest points ``x``, ``w``,
+    ``v`` (values ``fx``, ``fw``, ``fv``) after the trial ``u`` gave ``fu``; returns
+    ``(a, b, x, fx, w, fw, v, fv)``."""
+    if fu <= fx:
+        if u < x:
+            b = x
+        else:
+            a = x
+        return a, b, u, fu, x, fx, w, fw
+    if u < x:
+        a = u
+    else:
+        b = u
+    if fu <= fw or w == x:
+        return a, b, x, fx, u, fu, w, fw
+    if fu <= fv or v == x or v == w:
+        return a, b, x, fx, w, fw, u, fu
+    return a, b, x, fx, w, fw, v, fv
