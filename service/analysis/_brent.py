@@ -2,16 +2,17 @@
 
 The fold parameter's refinement (:mod:`service.analysis._fold_kernels`), the search over mu*
 (:mod:`service.analysis._profile_kernels`) and the free exponent's (a Python objective,
-:mod:`service.analysis._exponents`) each choose their own trial point (their tolerances and
-starts differ) and keep the bracket and the three best points with :func:`brent_keep`
-(Brent 1973, ch. 5; the steps of scipy's ``fminbound``).
+:mod:`service.analysis._exponents`) each choose their own trial point (their tolerances,
+starts and guards differ) from the parabola of :func:`brent_parabola` or a golden section, and
+keep the bracket and the three best points with :func:`brent_keep` (Brent 1973, ch. 5; the
+steps of scipy's ``fminbound``).
 """
 
 from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["GOLD", "brent_keep"]
+__all__ = ["GOLD", "brent_keep", "brent_parabola"]
 
 GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2: the golden section's step
 
@@ -39,3 +40,18 @@ def brent_keep(
     if fu <= fv or v == x or v == w:
         return a, b, x, fx, w, fw, u, fu
     return a, b, x, fx, w, fw, v, fv
+
+
+@njit(cache=True, inline="always")
+def brent_parabola(
+    x: float, fx: float, w: float, fw: float, v: float, fv: float
+) -> tuple[float, float]:
+    """``(p, q)``, ``q >= 0``: the step ``p / q`` from ``x`` to the vertex of the parabola
+    through the three lowest points (``q = 0``: they make none)."""
+    r = (x - w) * (fx - fv)
+    q = (x - v) * (fx - fw)
+    p = (x - v) * q - (x - w) * r
+    q = 2.0 * (q - r)
+    if q > 0.0:
+        p = -p
+    return p, abs(q)

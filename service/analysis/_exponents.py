@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from service.analysis._brent import GOLD, brent_keep
+from service.analysis._brent import GOLD, brent_keep, brent_parabola
 from service.analysis._fold_kernels import nll_exponent_rows
 from service.analysis._likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
@@ -54,13 +54,7 @@ def _brent_min(
             break
         golden = True
         if abs(e) > tol1:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            p = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
+            p, q = brent_parabola(x, fx, w, fw, v, fv)
             e_old, e = e, d
             if abs(p) < abs(0.5 * q * e_old) and q * (a - x) < p < q * (c - x):
                 d = p / q

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._brent import GOLD, brent_keep
+from service.analysis._brent import GOLD, brent_keep, brent_parabola
 from service.analysis._laws_kernels import _total, _work
 
 # tolerance (in log u) of the fold parameter's refinement: precise data make the profile over
@@ -54,13 +54,7 @@ def _refine_u(ms, a, c, xb, fxb, fa, fc, D, E, M, x_last, WK, RK, tol):
             break
         use_golden = True
         if abs(e) > tol:
-            r = (xb - w) * (fxb - fv)
-            q = (xb - v) * (fxb - fw)
-            p = (xb - v) * q - (xb - w) * r
-            q = 2.0 * (q - r)
-            if q > 0:
-                p = -p
-            q = abs(q)
+            p, q = brent_parabola(xb, fxb, w, fw, v, fv)
             if abs(p) < abs(0.5 * q * e) and p > q * (a - xb) and p < q * (c - xb):
                 e = d
                 d = p / q

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._brent import GOLD, brent_keep
+from service.analysis._brent import GOLD, brent_keep, brent_parabola
 from service.analysis._fold_kernels import (
     _profile_u,
     _profile_u_from,
@@ -124,13 +124,7 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, x0, f0, fa, fb):
             break
         golden = True
         if abs(e) > tol1:
-            r = (x - w) * (fx - fv)
-            q = (x - v) * (fx - fw)
-            p = (x - v) * q - (x - w) * r
-            q = 2.0 * (q - r)
-            if q > 0.0:
-                p = -p
-            q = abs(q)
+            p, q = brent_parabola(x, fx, w, fw, v, fv)
             e_old = e
             e = d
             if abs(p) < abs(0.5 * q * e_old) and p > q * (a - x) and p < q * (b - x):
