@@ -1,0 +1,313 @@
+"""Independent one-degree-of-freedom structures with exact truths (helpers of tests/structures).
+
+Written from the mechanics alone (numpy and scipy, nothing of ``sim`` or ``service``), so that
+the predictor can be tried on structures it was not built from. Each model has its own energy
+``V(q; P)`` under a dead control load ``P``, its equilibrium path, its stiffness ``V''`` along
+that path and its inertia; the fundamental's ``omega^2 = V'' / I`` (the product's convention:
+``sigma^2 = -omega^2`` for a stable undamped mode) and the static level ``q`` (angle or
+deflection) are what a lab measures.
+
+Link columns (a rigid bar of length ``L`` hinged at its foot, axial dead load ``P``, the angle
+``theta`` from the vertical, load potential ``-P L (1 - cos theta)``):
+
+* ``"rotational"``: a rotational spring ``M = k phi (1 + beta phi^2)`` about the stress-free
+  angle ``eps`` (``phi = theta - eps``). Perfect (``eps = 0``): pitchfork at ``P_c = k / L``,
+  post-buckling load ``P = P_c (1 + kappa theta^2 + ...)`` with ``kappa = beta + 1/6``:
+  supercritical (stiffening) for ``kappa > 0``, subcritical (softening) for ``kappa < 0``.
+* ``"lateral"``: a horizontal spring at the top, ``U = k L^2 (sin theta - sin eps)^2 / 2``
+  (Koiter's geometric softening): ``P_c = k L``, ``kappa = -1/2``.
+
+Both reduce near ``P_c`` to ``(1 - p) theta + kappa theta^3 = eps`` (``p = P / P_c``), so an
+imperfect softening column (``kappa < 0``) snaps at a limit point ``P_f`` with Koiter's
+two-thirds power law ``P_f / P_c = 1 - c eps^(2/3)``, ``c = 3 |kappa|^(1/3) / 2^(2/3)``
+(``c = 3/2`` for the lateral spring), and an imperfect stiffening one never loses stability;
+its least stiffness ``~ eps^(2/3)`` lies just above ``P_c``.
+
+Von Mises truss (two bars of stress-free length ``L0`` and axial stiffness ``k = EA / L0``,
+supports at ``+-b``, apex mass ``m``, vertical dead load ``F`` at the apex, deflection ``w``):
+``V = k (l - L0)^2 - F w``, ``l = sqrt(b^2 + (h - w)^2)``; it snaps at the saddle-node
+``F_f = 2 k (L0^(2/3) - b^(2/3))^(3/2)`` (where ``l^3 = L0 b^2``).
+
+Equilibria are found on the path parametrised by the coordinate (the load is explicit in it:
+``P(q) = U'(q) / g'(q)``), folds as roots of the stiffness along the path (``V' = V'' = 0``
+together), each by Brent's method to ``xtol = 1e-15`` (relative ``4.4e-16``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+XTOL = 1e-15  # absolute tolerance of every root (angles in rad, deflections in m)
+
+
+def _brent(f, a: float, b: float) -> float:
+    return float(optimize.brentq(f, a, b, xtol=XTOL, rtol=4 * np.finfo(float).eps, maxiter=500))
+
+
+def _first_sign_change(f, lo: float, hi: float, n: int = 4000) -> tuple[float, float] | None:
+    """The first bracket ``(a, b)`` of ``(lo, hi]`` (grid geometric from ``lo``) where ``f``
+    changes sign, or None."""
+    span = hi - lo
+    grid = lo + span * np.geomspace(1e-9, 1.0, n)
+    prev_x, prev_f = lo, f(lo)
+    for x in grid:
+        fx = f(x)
+        if np.sign(fx) != np.sign(prev_f):
+            return prev_x, float(x)
+        prev_x, prev_f = float(x), fx
+    return None
+
+
+@dataclass(frozen=True)
+class LinkColumn:
+    """A rigid-bar link column on a spring (see the module docstring).
+
+    Attributes
+    ----------
+    spring : str
+        ``"rotational"`` (linear plus cubic rotational spring at the hinge) or ``"lateral"``
+        (horizontal linear spring at the top: Koiter-type geometric softening).
+    k : float
+        Spring stiffness: N m / rad (rotational) or N / m (lateral).
+    L : float
+        Bar length (m).
+    inertia : float
+        Moment of inertia about the hinge (kg m^2).
+    beta : float
+        Cubic coefficient of the rotational spring (1/rad^2); ignored for ``"lateral"``.
+    eps : float
+        Stress-free angle (rad), the imperfection; 0 is the perfect column.
+    """
+
+    spring: str = "rotational"
+    k: float = 100.0
+    L: float = 1.0
+    inertia: float = 0.1
+    beta: float = 0.0
+    eps: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.spring not in ("rotational", "lateral"):
+            raise ValueError(f"spring must be 'rotational' or 'lateral', got {self.spring!r}")
+
+    # ---------------------------------------------------------------- energy and its derivatives
+    def spring_derivs(self, theta: float) -> tuple[float, float, float, float]:
+        """``(U, U', U'', U''')`` of the spring energy at ``theta``."""
+        k, L, e = self.k, self.L, self.eps
+        if self.spring == "rotational":
+            phi, b = theta - e, self.beta
+            return (
+                k * (0.5 * phi**2 + 0.25 * b * phi**4),
+                k * (phi + b * phi**3),
+                k * (1.0 + 3.0 * b * phi**2),
+                k * 6.0 * b * phi,
+            )
+        s, c, se = math.sin(theta), math.cos(theta), math.sin(e)
+        kl2 = k * L * L
+        return (
+            0.5 * kl2 * (s - se) ** 2,
+            kl2 * (s - se) * c,
+            kl2 * (c * c - (s - se) * s),
+            kl2 * (-3.0 * c * s - (s - se) * c),
+        )
+
+    def energy(self, theta: float, P: float) -> float:
+        """Total potential ``V(theta; P) = U - P L (1 - cos theta)`` (J)."""
+        return self.spring_derivs(theta)[0] - P * self.L * (1.0 - math.cos(theta))
+
+    def dV(self, theta: float, P: float) -> float:
+        return self.spring_derivs(theta)[1] - P * self.L * math.sin(theta)
+
+    def d2V(self, theta: float, P: float) -> float:
+        return self.spring_derivs(theta)[2] - P * self.L * math.cos(theta)
+
+    # ---------------------------------------------------------------- the equilibrium path
+    @property
+    def p_c(self) -> float:
+        """The perfect column's critical load ``U''(0) / L`` at ``eps = 0`` (N)."""
+        return self.k / self.L if self.spring == "rotational" else self.k * self.L
+
+    @property
+    def kappa(self) -> float:
+        """Post-buckling curvature of the perfect column: ``P / P_c = 1 + kappa theta^2``."""
+        return self.beta + 1.0 / 6.0 if self.spring == "rotational" else -0.5
+
+    @property
+    def koiter_c(self) -> float:
+        """Koiter's constant ``c`` of ``P_f / P_c ~ 1 - c |eps|^(2/3)`` (softening only)."""
+        if self.kappa >= 0:
+            raise ValueError("a stiffening column has no limit point")
+        return 3.0 * (-self.kappa) ** (1.0 / 3.0) / 2.0 ** (2.0 / 3.0)
+
+    @property
+    def softening(self) -> bool:
+        return self.kappa < 0
+
+    def _sign(self) -> float:
+        return -1.0 if self.eps < 0 else 1.0
+
+    def _mirror(self) -> LinkColumn:
+        """The same column with ``eps >= 0`` (the path of ``-eps`` is the mirror image)."""
+        return LinkColumn(self.spring, self.k, self.L, self.inertia, self.beta, abs(self.eps))
+
+    def load_on_path(self, theta: float) -> float:
+        """The load that holds the column in equilibrium at ``theta`` (``theta != 0``)."""
+        return self.spring_derivs(theta)[1] / (self.L * math.sin(theta))
+
+    def stiffness_on_path(self, theta: float) -> float:
+        """``V''`` at the equilibrium ``theta`` (``U'' - U' cot theta``; N m / rad)."""
+        _, d1, d2, _ = self.spring_derivs(theta)
+        return d2 - d1 * math.cos(theta) / math.sin(theta)
+
+    def _dstiffness_on_path(self, theta: float) -> float:
+        _, d1, d2, d3 = self.spring_derivs(theta)
+        s = math.sin(theta)
+        return d3 - d2 * math.cos(theta) / s + d1 / (s * s)
+
+    def fold(self) -> tuple[float, float] | None:
+        """``(theta_f, P_f)`` of the limit point of an imperfect softening column (``V' = V''
+        = 0``; ``theta_f`` signed like ``eps``), None when there is none (perfect or
+        stiffening)."""
+        if self.eps == 0.0 or not self.softening:
+            return None
+        m = self._mirror()
+        e = m.eps
+        br = _first_sign_change(m.stiffness_on_path, e, 0.5 * math.pi - 1e-9)
+        if br is None:  # pragma: no cover - every softening model here has one
+            return None
+        th = _brent(m.stiffness_on_path, *br)
+        return self._sign() * th, m.load_on_path(th)
+
+    def least_stiffness(self) -> tuple[float, float, float] | None:
+        """``(theta_min, P_min, K_min)``: the least stiffness ``V''`` along the path of an
+        imperfect stiffening column and where it occurs; None otherwise."""
+        if self.eps == 0.0 or self.softening:
+            return None
+        m = self._mirror()
+        br = _first_sign_change(m._dstiffness_on_path, m.eps, math.pi - 1e-6)
+        if br is None:  # pragma: no cover
+            return None
+        th = _brent(m._dstiffness_on_path, *br)
+        return self._sign() * th, m.load_on_path(th), m.stiffness_on_path(th)
+
+    def critical_load(self) -> float | None:
+        """The load a lab must not cross: ``P_c`` (perfect), ``P_f`` (imperfect softening),
+        None (imperfect stiffening: no loss of stability)."""
+        if self.eps == 0.0:
+            return self.p_c
+        f = self.fold()
+        return None if f is None else f[1]
+
+    def equilibrium(self, P: float) -> float:
+        """The angle on the fundamental path (the one through ``eps`` at ``P = 0``) at load
+        ``P`` (rad). Raises ValueError past the critical load."""
+        if P < 0:
+            raise ValueError(f"P must be >= 0, got {P!r}")
+        if self.eps == 0.0:
+            if P >= self.p_c:
+                raise ValueError(f"P={P!r} >= P_c={self.p_c!r}: the trivial path is unstable")
+            return 0.0
+        if P == 0.0:
+            return self.eps
+        m = self._mirror()
+        f = m.fold()
+        if f is not None:
+            if P >= f[1]:
+                raise ValueError(f"P={P!r} >= the fold load {f[1]!r}")
+            hi = f[0]
+        else:
+            hi = m.eps
+            while m.load_on_path(hi) < P:  # the stiffening path rises to infinity at pi
+                hi = hi + 0.5 * (math.pi - hi)
+        th = _brent(lambda t: m.load_on_path(t) - P, m.eps, hi)
+        return self._sign() * th
+
+    def stiffness(self, P: float) -> float:
+        """``V''`` at the fundamental equilibrium under ``P`` (N m / rad)."""
+        th = self.equilibrium(P)
+        return self.d2V(th, P)
+
+    def omega2(self, P: float) -> float:
+        """The fundamental's ``omega^2 = V'' / I`` (1/s^2) at ``P``."""
+        return self.stiffness(P) / self.inertia
+
+
+@dataclass(frozen=True)
+class VonMisesTruss:
+    """Two-bar shallow arch under a vertical apex load (see the module docstring).
+
+    Attributes
+    ----------
+    k : float
+        Axial stiffness of one bar ``EA / L0`` (N/m).
+    L0 : float
+        Stress-free bar length (m).
+    rise : float
+        Initial rise angle of the bars (rad): supports at ``+-b = +-L0 cos rise``, apex height
+        ``h = L0 sin rise``.
+    mass : float
+        Apex mass (kg); the bars are massless.
+    """
+
+    k: float = 2.0e4
+    L0: float = 1.0
+    rise: float = 0.2
+    mass: float = 1.0
+
+    @property
+    def b(self) -> float:
+        return self.L0 * math.cos(self.rise)
+
+    @property
+    def h(self) -> float:
+        return self.L0 * math.sin(self.rise)
+
+    def _l(self, w: float) -> float:
+        return math.hypot(self.b, self.h - w)
+
+    def energy(self, w: float, F: float) -> float:
+        return self.k * (self._l(w) - self.L0) ** 2 - F * w
+
+    def dV(self, w: float, F: float) -> float:
+        y, l = self.h - w, self._l(w)
+        return -2.0 * self.k * (l - self.L0) * y / l - F
+
+    def d2V(self, w: float, F: float = 0.0) -> float:
+        """``V''`` (N/m); the load is dead, so it does not enter."""
+        y, l = self.h - w, self._l(w)
+        return 2.0 * self.k * (y * y / (l * l) + (l - self.L0) * self.b**2 / l**3)
+
+    def load_on_path(self, w: float) -> float:
+        y, l = self.h - w, self._l(w)
+        return 2.0 * self.k * y * (self.L0 / l - 1.0)
+
+    def snap_load_closed_form(self) -> float:
+        """``F_f = 2 k (L0^(2/3) - b^(2/3))^(3/2)``: the saddle-node load (N)."""
+        return 2.0 * self.k * (self.L0 ** (2 / 3) - self.b ** (2 / 3)) ** 1.5
+
+    def fold(self) -> tuple[float, float]:
+        """``(w_f, F_f)`` by root finding of ``V''`` along the path (``V' = V'' = 0``)."""
+        w_f = _brent(self.d2V, 0.0, self.h)
+        return w_f, self.load_on_path(w_f)
+
+    def critical_load(self) -> float:
+        return self.fold()[1]
+
+    def equilibrium(self, F: float) -> float:
+        """Apex deflection on the fundamental path at ``F`` (m)."""
+        w_f, F_f = self.fold()
+        if not 0 <= F < F_f:
+            raise ValueError(f"F={F!r} outside [0, F_f={F_f!r})")
+        if F == 0.0:
+            return 0.0
+        return _brent(lambda w: self.load_on_path(w) - F, 0.0, w_f)
+
+    def stiffness(self, F: float) -> float:
+        return self.d2V(self.equilibrium(F))
+
+    def omega2(self, F: float) -> float:
+        return self.stiffness(F) / self.mass
