@@ -15,7 +15,23 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[dev]'
 	touch $(STAMP)
 
-setup: $(STAMP)
+## numba's kernels compiled once, here, not at first use: the warm-up runs every public path
+## on tiny inputs and numba caches what it compiles (__pycache__ next to the sources). Run again
+## whenever the numerics' sources change. numba keys a kernel's cache by its own file only, so
+## a kernel calling a changed kernel of another module would keep a stale copy: when a file
+## that defines kernels changed, every cached kernel is dropped first and compiled again.
+KSTAMP     := $(VENV)/.kernels-stamp
+KERNEL_SRC := $(shell find sim service/analysis -name '*.py' 2>/dev/null) service/warmup.py
+
+$(KSTAMP): $(STAMP) $(KERNEL_SRC)
+	@if [ -f $(KSTAMP) ] && [ -n "$$(find sim service/analysis -name '*.py' -newer $(KSTAMP) \
+	    | xargs -r grep -l '@njit')" ]; then \
+	  echo "kernel sources changed: dropping numba's cache"; $(MAKE) --no-print-directory clean-kernels; fi
+	@echo "numba kernels: compiling what the cache lacks (a few minutes on a fresh install)"
+	$(BIN)/python -m service.warmup || echo "WARNING: the kernel warm-up failed on a path (above): those kernels compile at first use"
+	@touch $(KSTAMP)
+
+setup: $(STAMP) $(KSTAMP)
 
 ## The main job on embedded defaults.
 demo: setup
@@ -55,6 +71,7 @@ clean: clean-kernels
 	rm -rf $(VENV) .pytest_cache build *.egg-info
 
 ## numba's compiled kernels: a kernel's cache is not refreshed when a kernel it calls, in
-## another module, changes (run this after editing one).
+## another module, changes (`make setup` does this itself when a kernel file changed).
 clean-kernels:
 	find sim service -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -f $(KSTAMP)

@@ -1,9 +1,10 @@
 """Progress on stderr that tells the truth.
 
-- Long numerics first compile their numba kernels (tens of seconds on a fresh install, about a
-  second from the cache afterwards). :func:`warm_kernels` runs each kernel once on a tiny input
-  under its own stage, "compiling kernels (first run only)", so that no bar sits at 0 % with a
-  made-up ETA while the compiler works.
+- Long numerics first load their numba kernels (compiled once by ``make setup``, about a second
+  from the cache). :func:`warm_kernels` runs each kernel once on a tiny input before the bars;
+  only when numba must compile one (a cache missing or out of date: tens of seconds) does it
+  say so, as its own stage "compiling kernels (first run only)", so that no bar sits at 0 %
+  with a made-up ETA while the compiler works.
 - A bar shows the fraction done and the elapsed time, never an ETA (the steps of a sweep do not
   take equal times), and ends at 100 % when the work ends, also when a sweep stops early
   (converged before its budget of measurements).
@@ -132,34 +133,44 @@ def make_progress(enabled: bool, label: str = "", **kw: Any) -> Progress | None:
 def warm_kernels(models: tuple[str, ...] = (), *, enabled: bool = True,
                  stream: TextIO | None = None) -> float:  # fmt: skip
     """Run the detector, the predictor and the simulators of ``models`` once on tiny inputs,
-    under the stage "compiling kernels (first run only)": numba compiles them on a fresh
-    install (or loads them from its cache). Returns the seconds it took."""
+    so that no progress bar sits at 0 % while numba works. Their kernels load from numba's
+    cache (filled by ``make setup``: ``service.warmup``); only when one must be compiled (a
+    cache missing or out of date) is the stage "compiling kernels (first run only)" written,
+    with its time when done. Returns the seconds it took."""
     import numpy as np
+
+    from service.warmup import watch_compiles
 
     t0 = time.monotonic()
     out = stream if stream is not None else sys.stderr
     tty = out.isatty()
-    if enabled:
-        out.write(f"{COMPILE_STAGE}..." + ("" if tty else "\n"))
-        out.flush()
-    from service.analysis.detect import detect
-    from service.analysis.predict import predict
+    said: list[bool] = []
 
-    t = np.arange(400) * 0.05
-    rng = np.random.default_rng(0)
-    detect(np.exp(-0.05 * t) * np.cos(t) + 1e-3 * rng.standard_normal(t.size), dt=0.05)
-    mu = np.linspace(0.0, 1.6, 6)
-    predict(mu, -np.sqrt(2.0 - mu))  # a fold's law: sigma^2 ~ -(mu* - mu)^(1/2)
-    if models:
-        from sim import simulate
-        from sim.scene import Scene
+    def announce() -> None:
+        if enabled:
+            out.write(f"{COMPILE_STAGE}..." + ("" if tty else "\n"))
+            out.flush()
+            said.append(True)
 
-        for model in models:
-            if model not in ("euler-beam", "normal-form"):
-                continue  # the Cosserat rod compiles during its first measurement
-            simulate(Scene(actuation="asymmetric", mu=0.5, snr_db=40.0, seed=1), model)
+    with watch_compiles(announce):
+        from service.analysis.detect import detect
+        from service.analysis.predict import predict
+
+        t = np.arange(400) * 0.05
+        rng = np.random.default_rng(0)
+        detect(np.exp(-0.05 * t) * np.cos(t) + 1e-3 * rng.standard_normal(t.size), dt=0.05)
+        mu = np.linspace(0.0, 1.6, 6)
+        predict(mu, -np.sqrt(2.0 - mu))  # a fold's law: sigma^2 ~ -(mu* - mu)^(1/2)
+        if models:
+            from sim import simulate
+            from sim.scene import Scene
+
+            for model in models:
+                if model not in ("euler-beam", "normal-form"):
+                    continue  # the Cosserat rod loads its kernels during its first measurement
+                simulate(Scene(actuation="asymmetric", mu=0.5, snr_db=40.0, seed=1), model)
     seconds = time.monotonic() - t0
-    if enabled:
+    if said:
         out.write(f"{chr(13) if tty else ''}{COMPILE_STAGE}: done in {seconds:.1f} s\n")
         out.flush()
     return seconds

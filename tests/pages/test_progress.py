@@ -62,7 +62,26 @@ def test_terminal_bar_ends_at_100_without_eta() -> None:
     assert "<" not in text and "?" not in text  # tqdm's ETA ("<00:10") is not drawn
 
 
-def test_compile_stage_is_announced_and_timed() -> None:
+def test_compile_stage_is_silent_when_nothing_compiles() -> None:
+    warm_kernels((), enabled=False)  # whatever the cache held, these kernels are now loaded
+    out = io.StringIO()
+    seconds = warm_kernels((), stream=out)
+    assert out.getvalue() == ""  # "first run only" is not said on a run that compiles nothing
+    assert seconds >= 0
+
+
+def test_compile_stage_is_announced_and_timed_when_a_kernel_compiles(monkeypatch) -> None:
+    import numba
+
+    import service.analysis.detect as detect_pkg
+
+    real = detect_pkg.detect
+
+    def detect_compiling(*args, **kw):  # a kernel numba has never seen: a real compilation
+        numba.njit(cache=False)(lambda x: x + 1.0)(1.0)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(detect_pkg, "detect", detect_compiling)
     out = io.StringIO()
     seconds = warm_kernels((), stream=out)
     lines = out.getvalue().splitlines()
