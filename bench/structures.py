@@ -1,0 +1,348 @@
+"""Today's predictor on structures it was not built from: link columns and von Mises trusses,
+perfect and imperfect, with exact truths (the independent generators of tests/structures).
+
+    python bench/structures.py [--plans N (40)] [--seed S (2028)] [--quick] [--workers W (1)]
+                               [--input mixed|sigma2|sigma2-no-std|omega|omega-no-std]
+                               [--cli N (2)] [--out NAME (structures)]
+
+Per kind of structure (:data:`_struct_plans.KINDS`: perfect softening / stiffening columns, an
+imperfect softening column that snaps at a fold before ``P_c``, an imperfect stiffening column
+that never loses stability, the truss's saddle-node) ``N`` random lab plans
+(``_struct_plans.random_plan``: coarse and fine grids, stops 1e-3 to 1e-1 before the load the
+lab must not cross, noise 1e-5 to 1e-3, static data in half; ``--input mixed`` draws the table's
+form per plan: sigma2 with or without its std, omega with or without) go through
+``service.analysis.predict.predict``; ``--cli`` of them per kind also through
+``snapwarn predict <table.csv> --json``, whose answer must be the same.
+
+The tables (per kind and model family) give: the types named (counts) and the median
+probability of the named type; right and confidently wrong names (a wrong name with p >= 0.9);
+the coverage of the truth by the 95 % interval (the fold for imperfect softening, ``P_c`` for
+perfect columns, the snap load of the truss) and the intervals wholly later than it (the
+dangerous side); for stiffening imperfect columns (no loss of stability): a snap named with
+p >= 0.9, the snap probability ``p(saddle-node) + p(subcritical)`` >= 0.9, "no transition" said
+(over all plans and over plans that reach within 1 % of ``P_c``); mu* outside its own interval;
+flags contradicting the interval (``mu_star_at_last_point`` or ``interval_reaches_last_point``
+with an interval above the last load, ``interval_huge`` quoting another interval); median
+errors ``|mu* - truth| / truth`` ours and the paper's rule (``baseline``), and in interval
+half-widths (the half on the truth's side).
+
+Writes bench/results/<out>.csv (one row per plan) and <out>.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import multiprocessing as mp
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "structures"))
+
+from _struct_plans import INPUTS, KINDS, Plan, random_plan  # noqa: E402
+
+from service.analysis.predict import predict  # noqa: E402
+
+OUT = ROOT / "bench" / "results"
+SEED = 2028
+NONE_NAMES = ("none", "smooth", "no-transition", "no-loss-of-stability", "stable")
+SNAP_NAMES = ("saddle-node", "subcritical-pitchfork")
+#: names that are right for each kind (a plain "pitchfork" is right for a perfect column's
+#: pitchfork when the data cannot tell sub from super, as in bench/calibration.py)
+RIGHT = {
+    "perfect-softening": ("subcritical-pitchfork", "pitchfork"),
+    "perfect-stiffening": ("supercritical-pitchfork", "pitchfork"),
+    "imperfect-softening": ("saddle-node", "subcritical-pitchfork"),
+    "imperfect-stiffening": NONE_NAMES,
+    "truss": ("saddle-node",),
+}
+#: names that are wrong (a withheld type, "undetermined", is neither)
+WRONG = {
+    "perfect-softening": ("saddle-node", "supercritical-pitchfork", *NONE_NAMES),
+    "perfect-stiffening": ("saddle-node", "subcritical-pitchfork", *NONE_NAMES),
+    "imperfect-softening": ("supercritical-pitchfork", "pitchfork", *NONE_NAMES),
+    "imperfect-stiffening": SNAP_NAMES,
+    "truss": ("pitchfork", "subcritical-pitchfork", "supercritical-pitchfork", *NONE_NAMES),
+}
+
+
+def draw_plans(n: int, seed: int, input_: str) -> list[Plan]:
+    """``n`` plans per kind, drawn in a fixed order from ``seed``."""
+    rng = np.random.default_rng(seed)
+    plans = []
+    for kind in KINDS:
+        for _ in range(n):
+            inp = str(rng.choice(INPUTS, p=[0.4, 0.2, 0.2, 0.2])) if input_ == "mixed" else input_
+            plans.append(random_plan(rng, kind, index=len(plans), input=inp))
+    return plans
+
+
+def _input_of(p: Plan) -> str:
+    if p.sigma2 is not None:
+        return "sigma2" if p.sigma2_std is not None else "sigma2-no-std"
+    return "omega" if p.omega_std is not None else "omega-no-std"
+
+
+def contradictions(
+    flags: list[tuple[str, str]], mu_star: float, lo: float, hi: float, last: float
+) -> list[str]:
+    """Codes of flags that say something about mu* or its interval that the result's own
+    numbers deny."""
+    bad = []
+    tol = 1e-6 * max(abs(last), 1.0)
+    for code, msg in flags:
+        if code == "mu_star_at_last_point" and (mu_star > last + tol or lo > last + tol):
+            bad.append(code)
+        elif code == "interval_reaches_last_point" and lo > last + tol:
+            bad.append(code)
+        elif code == "interval_huge":
+            m = re.search(r"\[([-+0-9.eE]+), ([-+0-9.eE]+)\]", msg)
+            if m and not (
+                math.isclose(float(m.group(1)), lo, rel_tol=1e-5)
+                and math.isclose(float(m.group(2)), hi, rel_tol=1e-5)
+            ):
+                bad.append(code)
+    return bad
+
+
+def evaluate(p: Plan) -> dict[str, Any]:
+    """Run the predictor on one plan and score it against the plan's truth."""
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {
+        "index": p.index, "kind": p.kind, "family": p.family, "input": _input_of(p),
+        "static": p.w_static is not None, "n": p.mu.size, "stop": p.stop, "eps": p.eps,
+        "rel": p.rel, "truth": p.transition, "critical": p.critical, "p_c": p.p_c,
+        "least_load": p.least_stiffness_load, "last": float(p.mu[-1]),
+    }  # fmt: skip
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = predict(p.mu, **p.predict_kwargs())
+    except Exception as exc:  # noqa: BLE001 - a refusal is a result to count
+        row.update(error=f"{type(exc).__name__}: {exc}"[:200], seconds=time.perf_counter() - t0)
+        return row
+    lo, hi = r.mu_star_interval
+    probs = dict(r.probabilities)
+    named = r.transition
+    flags = [(f.code, f.message) for f in r.flags]
+    row.update(
+        error="",
+        named=named,
+        p_named=probs.get(named, math.nan),
+        p_snap=probs.get("saddle-node", 0.0) + probs.get("subcritical-pitchfork", 0.0),
+        probs=json.dumps({k: round(v, 4) for k, v in probs.items()}),
+        mu_star=r.mu_star,
+        lo=lo,
+        hi=hi,
+        baseline=r.baseline.mu_star if r.baseline is not None else math.nan,
+        star_outside=not (lo <= r.mu_star <= hi),
+        contradicting=" ".join(contradictions(flags, r.mu_star, lo, hi, float(p.mu[-1]))),
+        flags=" ".join(c for c, _ in flags),
+        alarm=r.alarm.level,
+        seconds=time.perf_counter() - t0,
+    )
+    row["right"] = named in RIGHT[p.kind]
+    row["wrong"] = named in WRONG[p.kind]
+    row["confident_wrong"] = row["wrong"] and probs.get(named, 1.0) >= 0.9
+    row["said_none"] = named in NONE_NAMES
+    row["snap_named_p90"] = named in SNAP_NAMES and probs.get(named, 1.0) >= 0.9
+    if p.critical is not None:
+        c = p.critical
+        row["covers"] = lo <= c <= hi
+        row["late"] = lo > c
+        row["err"] = abs(r.mu_star - c) / c
+        row["err_base"] = abs(row["baseline"] - c) / c if math.isfinite(row["baseline"]) else ""
+        half = (hi - r.mu_star) if c >= r.mu_star else (r.mu_star - lo)
+        row["err_widths"] = abs(r.mu_star - c) / half if half > 0 else math.inf
+    return row
+
+
+def run_cli(plans: list[Plan], results: dict[int, dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each plan's table through ``snapwarn predict --json``: its answer against the API's."""
+    exe = Path(sys.executable).with_name("snapwarn")
+    out = []
+    with tempfile.TemporaryDirectory() as d:
+        for p in plans:
+            f = Path(d) / f"plan{p.index}.csv"
+            f.write_text(p.csv_text())
+            cmd = [str(exe), "predict", str(f), "--json"]
+            if p.damping is not None:
+                cmd += ["--damping", repr(p.damping)]
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+            api = results[p.index]
+            rec: dict[str, Any] = {"index": p.index, "kind": p.kind, "rc": proc.returncode}
+            if proc.returncode == 0:
+                doc = json.loads(proc.stdout)
+                rec.update(transition=doc["transition"], mu_star=doc["mu_star"],
+                           interval=doc["mu_star_interval"])  # fmt: skip
+                rec["same"] = (
+                    doc["transition"] == api.get("named")
+                    and math.isclose(doc["mu_star"], api.get("mu_star", math.nan), rel_tol=1e-9)
+                    and math.isclose(doc["mu_star_interval"][0], api["lo"], rel_tol=1e-9)
+                    and math.isclose(doc["mu_star_interval"][1], api["hi"], rel_tol=1e-9)
+                )
+            else:
+                rec.update(same=bool(api.get("error")), stderr=proc.stderr[-300:])
+            out.append(rec)
+    return out
+
+
+# ------------------------------------------------------------------------------- the tables
+def _frac(rows: list[dict[str, Any]], key: str) -> str:
+    v = [bool(r.get(key)) for r in rows if key in r]
+    return f"{sum(v)}/{len(v)}" if v else "-"
+
+
+def _med(rows: list[dict[str, Any]], key: str) -> str:
+    v = [float(r[key]) for r in rows if r.get(key, "") != "" and math.isfinite(float(r[key]))]
+    return f"{np.median(v):.2g}" if v else "-"
+
+
+def _names(rows: list[dict[str, Any]]) -> str:
+    names: dict[str, list[float]] = {}
+    for r in rows:
+        if r.get("error"):
+            names.setdefault("error", []).append(math.nan)
+        else:
+            names.setdefault(r["named"], []).append(float(r["p_named"]))
+    parts = []
+    for k, ps in sorted(names.items(), key=lambda kv: -len(kv[1])):
+        ps_f = [x for x in ps if math.isfinite(x)]
+        med = f" p~{np.median(ps_f):.2f}" if ps_f else ""
+        parts.append(f"{k} {len(ps)}{med}")
+    return "; ".join(parts)
+
+
+def summary(rows: list[dict[str, Any]]) -> list[dict[str, str]]:
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["kind"], r["family"]), []).append(r)
+        groups.setdefault((r["kind"], "all"), []).append(r)
+    out = []
+
+    def order(kv: tuple[tuple[str, str], Any]) -> tuple[int, bool, str]:
+        (kind, fam), _ = kv
+        return KINDS.index(kind), fam == "all", fam
+
+    for (kind, fam), g in sorted(groups.items(), key=order):
+        if fam == "all" and len({r["family"] for r in g}) == 1:
+            continue
+        ok = [r for r in g if not r.get("error")]
+        near = [r for r in ok if r["stop"] <= 0.01]
+        out.append({
+            "kind": kind, "family": fam, "plans": str(len(g)),
+            "errors": str(len(g) - len(ok)),
+            "named (count, median p)": _names(g),
+            "right": _frac(ok, "right"), "confident wrong": _frac(ok, "confident_wrong"),
+            "covers": _frac(ok, "covers"), "late": _frac(ok, "late"),
+            "snap p>=0.9 named": (_frac(ok, "snap_named_p90")
+                                  if kind == "imperfect-stiffening" else "-"),
+            "p(snap)>=0.9": (f"{sum(r['p_snap'] >= 0.9 for r in ok)}/{len(ok)}"
+                             if kind == "imperfect-stiffening" else "-"),
+            "none said": _frac(ok, "said_none") if kind == "imperfect-stiffening" else "-",
+            "none said (within 1 %)": (_frac(near, "said_none")
+                                       if kind == "imperfect-stiffening" else "-"),
+            "mu* outside": _frac(ok, "star_outside"),
+            "flag contradicts": f"{sum(bool(r['contradicting']) for r in ok)}/{len(ok)}",
+            "median err": _med(ok, "err"), "median err rule": _med(ok, "err_base"),
+            "median err/half": _med(ok, "err_widths"),
+        })  # fmt: skip
+    return out
+
+
+def write(
+    rows: list[dict[str, Any]],
+    cli: list[dict[str, Any]],
+    args: argparse.Namespace,
+    name: str,
+    wall: float,
+) -> None:
+    OUT.mkdir(parents=True, exist_ok=True)
+    keys: list[str] = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    with open(OUT / f"{name}.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if r.get(k) is None else r.get(k, "")) for k in keys})
+    summ = summary(rows)
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True).stdout.strip()  # fmt: skip
+    dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "service"],
+                           capture_output=True, text=True).stdout.strip()  # fmt: skip
+    cmd = "python bench/structures.py " + " ".join(sys.argv[1:])
+    lines = [
+        "# The predictor on independent structures (bench/structures.py)",
+        "",
+        f"`{cmd.strip()}` on commit {commit}{' (service/ modified)' if dirty else ''}: "
+        f"{len(rows)} plans ({args.plans} per kind, seed {args.seed}, input {args.input}), "
+        f"{wall:.0f} s wall.",
+        "",
+        "Truths: imperfect softening = the fold (limit point) load, perfect = P_c, truss = its "
+        "snap load; imperfect stiffening has none (no loss of stability). 'late' = the 95 % "
+        "interval wholly later than the truth (the dangerous side); 'confident wrong' = a wrong "
+        "type named with p >= 0.9; 'within 1 %' = plans whose last load is within 1 % of P_c.",
+        "",
+    ]
+    cols = list(summ[0]) if summ else []
+    lines.append("| " + " | ".join(cols) + " |")
+    lines.append("|" + "---|" * len(cols))
+    for s in summ:
+        lines.append("| " + " | ".join(s[c] for c in cols) + " |")
+    if cli:
+        same = sum(bool(c["same"]) for c in cli)
+        lines += ["", f"CLI (`snapwarn predict <table.csv> --json`): {same}/{len(cli)} plans give "
+                  "the API's answer (type, mu*, interval to 1e-9)."]  # fmt: skip
+        for c in cli:
+            if not c["same"]:
+                lines.append(f"- plan {c['index']} ({c['kind']}): {json.dumps(c)[:300]}")
+    errs = [r for r in rows if r.get("error")]
+    if errs:
+        lines += ["", "Refusals:"] + [f"- plan {r['index']} ({r['kind']}): {r['error']}"
+                                      for r in errs[:20]]  # fmt: skip
+    (OUT / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--plans", type=int, default=40, help="plans per kind")
+    ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument("--quick", action="store_true", help="5 plans per kind, 1 through the CLI")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--input", default="mixed", choices=("mixed", *INPUTS))
+    ap.add_argument("--cli", type=int, default=2, help="plans per kind also run through the CLI")
+    ap.add_argument("--out", default=None, help="results name (default structures[_quick])")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.plans, args.cli = 5, 1
+    name = args.out or ("structures_quick" if args.quick else "structures")
+    t0 = time.perf_counter()
+    plans = draw_plans(args.plans, args.seed, args.input)
+    if args.workers > 1:
+        with mp.get_context("spawn").Pool(args.workers) as pool:
+            rows = pool.map(evaluate, plans, chunksize=1)
+    else:
+        rows = [evaluate(p) for p in plans]
+    by_index = {r["index"]: r for r in rows}
+    cli_plans = [p for k in KINDS for p in [q for q in plans if q.kind == k][: args.cli]]
+    cli = run_cli(cli_plans, by_index) if args.cli > 0 else []
+    write(rows, cli, args, name, time.perf_counter() - t0)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
