@@ -294,7 +294,11 @@ def write(
         "Truths: imperfect softening = the fold (limit point) load, perfect = P_c, truss = its "
         "snap load; imperfect stiffening has none (no loss of stability). 'late' = the 95 % "
         "interval wholly later than the truth (the dangerous side); 'confident wrong' = a wrong "
-        "type named with p >= 0.9; 'within 1 %' = plans whose last load is within 1 % of P_c.",
+        "type named with p >= 0.9; 'within 1 %' = plans whose last load is within 1 % of P_c. "
+        "Right names: perfect columns their pitchfork (or 'pitchfork'), imperfect softening "
+        "saddle-node or subcritical (a snap), imperfect stiffening 'none' (no transition), "
+        "truss saddle-node; a plain 'pitchfork' for an imperfect softening column is wrong "
+        "(it has no pitchfork: it snaps at a fold); 'undetermined' (type withheld) is neither.",
         "",
     ]
     cols = list(summ[0]) if summ else []

@@ -330,3 +330,44 @@ def impulse_record(
     rng = rng if rng is not None else np.random.default_rng(i)
     peak = float(np.max(np.abs(x)))
     return plan.q_true[i] + x + noise * peak * rng.standard_normal(n)
+
+
+def write_records(
+    plan: Plan,
+    folder: Any,
+    *,
+    zeta: float = 0.01,
+    noise: float = 1e-3,
+    periods: float = 12.0,
+    samples_per_period: float = 20.0,
+    max_samples: int = 200_000,
+    seed: int = 0,
+) -> Any:
+    """The plan as a lab's impulse records: one CSV ``t,w`` per load and a manifest
+    ``path,control`` (the ``snapwarn sweep`` door), returned as the manifest's path.
+
+    One sample step for every record (``samples_per_period`` samples in the fastest period)
+    and one length (``periods`` periods of the slowest, at most ``max_samples``); the damping
+    ``xi = 2 zeta omega_0`` of the first (least loaded) record, the same at every load (so the
+    damping ratio grows as the mode softens).
+    """
+    from pathlib import Path
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    om = np.sqrt(plan.omega2_true)
+    dt = 2.0 * math.pi / float(om.max()) / samples_per_period
+    n = int(min(max_samples, math.ceil(periods * 2.0 * math.pi / float(om.min()) / dt)))
+    xi = 2.0 * zeta * float(om[0])
+    rng = np.random.default_rng(seed)
+    lines = ["path,control"]
+    for i, P in enumerate(plan.mu):
+        w = impulse_record(plan, i, dt=dt, n=n, damping=xi, noise=noise, rng=rng)
+        t = dt * np.arange(n)
+        name = f"rec{i:03d}.csv"
+        body = "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(t, w))
+        (folder / name).write_text("t,w\n" + body + "\n")
+        lines.append(f"{name},{float(P)!r}")
+    manifest = folder / "manifest.csv"
+    manifest.write_text("\n".join(lines) + "\n")
+    return manifest

@@ -16,7 +16,7 @@ from scipy import integrate, optimize
 sys.path.insert(0, str(Path(__file__).parent))
 
 from _struct_models import LinkColumn, VonMisesTruss  # noqa: E402
-from _struct_plans import KINDS, impulse_record, random_plan  # noqa: E402
+from _struct_plans import KINDS, impulse_record, random_plan, write_records  # noqa: E402
 
 SOFT = [
     LinkColumn("lateral", k=100.0, L=1.0, inertia=0.1),
@@ -251,3 +251,20 @@ def test_impulse_record_solves_the_oscillator(xi_ratio: float) -> None:
                               [0.0, 1.0], t_eval=dt * np.arange(800), rtol=1e-11,
                               atol=1e-14)  # fmt: skip
     np.testing.assert_allclose(w - p.q_true[i], sol.y[0], atol=1e-8 * np.abs(sol.y[0]).max())
+
+
+def test_records_and_manifest_for_the_sweep_door(tmp_path: Path) -> None:
+    p = random_plan(np.random.default_rng(8), "truss", grid="coarse", stop=1e-2)
+    m = write_records(p, tmp_path, max_samples=3000, seed=1)
+    rows = m.read_text().splitlines()
+    assert rows[0] == "path,control" and len(rows) == p.mu.size + 1
+    name, ctrl = rows[-1].split(",")
+    assert float(ctrl) == p.mu[-1]
+    data = np.loadtxt(tmp_path / name, delimiter=",", skiprows=1)
+    assert data.shape[1] == 2 and 100 < data.shape[0] <= 3000
+    dt = data[1, 0] - data[0, 0]
+    # the noise-free response about the static level, written to 9 digits
+    xi = 2 * 0.01 * math.sqrt(p.omega2_true[0])
+    w = impulse_record(p, p.mu.size - 1, dt=dt, n=data.shape[0], damping=xi, noise=0.0)
+    peak = np.abs(w - p.q_true[-1]).max()
+    assert np.max(np.abs(data[:, 1] - w)) < 6 * 1e-3 * peak
