@@ -12,7 +12,10 @@ that never loses stability, the truss's saddle-node) ``N`` random lab plans
 lab must not cross, noise 1e-5 to 1e-3, static data in half; ``--input mixed`` draws the table's
 form per plan: sigma2 with or without its std, omega with or without) go through
 ``service.analysis.predict.predict``; ``--cli`` of them per kind also through
-``snapwarn predict <table.csv> --json``, whose answer must be the same.
+``snapwarn predict <table.csv> --json``, whose answer must be the same; ``--records`` of
+them per kind as impulse records (a damped oscillator about the equilibrium, 1 % damping at
+the first load, noise 1e-3 of the peak) through ``snapwarn sweep <manifest> --json``, scored
+the same way (a table of their own).
 
 The tables (per kind and model family) give: the types named (counts) and the median
 probability of the named type; right and confidently wrong names (a wrong name with p >= 0.9);
@@ -117,41 +120,40 @@ def contradictions(
     return bad
 
 
-def evaluate(p: Plan) -> dict[str, Any]:
-    """Run the predictor on one plan and score it against the plan's truth."""
-    t0 = time.perf_counter()
-    row: dict[str, Any] = {
+def _plan_row(p: Plan) -> dict[str, Any]:
+    return {
         "index": p.index, "kind": p.kind, "family": p.family, "input": _input_of(p),
         "static": p.w_static is not None, "n": p.mu.size, "stop": p.stop, "eps": p.eps,
         "rel": p.rel, "truth": p.transition, "critical": p.critical, "p_c": p.p_c,
         "least_load": p.least_stiffness_load, "last": float(p.mu[-1]),
     }  # fmt: skip
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            r = predict(p.mu, **p.predict_kwargs())
-    except Exception as exc:  # noqa: BLE001 - a refusal is a result to count
-        row.update(error=f"{type(exc).__name__}: {exc}"[:200], seconds=time.perf_counter() - t0)
-        return row
-    lo, hi = r.mu_star_interval
-    probs = dict(r.probabilities)
-    named = r.transition
-    flags = [(f.code, f.message) for f in r.flags]
+
+
+def score(p: Plan, row: dict[str, Any], doc: dict[str, Any]) -> dict[str, Any]:
+    """Score one answer (the wire document of a prediction: ``transition``,
+    ``probabilities``, ``mu_star``, ``mu_star_interval``, ``flags``, ``baseline``, ``alarm``)
+    against the plan's truth, into ``row``."""
+    lo, hi = (float(x) for x in doc["mu_star_interval"])
+    mu_star = float(doc["mu_star"])
+    probs = dict(doc.get("probabilities") or {})
+    named = doc["transition"]
+    flags = [(f["code"], f["message"]) for f in doc.get("flags") or []]
+    base = doc.get("baseline")
+    base_mu = float(base["mu_star"]) if base and base.get("mu_star") is not None else math.nan
     row.update(
         error="",
         named=named,
         p_named=probs.get(named, math.nan),
         p_snap=probs.get("saddle-node", 0.0) + probs.get("subcritical-pitchfork", 0.0),
         probs=json.dumps({k: round(v, 4) for k, v in probs.items()}),
-        mu_star=r.mu_star,
+        mu_star=mu_star,
         lo=lo,
         hi=hi,
-        baseline=r.baseline.mu_star if r.baseline is not None else math.nan,
-        star_outside=not (lo <= r.mu_star <= hi),
-        contradicting=" ".join(contradictions(flags, r.mu_star, lo, hi, float(p.mu[-1]))),
+        baseline=base_mu,
+        star_outside=not (lo <= mu_star <= hi),
+        contradicting=" ".join(contradictions(flags, mu_star, lo, hi, float(p.mu[-1]))),
         flags=" ".join(c for c, _ in flags),
-        alarm=r.alarm.level,
-        seconds=time.perf_counter() - t0,
+        alarm=(doc.get("alarm") or {}).get("level", ""),
     )
     row["right"] = named in RIGHT[p.kind]
     row["wrong"] = named in WRONG[p.kind]
@@ -162,11 +164,55 @@ def evaluate(p: Plan) -> dict[str, Any]:
         c = p.critical
         row["covers"] = lo <= c <= hi
         row["late"] = lo > c
-        row["err"] = abs(r.mu_star - c) / c
-        row["err_base"] = abs(row["baseline"] - c) / c if math.isfinite(row["baseline"]) else ""
-        half = (hi - r.mu_star) if c >= r.mu_star else (r.mu_star - lo)
-        row["err_widths"] = abs(r.mu_star - c) / half if half > 0 else math.inf
+        row["err"] = abs(mu_star - c) / c
+        row["err_base"] = abs(base_mu - c) / c if math.isfinite(base_mu) else ""
+        half = (hi - mu_star) if c >= mu_star else (mu_star - lo)
+        row["err_widths"] = abs(mu_star - c) / half if half > 0 else math.inf
     return row
+
+
+def evaluate(p: Plan) -> dict[str, Any]:
+    """Run the predictor on one plan and score it against the plan's truth."""
+    from service import convert
+
+    t0 = time.perf_counter()
+    row = _plan_row(p)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = predict(p.mu, **p.predict_kwargs())
+    except Exception as exc:  # noqa: BLE001 - a refusal is a result to count
+        row.update(error=f"{type(exc).__name__}: {exc}"[:200], seconds=time.perf_counter() - t0)
+        return row
+    score(p, row, convert.prediction(r).model_dump(mode="json"))
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def run_records(plans: list[Plan], max_samples: int) -> list[dict[str, Any]]:
+    """Each plan as impulse records (``_struct_plans.write_records``: a damped oscillator about
+    the equilibrium, noise 1e-3 of the peak) through ``snapwarn sweep <manifest> --json``."""
+    from _struct_plans import write_records
+
+    exe = Path(sys.executable).with_name("snapwarn")
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for p in plans:
+            t0 = time.perf_counter()
+            row = _plan_row(p)
+            row["input"] = "records"
+            m = write_records(p, Path(d) / f"plan{p.index}", max_samples=max_samples,
+                              seed=p.index)  # fmt: skip
+            cmd = [str(exe), "sweep", str(m), "--json", "--no-progress"]
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+            doc = json.loads(proc.stdout) if proc.returncode == 0 else None
+            if doc is None or doc.get("prediction") is None:
+                row["error"] = (proc.stderr.strip().splitlines() or ["no prediction"])[-1][:200]
+            else:
+                score(p, row, doc["prediction"])
+            row["seconds"] = time.perf_counter() - t0
+            rows.append(row)
+    return rows
 
 
 def run_cli(plans: list[Plan], results: dict[int, dict[str, Any]]) -> list[dict[str, Any]]:
@@ -268,6 +314,7 @@ def write(
     args: argparse.Namespace,
     name: str,
     wall: float,
+    recs: list[dict[str, Any]] | None = None,
 ) -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     keys: list[str] = []
@@ -313,7 +360,25 @@ def write(
         for c in cli:
             if not c["same"]:
                 lines.append(f"- plan {c['index']} ({c['kind']}): {json.dumps(c)[:300]}")
-    errs = [r for r in rows if r.get("error")]
+    if recs:
+        rsum = summary(recs)
+        lines += [
+            "",
+            "The same plans as impulse records (`snapwarn sweep <manifest> --json`, "
+            f"{len(recs)} plans, at most {args.max_samples} samples a record):",
+            "",
+        ]
+        lines.append("| " + " | ".join(cols) + " |")
+        lines.append("|" + "---|" * len(cols))
+        for s in rsum:
+            lines.append("| " + " | ".join(s[c] for c in cols) + " |")
+        with open(OUT / f"{name}_records.csv", "w", newline="") as fh:
+            keys = list(dict.fromkeys(k for r in recs for k in r))
+            w = csv.DictWriter(fh, fieldnames=keys)
+            w.writeheader()
+            for r in recs:
+                w.writerow({k: ("" if r.get(k) is None else r.get(k, "")) for k in keys})
+    errs = [r for r in rows + (recs or []) if r.get("error")]
     if errs:
         lines += ["", "Refusals:"] + [f"- plan {r['index']} ({r['kind']}): {r['error']}"
                                       for r in errs[:20]]  # fmt: skip
@@ -329,6 +394,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--input", default="mixed", choices=("mixed", *INPUTS))
     ap.add_argument("--cli", type=int, default=2, help="plans per kind also run through the CLI")
+    ap.add_argument(
+        "--records",
+        type=int,
+        default=0,
+        help="plans per kind also run as impulse records through snapwarn sweep",
+    )
+    ap.add_argument("--max-samples", type=int, default=50_000, help="per record (--records)")
     ap.add_argument("--out", default=None, help="results name (default structures[_quick])")
     args = ap.parse_args(argv)
     if args.quick:
@@ -344,7 +416,9 @@ def main(argv: list[str] | None = None) -> int:
     by_index = {r["index"]: r for r in rows}
     cli_plans = [p for k in KINDS for p in [q for q in plans if q.kind == k][: args.cli]]
     cli = run_cli(cli_plans, by_index) if args.cli > 0 else []
-    write(rows, cli, args, name, time.perf_counter() - t0)
+    rec_plans = [p for k in KINDS for p in [q for q in plans if q.kind == k][: args.records]]
+    recs = run_records(rec_plans, args.max_samples) if args.records > 0 else []
+    write(rows, cli, args, name, time.perf_counter() - t0, recs)
     return 0
 
 
