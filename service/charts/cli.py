@@ -33,12 +33,6 @@ def plot_file(text: str) -> str:
     return text
 
 
-def add_plot_flag(parser: Any, what: str = "a chart of the result") -> None:
-    """``--plot FILE.{png,svg}`` on a command."""
-    parser.add_argument("--plot", metavar="FILE.{png,svg}", type=plot_file, default=None,
-                        help=f"also draw {what} into FILE (PNG or SVG)")  # fmt: skip
-
-
 def plot_detection(
     path: str,
     w: np.ndarray,

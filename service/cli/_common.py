@@ -137,3 +137,17 @@ def finite(text: str) -> float:
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"{text!r} is not finite")
     return v
+
+
+def plot_file(text: str) -> str:
+    """argparse ``type`` of ``--plot``: the charts' rule (a .png or .svg file name), imported
+    only when the option is given."""
+    from service.charts.cli import plot_file as check
+
+    return check(text)
+
+
+def add_plot_flag(parser: Any, what: str = "a chart of the result") -> None:
+    """``--plot FILE.{png,svg}`` on a command (the charts load only when it is given)."""
+    parser.add_argument("--plot", metavar="FILE.{png,svg}", type=plot_file, default=None,
+                        help=f"also draw {what} into FILE (PNG or SVG)")  # fmt: skip

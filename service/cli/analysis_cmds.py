@@ -1,4 +1,8 @@
-"""Analysis commands: detect, predict, warn, sweep, and the demo (the main job)."""
+"""Analysis commands: detect, predict, warn, sweep, and the demo (the main job).
+
+Imports of the numerics, the wire models and the charts live in the command that uses them:
+building the parser (every command, ``--help``) imports none of them.
+"""
 
 from __future__ import annotations
 
@@ -7,15 +11,22 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from service import convert
-from service.charts.cli import add_plot_flag, plot_detection, plot_prediction_table, plot_sweep
-from service.cli._common import CliError, add_json_flag, bad, emit, error_from, finite
+from service.cli._common import (
+    CliError,
+    add_json_flag,
+    add_plot_flag,
+    bad,
+    emit,
+    error_from,
+    finite,
+)  # fmt: skip
 from service.cli._progress import Progress, warm_kernels
-from service.schemas.predictions import PREDICT_TRANSITIONS
+from service.cli._vocab import PREDICT_TRANSITIONS, RECORDING_FORMATS
+
+if TYPE_CHECKING:  # the parser is built without numpy; each command imports what it runs
+    import numpy as np
 
 
 # ------------------------------------------------------------------------------- file readers
@@ -113,6 +124,8 @@ def _rates_from_f_or_t(table: Any, path: str) -> dict[str, np.ndarray]:
     t_col = table.find(*_PERIOD_NAMES)
     if t_col is not None:
         T = _floats(table, t_col, "SWEEP", path)
+        import numpy as np
+
         bad_rows = np.flatnonzero(T <= 0)
         if bad_rows.size:
             i = int(bad_rows[0])
@@ -127,6 +140,7 @@ def _rates_from_f_or_t(table: Any, path: str) -> dict[str, np.ndarray]:
 
 # ------------------------------------------------------------------------------- commands
 def _detect(args: argparse.Namespace) -> int:
+    from service import convert
     from service.analysis.detect import detect
 
     rec = read_record(args.file, dt=args.dt, resample=args.resample, reader=_reader_options(args))
@@ -140,6 +154,8 @@ def _detect(args: argparse.Namespace) -> int:
     doc = convert.detection(det, extra_flags=rec.flags, time_unit=rec.unit,
                             value_unit=rec.value_unit)  # fmt: skip
     if args.plot:
+        from service.charts.cli import plot_detection
+
         plot_detection(args.plot, rec.w, rec.dt, doc, time_unit=rec.unit,
                        value_unit=rec.value_unit, title=Path(args.file).name)  # fmt: skip
     f = doc.fundamental
@@ -156,6 +172,7 @@ def _detect(args: argparse.Namespace) -> int:
 
 
 def _predict(args: argparse.Namespace) -> int:
+    from service import convert
     from service.analysis.predict import predict
 
     table = _read_table(args.file, "SWEEP")
@@ -199,6 +216,8 @@ def _predict(args: argparse.Namespace) -> int:
         ) from None
     doc = convert.prediction(pred)
     if args.plot:
+        from service.charts.cli import plot_prediction_table
+
         plot_prediction_table(args.plot, mu, kw, doc, control_name=args.control_name,
                               control_unit=args.control_unit or table.units.get(mu_name),
                               time_unit=args.time_unit)  # fmt: skip
@@ -218,6 +237,7 @@ def _progress_printer(enabled: bool, models: tuple[str, ...] = ()):
 
 
 def _warn(args: argparse.Namespace) -> int:
+    from service import convert
     from service.analysis.pipeline import warn
 
     opts: dict[str, Any] = {}
@@ -236,6 +256,8 @@ def _warn(args: argparse.Namespace) -> int:
             cb.close()
     doc = convert.sweep_result(res)
     if args.plot:
+        from service.charts.cli import plot_sweep
+
         plot_sweep(args.plot, doc, title=f"{args.actuation} ({args.model})")
     emit(doc, json_mode=args.json, text=_warn_text(doc))
     return 0
@@ -266,6 +288,7 @@ def _warn_text(doc: Any) -> str:
 
 
 def _sweep(args: argparse.Namespace) -> int:
+    from service import convert
     from service.analysis.pipeline import sweep_from_signals
     from service.recordings import RecordingError, common_time_base, manifest_columns
 
@@ -308,6 +331,8 @@ def _sweep(args: argparse.Namespace) -> int:
             cb.close()
     doc = convert.sweep_result(res, record_flags=notes, time_unit=time_unit)
     if args.plot:
+        from service.charts.cli import plot_sweep
+
         plot_sweep(args.plot, doc, control_name=args.control_name,
                    control_unit=args.control_unit or table.units.get(control_col),
                    time_unit=time_unit)  # fmt: skip
@@ -323,6 +348,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _warn_job(actuation: str, seed: int, queue: Any) -> dict:
     """One demo sweep in a worker process; progress goes back through ``queue``."""
+    from service import convert
     from service.analysis.pipeline import warn
 
     def cb(fraction: float, message: str) -> None:
@@ -414,9 +440,7 @@ def _reader_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def _reader_flags(p: argparse.ArgumentParser) -> None:
     """The upload's fields as options: the same reader, the same choices as over HTTP."""
-    from service.recordings import FORMATS
-
-    p.add_argument("--format", default=None, choices=FORMATS,
+    p.add_argument("--format", default=None, choices=RECORDING_FORMATS,
                    help="the file's format when its extension does not say it")  # fmt: skip
     p.add_argument("--column", default=None, metavar="NAME",
                    help="the column (CSV) or variable (NPZ, MAT) holding the signal")  # fmt: skip

@@ -11,9 +11,8 @@ import argparse
 import csv
 from pathlib import Path
 
-from service.charts.cli import add_plot_flag, plot_equilibria, plot_snap, plot_spectrum
-from service.cli._common import add_json_flag, bad, emit, finite
-from sim.scene import ACTUATIONS, BRANCHES
+from service.cli._common import add_json_flag, add_plot_flag, bad, emit, finite
+from service.cli._vocab import ACTUATIONS, BRANCHES, MODELS, STATIC_MODELS
 
 
 def _add_actuation(p: argparse.ArgumentParser) -> None:
@@ -87,6 +86,8 @@ def _equilibria(args: argparse.Namespace) -> int:
     ]
     rows.append(_resolution_text(res))
     if args.plot:
+        from service.charts.cli import plot_equilibria
+
         plot_equilibria(args.plot, args.actuation, args.mu)
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
@@ -103,6 +104,8 @@ def _spectrum(args: argparse.Namespace) -> int:
     rows += [f"  {s:16.6f}  ({w:.6f})" for s, w in zip(doc["sigma2"], doc["omega"])]
     rows.append(_resolution_text(doc["resolution"]))
     if args.plot:
+        from service.charts.cli import plot_spectrum
+
         plot_spectrum(args.plot, doc, actuation=args.actuation, mu=args.mu, branch=args.branch)
     emit(doc, json_mode=args.json, text="\n".join(rows))
     return 0
@@ -164,6 +167,8 @@ def _snap(args: argparse.Namespace) -> int:
             f"(mu* {'+' if r.mu > r.mu_star else '-'} {r.dmu:.3g}) to {r.to_branch}: snap time "
             + (f"{r.snap_time:.6g}" if r.snap_time is not None else "not reached"))
     if args.plot:
+        from service.charts.cli import plot_snap
+
         plot_snap(args.plot, r)
     emit(doc, json_mode=args.json, text=text)
     return 0
@@ -171,10 +176,7 @@ def _snap(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the simulator sub-commands to ``sub``."""
-    from sim.backends import BACKENDS
-    from sim.scene import MODELS
-
-    static = tuple(BACKENDS)
+    static = STATIC_MODELS
     p = sub.add_parser("bifurcation", help="mu* and type of the transition")
     _add_actuation(p)
     _add_strip(p, models=static, default="euler-beam")

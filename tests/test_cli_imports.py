@@ -1,0 +1,87 @@
+"""The command line imports only what the command it runs needs: ``snapwarn --help`` loads no
+numpy, pydantic or numerics; ``detect`` and ``predict`` load no web stack, no charts, no dask
+(and detect no scipy.signal/stats). Checked in a fresh interpreter (``sys.modules``), not
+timed; the vocabulary the parser carries equals its owners'."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+_PROBE = """
+import json, sys
+from service.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+sys.stdout.flush()
+sys.stderr.write("\\nMODULES " + json.dumps(sorted(sys.modules)) + "\\n")
+"""
+
+WEB_AND_CHARTS = ("fastapi", "starlette", "uvicorn", "sqlalchemy", "matplotlib", "dask",
+                  "distributed", "httpx2", "jinja2", "alembic")  # fmt: skip
+
+
+def _loaded(*argv: str) -> set[str]:
+    r = subprocess.run([sys.executable, "-c", _PROBE, *argv], capture_output=True, text=True,
+                       timeout=600)  # fmt: skip
+    line = [s for s in r.stderr.splitlines() if s.startswith("MODULES ")]
+    assert line, r.stderr
+    return {m.split(".")[0] for m in json.loads(line[-1][8:])} | set(json.loads(line[-1][8:]))
+
+
+def _absent(loaded: set[str], names: tuple[str, ...]) -> list[str]:
+    return [n for n in names if n in loaded]
+
+
+def test_help_imports_no_numerics() -> None:
+    loaded = _loaded("--help")
+    assert "service.cli.analysis_cmds" in loaded  # the probe did build the whole parser
+    assert _absent(loaded, ("numpy", "scipy", "numba", "pydantic", *WEB_AND_CHARTS)) == []
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[str, Path]:  # noqa: ANN001
+    d = tmp_path_factory.mktemp("cli-imports")
+    t = np.arange(2000) * 0.01
+    w = 0.2 + np.exp(-0.1 * t) * np.cos(6 * t) + 1e-3 * np.random.default_rng(0).normal(size=t.size)
+    rec = d / "r.csv"
+    np.savetxt(rec, np.c_[t, w], delimiter=",", header="t,w", comments="")
+    mu = np.linspace(0.0, 1.6, 8)
+    table = d / "t.csv"
+    np.savetxt(table, np.c_[mu, -np.sqrt(2.0 - mu)], delimiter=",", header="mu,sigma2",
+               comments="")  # fmt: skip
+    return {"record": rec, "table": table}
+
+
+def test_detect_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:
+    loaded = _loaded("detect", str(files["record"]), "--json")
+    assert "service.analysis.detect" in loaded  # it did detect
+    assert _absent(loaded, (*WEB_AND_CHARTS, "scipy.signal", "scipy.stats")) == []
+
+
+def test_predict_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:
+    loaded = _loaded("predict", str(files["table"]), "--json")
+    assert "service.analysis.predict" in loaded
+    assert _absent(loaded, WEB_AND_CHARTS) == []
+
+
+def test_the_parsers_vocabulary_is_its_owners() -> None:
+    from service.cli import _vocab
+    from service.recordings import FORMATS
+    from service.schemas.predictions import PREDICT_TRANSITIONS
+    from sim.backends import BACKENDS
+    from sim.scene import ACTUATIONS, BRANCHES, MODELS
+
+    assert _vocab.ACTUATIONS == ACTUATIONS
+    assert _vocab.BRANCHES == BRANCHES
+    assert _vocab.MODELS == MODELS
+    assert _vocab.STATIC_MODELS == tuple(BACKENDS)
+    assert _vocab.PREDICT_TRANSITIONS == PREDICT_TRANSITIONS
+    assert _vocab.RECORDING_FORMATS == FORMATS
