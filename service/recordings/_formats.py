@@ -11,19 +11,27 @@ from typing import Any
 
 import numpy as np
 
-from service.recordings._clock import clock_seconds, is_clock
-from service.recordings._errors import (
-    RecordingError,
-    RecordingTooLarge,
-    UnsupportedFormat,
-)
+from service.recordings._csv import _blocks, _is_number, ascii_text, check_row_count, read_csv_body
+from service.recordings._errors import RecordingError, UnsupportedFormat
+from service.recordings._guards import check_unpacked_size, load_failed
 from service.recordings._record import FORMATS, Recording, _Raw, uniform_rtol_from_env
 from service.recordings._time_units import seconds_per
 from service.recordings._validate import _validate
 
 _TIME_NAMES = frozenset(
-    ("t", "time", "times", "timestamp", "timestamps", "datetime", "seconds", "sec", "secs", "s",
-     "ms")
+    (
+        "t",
+        "time",
+        "times",
+        "timestamp",
+        "timestamps",
+        "datetime",
+        "seconds",
+        "sec",
+        "secs",
+        "s",
+        "ms",
+    )
 )
 _VALUE_NAMES = frozenset(
     (
@@ -140,18 +148,6 @@ def _choose_columns(
     )
 
 
-def _is_number(s: str) -> bool:
-    """A number as a file writes it: ``1.5``, ``-2e-3``, or with a decimal comma (``0,0035``:
-    a spreadsheet's export under a ``;`` or tab separator)."""
-    for text in (s, s.replace(",", ".", 1)):
-        try:
-            float(text)
-        except ValueError:
-            continue
-        return True
-    return False
-
-
 def _decode(data: bytes) -> tuple[str, str]:
     """The text of a CSV and the encoding read: UTF-8 (BOM or not), UTF-16 with its BOM (a
     spreadsheet's "Unicode text" export), else Windows-1252 (a spreadsheet's legacy export:
@@ -188,9 +184,14 @@ def content_lines(text: str) -> list[tuple[int, str]]:
     ``#`` comments dropped, except a header written as the last comment before numbers
     (``numpy.savetxt(..., header="t,w")`` writes ``# t,w``), taken when it names as many
     columns as the first data row has and is not itself numbers."""
+    return content_lines_of(text.splitlines())
+
+
+def content_lines_of(lines: list[str]) -> list[tuple[int, str]]:
+    """:func:`content_lines` of a text already split into lines."""
     numbered: list[tuple[int, str]] = []
     comment: tuple[int, str] | None = None
-    for k, ln in enumerate(text.splitlines()):
+    for k, ln in enumerate(lines):
         if not ln.strip():
             continue
         if ln.lstrip().startswith("#"):
@@ -232,20 +233,38 @@ def _is_units_row(cells: list[str]) -> bool:
     return all(not t or (len(t) <= 12 and " " not in t) for t in texts)
 
 
-def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_dt: bool) -> _Raw:
-    text, encoding = _decode(data)
-    numbered = content_lines(text)  # (line number in the file, line): for the errors
+def _csv_head(data: bytes, encoding: str) -> list[tuple[int, str]]:
+    """The first content lines of a CSV (a ``sep=`` line, the header, a units row and the
+    first data row: :func:`content_lines` of the leading blocks), decoded."""
+    enc = "cp1252" if encoding == "cp1252" else "utf-8"
+    lines: list[str] = []
+    numbered: list[tuple[int, str]] = []
+    for _, _, _, block in _blocks(data):
+        lines.extend(ln.decode(enc, "replace") for ln in block)
+        numbered = content_lines_of(lines)
+        if len(numbered) >= 4:
+            break
+    return numbered
+
+
+def _parse_csv(
+    data: bytes,
+    *,
+    column: str | None,
+    time_column: str | None,
+    has_dt: bool,
+    max_samples: int | None = None,
+) -> _Raw:
+    data, encoding = ascii_text(data)
+    check_row_count(data, max_samples)  # a vectorised count: too many rows refused at once
+    numbered, hint = _sep_hint(_csv_head(data, encoding))
     if not numbered:
         raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
-    numbered, hint = _sep_hint(numbered)
-    lines = [ln for _, ln in numbered]
-    if not lines:
-        raise RecordingError("file", "", "is empty (a CSV needs a header and at least 2 rows)")
-    head = lines[0]
+    head = numbered[0][1]
     delim: str | None = hint or max((",", ";", "\t"), key=head.count)
     if head.count(delim) == 0:
         delim = None
-    rows = list(csv.reader(lines, delimiter=delim)) if delim else [ln.split() for ln in lines]
+    rows = [_cells_of(ln, delim) for _, ln in numbered[:2]]
     header = [h.strip() for h in rows[0]]
     if all(_is_number(h) for h in header):
         raise RecordingError(
@@ -258,47 +277,21 @@ def _parse_csv(data: bytes, *, column: str | None, time_column: str | None, has_
         units = [c.strip().strip("()[]{}").strip() for c in rows[1]]
         header = [h if split_unit(h)[1] or not u else f"{h} [{u}]" for h, u in zip(header, units)]
         first = 2
-    body = rows[first:]
-    line_of = [num for num, _ in numbered[first:]]
-    if len(body) < 2:
-        raise RecordingError("file", f"{len(body)} rows", "must hold at least 2 data rows")
-    ncol = len(header)
-    for k, r in enumerate(body):
-        if len(r) != ncol:
-            raise RecordingError(
-                f"file: line {line_of[k]}",
-                f"{len(r)} cells",
-                f"is ragged: the header has {ncol} columns",
-            )
+    if len(numbered) <= first:
+        raise RecordingError("file", "0 rows", "must hold at least 2 data rows")
     ti, wi = _choose_columns(header, column, time_column, has_dt)
-    cols: dict[int, np.ndarray] = {}
-    cells: dict[int, list[str]] = {}
-    time_unit = _time_unit(header[ti]) if ti is not None else None
-    for idx in ([ti] if ti is not None else []) + [wi]:
-        texts = [r[idx].strip() for r in body]
-        if idx == ti and not _is_number(texts[0]) and is_clock(texts[0]):
-            where = [f"file: line {n}, column {header[idx]!r}" for n in line_of]
-            cols[idx], cells[idx] = clock_seconds(texts, where)
-            time_unit = "s"
-            continue
-        if delim in (";", "\t") and any("," in c for c in texts[:50]):
-            texts = [c.replace(",", ".") for c in texts]  # decimal commas (spreadsheet exports)
-        vals = np.empty(len(body))
-        for k, cell in enumerate(texts):
-            try:
-                vals[k] = float(cell)
-            except ValueError:
-                raise RecordingError(
-                    f"file: line {line_of[k]}, column {header[idx]!r}", cell, "is not a number"
-                ) from None
-        cols[idx], cells[idx] = vals, texts
+    w, t, t_cells, clock = read_csv_body(
+        data, encoding, first_line=numbered[first][0], delim=None if delim is None else
+        delim.encode(), header=header, columns=(ti, wi), max_samples=max_samples,
+    )  # fmt: skip
+    time_unit = "s" if clock else (_time_unit(header[ti]) if ti is not None else None)
     return _Raw(
-        w=cols[wi],
-        t=cols[ti] if ti is not None else None,
+        w=w,
+        t=t,
         unit=time_unit,
         value_unit=split_unit(header[wi])[1],
         source="csv",
-        t_cells=cells[ti] if ti is not None else None,
+        t_cells=t_cells,
         metadata={
             "columns": header,
             "value_column": header[wi],
@@ -417,89 +410,6 @@ def _from_mapping(
     return _Raw(w=w, t=t, dt=dt, source=source, metadata=meta, unit=unit, value_unit=value_unit)
 
 
-def _check_unpacked_size(data: bytes, fmt: str, limit: int) -> None:
-    """Refuse an NPZ or MAT file whose arrays unpack beyond ``limit`` bytes, from their
-    headers alone (zip directory sizes; MAT variable shapes), before inflating anything."""
-    total = 0
-    if fmt == "npz":
-        import zipfile
-
-        try:
-            with zipfile.ZipFile(io.BytesIO(data)) as z:
-                infos = z.infolist()
-        except Exception as exc:  # noqa: BLE001 - not a zip: np.load names the failure
-            raise _load_failed(".npz", data, exc) from None
-        if len(infos) > 256:
-            raise RecordingTooLarge("file", len(infos), "holds more than 256 arrays")
-        total = sum(i.file_size for i in infos)
-    elif (fast := _mat5_unpacked_size(data)) is not None:
-        total = fast
-    else:  # not plain MAT v5 (v4, odd headers): scipy reads the variables' headers
-        from scipy.io import whosmat
-
-        try:
-            for _name, shape, cls in whosmat(io.BytesIO(data)):
-                size = int(np.prod([int(d) for d in shape], dtype=object))
-                total += size * (16 if "complex" in cls else 8)
-        except RecordingError:
-            raise
-        except Exception as exc:  # noqa: BLE001
-            raise _load_failed(".mat", data, exc) from None
-    if total > limit:
-        raise RecordingTooLarge(
-            "file",
-            f"{len(data)} bytes",
-            f"unpacks to {total} bytes, over the limit of {limit} "
-            "(setting SNAPWARN_MAX_DECOMPRESSED_BYTES)",
-        )
-
-
-_MAT_NUMERIC = frozenset({4, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15})  # char, double... uint64
-
-
-def _mat5_unpacked_size(data: bytes) -> int | None:
-    """Bytes the variables of a MAT v5 file hold once unpacked and read as float64, from the
-    element tags and the first 64 inflated bytes of each compressed element (the rest is never
-    inflated); None when the file is not plain MAT v5 (the caller asks scipy then)."""
-    import struct
-    import zlib
-
-    if len(data) < 136 or data[126:128] not in (b"IM", b"MI"):
-        return None
-    end = "<" if data[126:128] == b"IM" else ">"
-    total, pos = 0, 128
-    while pos + 8 <= len(data):
-        dtype, nbytes = struct.unpack(end + "II", data[pos : pos + 8])
-        start = pos
-        pos += 8 + nbytes + (-nbytes % 8 if dtype != 15 else 0)
-        if dtype == 15:  # miCOMPRESSED: a miMATRIX element, deflated
-            try:
-                head = zlib.decompressobj().decompress(data[start + 8 : pos], 64)
-            except zlib.error:
-                return None
-        elif dtype == 14:  # miMATRIX, with its tag
-            head = data[start : start + 64]
-        else:
-            continue
-        if len(head) < 40 or struct.unpack(end + "I", head[:4])[0] != 14:
-            return None
-        inner_bytes = struct.unpack(end + "I", head[4:8])[0]
-        cls = struct.unpack(end + "I", head[16:20])[0] & 0xFF
-        dims_type, dims_bytes = struct.unpack(end + "II", head[24:32])
-        if cls not in _MAT_NUMERIC or dims_type != 5 or dims_bytes % 4 or 32 + dims_bytes > 64:
-            total += 8 * inner_bytes  # cells, structs, sparse: their bytes, counted as doubles
-            continue
-        count = 1
-        for d in struct.unpack(end + f"{dims_bytes // 4}i", head[32 : 32 + dims_bytes]):
-            count *= max(0, d)
-        total += 8 * count
-    return total
-
-
-def _load_failed(fmt: str, data: bytes, exc: Exception) -> RecordingError:
-    return RecordingError("file", f"{len(data)} bytes", f"is not a valid {fmt} file ({exc})")
-
-
 def _parse(
     data: bytes,
     fmt: str,
@@ -509,17 +419,28 @@ def _parse(
     channel: Any,
     has_dt: bool,
     max_decompressed_bytes: int | None = None,
+    max_samples: int | None = None,
 ) -> _Raw:
     if not data:
         raise RecordingError("file", "", "is empty")
+    if fmt == "npy" and data[:4] == b"PK\x03\x04":
+        fmt = "npz"  # an NPZ archive named .npy: read as what it is
+    if fmt == "mat" and (b"MATLAB 7.3" in data[:128] or data[512:520] == b"\x89HDF\r\n\x1a\n"):
+        raise RecordingError(
+            "file", f"{len(data)} bytes", "is a MATLAB v7.3 (HDF5) file, which this reader "
+            "cannot open: save it with save(name, '-v7'), or as CSV",
+        )  # fmt: skip
+    if fmt != "csv":  # one guard for every binary format, from the headers, before reading
+        check_unpacked_size(data, fmt, max_decompressed_bytes)
     buf = io.BytesIO(data)
     if fmt == "csv":
-        return _parse_csv(data, column=column, time_column=time_column, has_dt=has_dt)
+        return _parse_csv(data, column=column, time_column=time_column, has_dt=has_dt,
+                          max_samples=max_samples)  # fmt: skip
     if fmt == "npy":
         try:
             a = np.load(buf, allow_pickle=False)
         except Exception as exc:  # noqa: BLE001 - any parse failure is the file's fault
-            raise _load_failed(".npy", data, exc) from None
+            raise load_failed(".npy", data, exc) from None
         if a.ndim == 2 and 1 in a.shape:
             a = a.reshape(-1)
         if a.ndim == 1:
@@ -529,28 +450,19 @@ def _parse(
             return _Raw(w=a2[:, 1], t=a2[:, 0], source="npy", metadata={"time_column": "t"})
         raise RecordingError("file", list(a.shape), "must be a 1-D array (w) or 2 columns (t, w)")
     if fmt == "npz":
-        if max_decompressed_bytes is not None:
-            _check_unpacked_size(data, fmt, max_decompressed_bytes)
         try:
             with np.load(buf, allow_pickle=False) as z:
                 arrs = {k: z[k] for k in z.files}
         except Exception as exc:  # noqa: BLE001
-            raise _load_failed(".npz", data, exc) from None
+            raise load_failed(".npz", data, exc) from None
         return _from_mapping(arrs, "npz", column, time_column)
     if fmt == "mat":
         from scipy.io import loadmat
 
-        if max_decompressed_bytes is not None:
-            _check_unpacked_size(data, fmt, max_decompressed_bytes)
-        if b"MATLAB 7.3" in data[:128] or data[512:520] == b"\x89HDF\r\n\x1a\n":
-            raise RecordingError(
-                "file", f"{len(data)} bytes", "is a MATLAB v7.3 (HDF5) file, which this reader "
-                "cannot open: save it with save(name, '-v7'), or as CSV",
-            )  # fmt: skip
         try:
             arrs = {k: v for k, v in loadmat(buf).items() if not k.startswith("__")}
         except Exception as exc:  # noqa: BLE001
-            raise _load_failed(".mat", data, exc) from None
+            raise load_failed(".mat", data, exc) from None
         return _from_mapping(_struct_fields(arrs), "mat", column, time_column)
     if fmt == "wav":
         from scipy.io import wavfile
@@ -558,7 +470,9 @@ def _parse(
         try:
             rate, a = wavfile.read(buf)
         except Exception as exc:  # noqa: BLE001
-            raise _load_failed("WAV", data, exc) from None
+            raise load_failed("WAV", data, exc) from None
+        if not rate > 0:
+            raise RecordingError("file: sample rate", rate, "must be > 0 (the WAV's fmt chunk)")
         if a.ndim == 2:
             try:
                 ch = int(channel)
@@ -601,8 +515,8 @@ def read_bytes(
         raise UnsupportedFormat("format", fmt, f"is not one of {FORMATS}")
     rtol = uniform_rtol_from_env() if uniform_rtol is None else float(uniform_rtol)
     raw = _parse(data, fmt, column=column, time_column=time_column, channel=channel,
-                 has_dt=dt is not None,
-                 max_decompressed_bytes=max_decompressed_bytes)  # fmt: skip
+                 has_dt=dt is not None, max_decompressed_bytes=max_decompressed_bytes,
+                 max_samples=max_samples)  # fmt: skip
     return _validate(raw, dt=dt, t0=t0, rtol=rtol, resample=resample, max_samples=max_samples)
 
 

@@ -118,7 +118,8 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
                                       _form_text(form, "format", 10))  # fmt: skip
         return recordings.read_bytes(data, fmt, dt=nums["dt"], t0=nums["t0"],
                                      channel=int(nums["channel"] or 0), max_samples=s.max_samples,
-                                     **opts)  # fmt: skip
+                                     max_decompressed_bytes=s.max_decompressed_bytes,
+                                     uniform_rtol=s.uniform_rtol, **opts)  # fmt: skip
 
     try:
         rec = await to_thread.run_sync(read)
