@@ -162,6 +162,15 @@ async def test_npz_bomb_refused_at_the_live_door_too(asgi, door) -> None:  # noq
 
 
 # ------------------------------------------------------------------ a real server, real bytes
+def _cpu(pid: int) -> float:
+    """CPU seconds (user + system) of process ``pid`` so far."""
+    import os
+
+    with open(f"/proc/{pid}/stat") as fh:
+        fields = fh.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _multipart(data: bytes, fields: dict[str, str]) -> tuple[str, bytes]:
     """A multipart/form-data body: ``fields`` and ``data`` as the part ``file``."""
     b = "snapwarn-test-boundary-7d3f"
@@ -174,8 +183,8 @@ def _multipart(data: bytes, fields: dict[str, str]) -> tuple[str, bytes]:
 
 def test_a_20_mb_csv_of_1e7_rows_is_413_fast_with_bounded_memory(tmp_path) -> None:  # noqa: ANN001
     """The audit's reproducer on a real uvicorn: a 20 MB CSV of 10^7 one-column rows to
-    /v1/signals and to a live sweep's records: 413 in under 1 s, the server's peak RSS grows by
-    less than 200 MB; /healthz answers meanwhile."""
+    /v1/signals and to a live sweep's records: 413 in under 1 s of the server's CPU (it was
+    12-48 s), the server's peak RSS grows by less than 200 MB (it was +3 GB)."""
     import httpx2
     from _svc_helpers import start_server
     from test_svc_hardening import _peak_growth
@@ -199,15 +208,18 @@ def test_a_20_mb_csv_of_1e7_rows_is_413_fast_with_bounded_memory(tmp_path) -> No
             ctype, big = _multipart(body, fields)  # encoded before the clock starts
 
             def send(path: str = path, big: bytes = big, ctype: str = ctype) -> tuple:
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), _cpu(server.proc.pid)
                 r = httpx2.post(server.url + path, content=big, headers={"content-type": ctype},
                                 timeout=60)  # fmt: skip
-                return time.perf_counter() - t0, r
+                return time.perf_counter() - t0, _cpu(server.proc.pid) - c0, r
 
-            grew, (took, r) = _peak_growth(server.proc.pid, send)
+            grew, (took, cpu, r) = _peak_growth(server.proc.pid, send)
             assert r.status_code == 413, (door, r.text[:300])
             assert "rows" in r.json()["detail"]
-            assert took < 1.0, f"{door}: 413 after {took:.2f} s"
+            # the server's own CPU (the wall time on a shared machine waits for other work):
+            # ~0.3 s of wall time on an idle one (docs in the note of issue 30)
+            assert cpu < 1.0, f"{door}: 413 after {cpu:.2f} s of the server's CPU"
+            assert took < 15.0, f"{door}: 413 after {took:.2f} s"
             assert grew < 200e6, f"{door}: peak RSS grew {grew / 1e6:.0f} MB"
     finally:
         server.stop()
