@@ -3,11 +3,13 @@ perfect and imperfect, with exact truths (the independent generators of tests/st
 
     python bench/structures.py [--plans N (40)] [--seed S (2028)] [--quick] [--workers W (1)]
                                [--input mixed|sigma2|sigma2-no-std|omega|omega-no-std]
-                               [--cli N (2)] [--out NAME (structures)]
+                               [--cli N (2)] [--records N (0)] [--max-samples M]
+                               [--out NAME (structures)]
 
 Per kind of structure (:data:`_struct_plans.KINDS`: perfect softening / stiffening columns, an
 imperfect softening column that snaps at a fold before ``P_c``, an imperfect stiffening column
-that never loses stability, the truss's saddle-node) ``N`` random lab plans
+that never loses stability, the saddle-node of a symmetric truss and of one with unequal bars
+and a free apex, two degrees of freedom) ``N`` random lab plans
 (``_struct_plans.random_plan``: coarse and fine grids, stops 1e-3 to 1e-1 before the load the
 lab must not cross, noise 1e-5 to 1e-3, static data in half; ``--input mixed`` draws the table's
 form per plan: sigma2 with or without its std, omega with or without) go through
@@ -70,6 +72,7 @@ RIGHT = {
     "imperfect-softening": ("saddle-node", "subcritical-pitchfork"),
     "imperfect-stiffening": NONE_NAMES,
     "truss": ("saddle-node",),
+    "truss-asymmetric": ("saddle-node",),
 }
 #: names that are wrong (a withheld type, "undetermined", is neither)
 WRONG = {
@@ -78,6 +81,12 @@ WRONG = {
     "imperfect-softening": ("supercritical-pitchfork", "pitchfork", *NONE_NAMES),
     "imperfect-stiffening": SNAP_NAMES,
     "truss": ("pitchfork", "subcritical-pitchfork", "supercritical-pitchfork", *NONE_NAMES),
+    "truss-asymmetric": (
+        "pitchfork",
+        "subcritical-pitchfork",
+        "supercritical-pitchfork",
+        *NONE_NAMES,
+    ),
 }
 
 

@@ -35,6 +35,7 @@ together), each by Brent's method to ``xtol = 1e-15`` (relative ``4.4e-16``).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -46,6 +47,12 @@ XTOL = 1e-15  # absolute tolerance of every root (angles in rad, deflections in 
 
 def _brent(f, a: float, b: float) -> float:
     return float(optimize.brentq(f, a, b, xtol=XTOL, rtol=4 * np.finfo(float).eps, maxiter=500))
+
+
+@functools.lru_cache(maxsize=4096)
+def _fold_of(model):  # noqa: ANN001, ANN202 - any frozen model with a _fold()
+    """A model's fold, computed once (the models are frozen, hence hashable)."""
+    return model._fold()
 
 
 def _first_sign_change(f, lo: float, hi: float, n: int = 4000) -> tuple[float, float] | None:
@@ -169,6 +176,10 @@ class LinkColumn:
         return d3 - d2 * math.cos(theta) / s + d1 / (s * s)
 
     def fold(self) -> tuple[float, float] | None:
+        """``(theta_f, P_f)`` of the limit point of an imperfect softening column (cached)."""
+        return _fold_of(self)
+
+    def _fold(self) -> tuple[float, float] | None:
         """``(theta_f, P_f)`` of the limit point of an imperfect softening column (``V' = V''
         = 0``; ``theta_f`` signed like ``eps``), None when there is none (perfect or
         stiffening)."""
@@ -291,6 +302,9 @@ class VonMisesTruss:
 
     def fold(self) -> tuple[float, float]:
         """``(w_f, F_f)`` by root finding of ``V''`` along the path (``V' = V'' = 0``)."""
+        return _fold_of(self)
+
+    def _fold(self) -> tuple[float, float]:
         w_f = _brent(self.d2V, 0.0, self.h)
         return w_f, self.load_on_path(w_f)
 
@@ -311,3 +325,101 @@ class VonMisesTruss:
 
     def omega2(self, F: float) -> float:
         return self.stiffness(F) / self.mass
+
+
+@dataclass(frozen=True)
+class AsymmetricTruss:
+    """A two-bar arch with unequal bars and a free apex: two degrees of freedom.
+
+    The apex (mass ``m`` in both directions) moves by ``u`` (horizontal) and ``w`` (down) under
+    the vertical dead load ``F``; bar ``j`` (stiffness ``k_j``, stress-free length ``L0``)
+    runs from the support at ``x = -b`` (``j = 1``) or ``+b`` (``j = 2``)::
+
+        V(u, w; F) = k1 (l1 - L0)^2 / 2 + k2 (l2 - L0)^2 / 2 - F w,
+        l1 = sqrt((b + u)^2 + (h - w)^2),  l2 = sqrt((b - u)^2 + (h - w)^2)
+
+    (with ``k1 = k2 = 2 k`` it is :class:`VonMisesTruss` with ``u = 0``). The path is
+    parametrised by ``w``: ``u(w)`` from ``dV/du = 0``, the load ``F(w) = dU/dw`` there; the
+    snap is the saddle-node where ``det V'' = 0`` (equivalently ``dF/dw = 0`` along the path),
+    and the fundamental's ``omega^2`` is the least eigenvalue of ``V'' / m``.
+    """
+
+    k1: float = 4.0e4
+    k2: float = 3.0e4
+    L0: float = 1.0
+    rise: float = 0.2
+    mass: float = 1.0
+
+    @property
+    def b(self) -> float:
+        return self.L0 * math.cos(self.rise)
+
+    @property
+    def h(self) -> float:
+        return self.L0 * math.sin(self.rise)
+
+    def _bars(self, u: float, w: float) -> tuple[tuple[float, float, float, float], ...]:
+        """Per bar ``(k, dx, dy, l)``: stiffness, the apex's offsets from the support, length."""
+        y = self.h - w
+        out = []
+        for k, dx in ((self.k1, self.b + u), (self.k2, -(self.b - u))):
+            out.append((k, dx, y, math.hypot(dx, y)))
+        return tuple(out)
+
+    def energy(self, u: float, w: float, F: float) -> float:
+        return sum(0.5 * k * (l - self.L0) ** 2 for k, _, _, l in self._bars(u, w)) - F * w
+
+    def gradient(self, u: float, w: float, F: float) -> np.ndarray:
+        """``(dV/du, dV/dw)`` (N)."""
+        g = np.zeros(2)
+        for k, dx, y, l in self._bars(u, w):
+            n = k * (l - self.L0) / l  # bar force over length
+            g += n * np.array([dx, -y])  # dl/du = dx / l, dl/dw = -y / l
+        return g - np.array([0.0, F])
+
+    def hessian(self, u: float, w: float) -> np.ndarray:
+        """``V''`` in ``(u, w)`` (N/m); the dead load does not enter."""
+        H = np.zeros((2, 2))
+        for k, dx, y, l in self._bars(u, w):
+            e = np.array([dx, -y]) / l  # dl/d(u, w)
+            n = k * (l - self.L0) / l
+            H += k * np.outer(e, e) + n * (np.eye(2) - np.outer(e, e))
+        return H
+
+    def u_on_path(self, w: float) -> float:
+        """The horizontal apex displacement in equilibrium at deflection ``w``."""
+        f = lambda u: self.gradient(u, w, 0.0)[0]  # noqa: E731 - the load has no u part
+        lo, hi = -0.5 * self.b, 0.5 * self.b
+        return _brent(f, lo, hi)
+
+    def load_on_path(self, w: float) -> float:
+        return float(self.gradient(self.u_on_path(w), w, 0.0)[1])
+
+    def det_on_path(self, w: float) -> float:
+        return float(np.linalg.det(self.hessian(self.u_on_path(w), w)))
+
+    def fold(self) -> tuple[float, float]:
+        """``(w_f, F_f)``: the saddle-node, ``det V'' = 0`` along the path (Brent)."""
+        return _fold_of(self)
+
+    def _fold(self) -> tuple[float, float]:
+        # det V'' > 0 unloaded, < 0 at the flat position (both bars compressed, w = h): a
+        # shallow arch has one fold between (checked by the tests against two other methods)
+        w_f = _brent(self.det_on_path, 0.0, self.h)
+        return w_f, self.load_on_path(w_f)
+
+    def critical_load(self) -> float:
+        return self.fold()[1]
+
+    def equilibrium(self, F: float) -> float:
+        """Apex deflection ``w`` on the fundamental path at ``F`` (the static level; m)."""
+        w_f, F_f = self.fold()
+        if not 0 <= F < F_f:
+            raise ValueError(f"F={F!r} outside [0, F_f={F_f!r})")
+        if F == 0.0:
+            return 0.0
+        return _brent(lambda w: self.load_on_path(w) - F, 0.0, w_f)
+
+    def omega2(self, F: float) -> float:
+        w = self.equilibrium(F)
+        return float(np.linalg.eigvalsh(self.hessian(self.u_on_path(w), w))[0] / self.mass)

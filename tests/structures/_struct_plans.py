@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from _struct_models import LinkColumn, VonMisesTruss
+from _struct_models import AsymmetricTruss, LinkColumn, VonMisesTruss
 
 KINDS = (
     "perfect-softening",
@@ -33,6 +33,7 @@ KINDS = (
     "imperfect-softening",
     "imperfect-stiffening",
     "truss",
+    "truss-asymmetric",
 )
 INPUTS = ("sigma2", "sigma2-no-std", "omega", "omega-no-std")
 #: the truth's transition: what a lab sees at the load it must not cross
@@ -42,6 +43,7 @@ TRANSITION = {
     "imperfect-softening": "saddle-node",  # it snaps at a limit point (the fold) before P_c
     "imperfect-stiffening": "none",  # no loss of stability
     "truss": "saddle-node",
+    "truss-asymmetric": "saddle-node",
 }
 
 
@@ -145,7 +147,8 @@ def make_model(
     fundamental 2-20 Hz; softening ones a rotational spring with ``beta`` in [-1.5, -0.3]
     (``kappa`` in [-1.33, -0.13]) or the lateral spring (``kappa = -1/2``), stiffening ones
     ``beta`` in [-0.1, 1] (``kappa`` in [0.07, 1.17]); imperfect ones ``|eps|`` log-uniform in
-    [1e-4, 3e-3] rad, its sign random. Truss: rise 0.1-0.35 rad, snap load 20-500 N, 2-20 Hz.
+    [1e-4, 3e-3] rad, its sign random. Truss: rise 0.1-0.35 rad, snap load 20-500 N,
+    2-20 Hz; the asymmetric one's second bar 1.05-1.5 times stiffer.
     """
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
@@ -157,6 +160,14 @@ def make_model(
         k = _log_uniform(rng, 20.0, 500.0) / unit.snap_load_closed_form()
         stiff0 = VonMisesTruss(k=k, rise=rise).d2V(0.0)
         return "truss", VonMisesTruss(k=k, rise=rise, mass=stiff0 / w0**2)
+    if kind == "truss-asymmetric":
+        rise, ratio = rng.uniform(0.1, 0.35), rng.uniform(1.05, 1.5)
+        unit = AsymmetricTruss(k1=1.0, k2=ratio, rise=rise)
+        k = _log_uniform(rng, 20.0, 500.0) / unit.critical_load()
+        model = AsymmetricTruss(k1=k, k2=k * ratio, rise=rise)
+        stiff0 = float(np.linalg.eigvalsh(model.hessian(0.0, 0.0))[0])
+        return "truss-asymmetric", AsymmetricTruss(k1=k, k2=k * ratio, rise=rise,
+                                                   mass=stiff0 / w0**2)  # fmt: skip
     imperfect = kind.startswith("imperfect")
     if eps is None:
         sign = 1.0 if rng.random() < 0.5 else -1.0
@@ -243,7 +254,7 @@ def random_plan(
     static = bool(rng.random() < 0.5) if static is None else static
 
     critical = model.critical_load()
-    p_c = None if isinstance(model, VonMisesTruss) else model.p_c
+    p_c = model.p_c if isinstance(model, LinkColumn) else None
     p_ref = critical if critical is not None else p_c
     assert p_ref is not None
     h_rel = rng.uniform(0.02, 0.1) if grid == "coarse" else rng.uniform(0.004, 0.02)

@@ -15,7 +15,7 @@ from scipy import integrate, optimize
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from _struct_models import LinkColumn, VonMisesTruss  # noqa: E402
+from _struct_models import AsymmetricTruss, LinkColumn, VonMisesTruss  # noqa: E402
 from _struct_plans import KINDS, impulse_record, random_plan, write_records  # noqa: E402
 
 SOFT = [
@@ -184,6 +184,7 @@ TRUTH = {
     "imperfect-softening": "saddle-node",
     "imperfect-stiffening": "none",
     "truss": "saddle-node",
+    "truss-asymmetric": "saddle-node",
 }
 
 
@@ -215,6 +216,10 @@ def test_random_plans_carry_their_truth(kind: str) -> None:
                                        rtol=1e-9)  # fmt: skip
         if kind == "truss":
             assert p.critical == pytest.approx(p.model.snap_load_closed_form(), rel=1e-12)
+        if kind == "truss-asymmetric":  # the snap lies between the two symmetric arches'
+            m = p.model
+            lo = VonMisesTruss(k=m.k1, rise=m.rise).snap_load_closed_form()
+            assert lo < p.critical < VonMisesTruss(k=m.k2, rise=m.rise).snap_load_closed_form()
         assert p.csv_text().splitlines()[0] == "mu,sigma2,sigma2_std,w_static,w_static_std"
     # a plan is a function of its generator's state
     a = random_plan(np.random.default_rng(9), kind)
@@ -268,3 +273,51 @@ def test_records_and_manifest_for_the_sweep_door(tmp_path: Path) -> None:
     w = impulse_record(p, p.mu.size - 1, dt=dt, n=data.shape[0], damping=xi, noise=0.0)
     peak = np.abs(w - p.q_true[-1]).max()
     assert np.max(np.abs(data[:, 1] - w)) < 6 * 1e-3 * peak
+
+
+def test_asymmetric_truss_reduces_to_the_symmetric_one() -> None:
+    a = AsymmetricTruss(k1=2.0e4, k2=2.0e4, rise=0.25, mass=1.5)
+    t = VonMisesTruss(k=2.0e4, rise=0.25, mass=1.5)
+    assert a.critical_load() == pytest.approx(t.snap_load_closed_form(), rel=1e-11)
+    for F in (0.0, 0.5 * t.critical_load(), 0.99 * t.critical_load()):
+        assert a.equilibrium(F) == pytest.approx(t.equilibrium(F), rel=1e-10, abs=1e-15)
+        assert abs(a.u_on_path(a.equilibrium(F))) < 1e-12
+        assert a.omega2(F) == pytest.approx(t.omega2(F), rel=1e-9)
+
+
+@pytest.mark.parametrize("ratio", [1.05, 1.5])
+def test_asymmetric_truss_energy_derivatives_and_fold(ratio: float) -> None:
+    a = AsymmetricTruss(k1=1.0e4, k2=1.0e4 * ratio, rise=0.3, mass=0.7)
+    w_f, F_f = a.fold()
+    u, w = 0.3 * a.u_on_path(0.5 * w_f) + 1e-3, 0.4 * w_f
+    h = 1e-6
+    fd_g = [(a.energy(u + h, w, 7.0) - a.energy(u - h, w, 7.0)) / (2 * h),
+            (a.energy(u, w + h, 7.0) - a.energy(u, w - h, 7.0)) / (2 * h)]  # fmt: skip
+    np.testing.assert_allclose(a.gradient(u, w, 7.0), fd_g, rtol=1e-6, atol=1e-6)
+    H = a.hessian(u, w)
+    hh = 1e-4
+    for i in range(2):
+        e = np.eye(2)[i] * hh
+        col = (a.gradient(u + e[0], w + e[1], 0.0) - a.gradient(u - e[0], w - e[1], 0.0)) / (2 * hh)
+        np.testing.assert_allclose(H[:, i], col, rtol=1e-6, atol=1e-6 * np.abs(H).max())
+    # the fold: the largest load the path carries (a second method) ...
+    res = optimize.minimize_scalar(lambda x: -a.load_on_path(x), bounds=(0.5 * w_f, 1.5 * w_f),
+                                   method="bounded", options={"xatol": 1e-12})  # fmt: skip
+    assert -res.fun == pytest.approx(F_f, rel=1e-11)
+
+    # ... and the joint root of the gradient and det V'' from another start (a third)
+    def eqs(z: np.ndarray) -> list[float]:
+        g = a.gradient(z[0], z[1], z[2])
+        return [g[0] / a.k1, g[1] / a.k1, np.linalg.det(a.hessian(z[0], z[1])) / a.k1**2]
+
+    z, _, ier, msg = optimize.fsolve(eqs, [0.0, 1.3 * w_f, 0.9 * F_f], xtol=1e-13,
+                                     full_output=True)  # fmt: skip
+    assert ier in (1, 3), msg
+    assert z[1] == pytest.approx(w_f, rel=1e-8) and z[2] == pytest.approx(F_f, rel=1e-11)
+    # unequal bars tilt the apex and lower the snap load below the symmetric arch's of the
+    # softer bars (bounded above by the stiffer's)
+    lo = VonMisesTruss(k=a.k1, rise=a.rise).snap_load_closed_form()
+    hi = VonMisesTruss(k=a.k2, rise=a.rise).snap_load_closed_form()
+    assert lo < F_f < hi and a.u_on_path(0.5 * w_f) != 0.0
+    r = a.omega2(F_f * (1 - 1e-8)) / a.omega2(F_f * (1 - 1e-10))
+    assert r == pytest.approx(10.0, rel=1e-3)
