@@ -31,8 +31,8 @@ noise then estimated), or the rates omega = sqrt|sigma^2| with or without their 
 damping (which must then not be invented).
 
 ``--seed``: the plans are drawn from it; seed 2026 are the calibration's plans, on which the
-engine's one free factor (the truncation spread's, ``service.analysis._mu_star``) was chosen,
-and other seeds are held-out plans to check it on.
+engine's one free factor (the truncation spread's, ``service.analysis.predictor.interval``)
+was chosen, and other seeds are held-out plans to check it on.
 
 Writes bench/results/calibration.csv and calibration.md (``calibration_<input>.*`` for the
 other inputs, ``..._seed<S>.*`` for another seed).

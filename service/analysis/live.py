@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 
-from service.analysis._sweep import group_mean
 from service.analysis.alarm import (
     Alarm,
     NextMeasurement,
@@ -49,6 +48,7 @@ from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement, measurement_from_detection
 from service.analysis.pipeline import WarnResult
 from service.analysis.predict import Prediction, bounded_by, predict
+from service.analysis.predictor.sweep import group_mean
 from service.analysis.sampling import next_record_sampling
 
 __all__ = [
@@ -284,7 +284,7 @@ def _fit_records(records: Sequence[LiveRecord]) -> list[Measurement]:
 
 def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
     """Measurements of the fit, one per control: the records at one control averaged as the
-    predictor averages a table's repeated rows (:func:`service.analysis._sweep.group_mean`:
+    predictor averages a table's repeated rows (:func:`service.analysis.predictor.sweep.group_mean`:
     weights ``1/std^2`` when every record has its std, else plain means), so that a live sweep
     and a batch sweep of the same records fit the same points."""
     ms = _fit_records(records)

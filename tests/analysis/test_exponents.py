@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from service.analysis._exponents import _brent_min, _crossing_distance
+from service.analysis.predictor.exponents import _brent_min, _crossing_distance
 
 _FUNCS = {
     "parabola": lambda x: 4e6 * (x - 1.00003) ** 2 + 7.0,

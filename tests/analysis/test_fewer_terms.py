@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-import service.analysis._mu_star as mu_star_mod
-from service.analysis._laws import fewer_terms_rival
-from service.analysis._mu_star import fit_sweep
-from service.analysis._sweep import prepare_sweep
+import service.analysis.predictor.interval as mu_star_mod
 from service.analysis.predict import predict
+from service.analysis.predictor.compare import fewer_terms_rival
+from service.analysis.predictor.interval import fit_sweep
+from service.analysis.predictor.sweep import prepare_sweep
 
 normal_form = pytest.importorskip("sim.normal_form").normal_form
 

@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis._fold_kernels import nll_exponent_rows, nll_rows
-from service.analysis._laws_kernels import REL_FLOOR, RHO, nll_fixed_u
-from service.analysis._likelihood import _LOGU, _Comp, _pack
+from service.analysis.predictor._kernels.fold import nll_exponent_rows, nll_rows
+from service.analysis.predictor._kernels.laws import REL_FLOOR, RHO, nll_fixed_u
+from service.analysis.predictor.likelihood import _LOGU, _Comp, _pack
 
 
 def ref_comp(ms: float, u: float, mu: np.ndarray, c: _Comp, x_last: float) -> float:
@@ -114,8 +114,8 @@ def test_fold_scan_walk_bounds_and_finds_the_same_lowest_point() -> None:
     scan of the symmetric beam it finds the whole grid's lowest mu* with the same value (far
     from it the walk may stay in a worse basin of u: measured once in 40 points, 4.4e5
     against 3.4e5 at a minimum of 168)."""
-    from service.analysis._fold_kernels import _profile_u, _profile_u_walk
-    from service.analysis._laws_kernels import _work
+    from service.analysis.predictor._kernels.fold import _profile_u, _profile_u_walk
+    from service.analysis.predictor._kernels.laws import _work
     from sim.euler_beam import spectrum
 
     mu = np.arange(1.5, 1.96, 0.05)
@@ -183,8 +183,8 @@ def test_warm_fold_parameter_equals_the_cold_search() -> None:
     precise and on noisier data; so do larger steps (the optimum followed beyond the first
     bracket) and steps far past mu* (where the precise data's fold parameter is pinned at its
     range's end)."""
-    from service.analysis._fold_kernels import _profile_u_from, _profile_u_warm
-    from service.analysis._laws_kernels import _work
+    from service.analysis.predictor._kernels.fold import _profile_u_from, _profile_u_warm
+    from service.analysis.predictor._kernels.laws import _work
 
     for rel in (1e-6, 1e-3):
         mu, comps = _precise_symmetric(rel)

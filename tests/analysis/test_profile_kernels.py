@@ -15,9 +15,15 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
-from service.analysis._exponents import free_exponent
-from service.analysis._fold_kernels import nll_rows
-from service.analysis._likelihood import (
+from service.analysis.predictor._kernels.fold import nll_rows
+from service.analysis.predictor._kernels.profile import (
+    profile_local,
+    profile_scan,
+    profile_search,
+    profile_search_scanned,
+)
+from service.analysis.predictor.exponents import free_exponent
+from service.analysis.predictor.likelihood import (
     _GRID,
     _GRID_CF,
     _LOGU,
@@ -29,12 +35,6 @@ from service.analysis._likelihood import (
     _range_grid,
     _sigma_exps,
     profile_memo,
-)
-from service.analysis._profile_kernels import (
-    profile_local,
-    profile_scan,
-    profile_search,
-    profile_search_scanned,
 )
 
 
@@ -197,7 +197,7 @@ def test_a_valley_narrower_than_the_grid_is_found() -> None:
     points stand above a far, shallow basin's lowest point (2513 at 5.7). Reference: the
     kernel at 200,001 values of mu*. Refining the scan's three lowest local minima finds the
     valley (refining only the lowest point, the search's former behaviour, fails this test)."""
-    from service.analysis._laws_kernels import nll_fixed_u
+    from service.analysis.predictor._kernels.laws import nll_fixed_u
     from sim.euler_beam import bifurcation, spectrum
 
     b = bifurcation("antisymmetric")

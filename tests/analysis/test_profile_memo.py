@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.analysis import _likelihood as lk
 from service.analysis.predict import predict
+from service.analysis.predictor import likelihood as lk
 
 
 def _sweep() -> tuple[np.ndarray, np.ndarray]:

@@ -18,8 +18,14 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis._laws_kernels import nll_fixed_u
-from service.analysis._likelihood import _Comp, _pack, _polynomial_bound, _profile, _sigma_exps
+from service.analysis.predictor._kernels.laws import nll_fixed_u
+from service.analysis.predictor.likelihood import (
+    _Comp,
+    _pack,
+    _polynomial_bound,
+    _profile,
+    _sigma_exps,
+)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -62,8 +68,8 @@ def test_term_choice_with_bounds_equals_the_exhaustive_choice(
 ) -> None:
     """The candidates' fits (terms, window, mu*, interval) are the same whether the term choice
     skips combinations by the lower bounds or searches every one (Euler beam, w given)."""
-    from service.analysis import _laws
-    from service.analysis._sweep import prepare_sweep
+    from service.analysis.predictor import compare as _laws
+    from service.analysis.predictor.sweep import prepare_sweep
     from sim.euler_beam import bifurcation, equilibrium, spectrum
 
     b = bifurcation(act)
@@ -91,7 +97,7 @@ def _beam_sweep(
 ):
     """A lab's fixed grid on the Euler beam: ``n`` points ``step`` apart (those >= 0), the last
     ``stop`` before mu*, relative noise ``rel``."""
-    from service.analysis._sweep import prepare_sweep
+    from service.analysis.predictor.sweep import prepare_sweep
     from sim.euler_beam import bifurcation, equilibrium, spectrum
 
     b = bifurcation(act)
@@ -131,8 +137,8 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
     """The informative window and terms of both selection laws are the same whether a smaller
     window's minimum and the polynomial bound skip the searches they rule out or every search
     is run."""
-    from service.analysis import _windows
-    from service.analysis._likelihood import profile_memo
+    from service.analysis.predictor import windows as _windows
+    from service.analysis.predictor.likelihood import profile_memo
 
     sw = _beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)
     scale = float(sw.mu[-1] - sw.mu[0])
@@ -165,8 +171,8 @@ def _plain_selection(sw, p: float, h: float, scale: float, patience: int = 4):
     """The window choice done the plain way: every window, every (K, variant) fewest
     corrections first, a screen (global, no continuation) and the full search where it
     fails, no bound, nothing put off. Returns ``(n, K, accepted, conformal)``."""
-    from service.analysis._likelihood import _profile_screen, _sigma_comp, _variants
-    from service.analysis._windows import _ALPHA, _KMAX, _chi2_sf, _window_sizes
+    from service.analysis.predictor.likelihood import _profile_screen, _sigma_comp, _variants
+    from service.analysis.predictor.windows import _ALPHA, _KMAX, _chi2_sf, _window_sizes
 
     N = sw.mu.size
     best = fallback = None
@@ -205,8 +211,8 @@ def test_window_choice_equals_the_plain_one(
     the full searches of fewer corrections put off to the window returned) leave the window
     and terms of the plain choice (:func:`_plain_selection`) on the lab plans and on the
     bench's geometric sweeps of every actuation."""
-    from service.analysis import _windows
-    from service.analysis._likelihood import profile_memo
+    from service.analysis.predictor import windows as _windows
+    from service.analysis.predictor.likelihood import profile_memo
 
     sweeps = [_beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)]
     if seed == 3:
@@ -224,7 +230,7 @@ def test_window_choice_equals_the_plain_one(
 def _geometric_sweep(act: str, n: int = 25, rel: float = 1e-4):
     """The bench's sweep (``bench/predict_speed.py``): 25 points approaching mu* geometrically
     to 1e-4, relative noise ``rel``."""
-    from service.analysis._sweep import prepare_sweep
+    from service.analysis.predictor.sweep import prepare_sweep
     from sim.euler_beam import bifurcation, spectrum
 
     b = bifurcation(act)
@@ -242,8 +248,9 @@ def test_free_exponent_walk_equals_the_whole_grid(
     """The free exponent a and its standard error are the same when the exponent grid is
     walked from the law's exponent until the profile has risen ``_FAR`` as when every grid
     point is searched (reference: ``_FAR = inf``)."""
-    from service.analysis import _exponents, _laws
-    from service.analysis._likelihood import profile_memo
+    from service.analysis.predictor import compare as _laws
+    from service.analysis.predictor import exponents as _exponents
+    from service.analysis.predictor.likelihood import profile_memo
 
     sw = _beam_sweep(act, 25, 1e-4, 5)
     _, fits, n_c, _ = _laws.analyse(sw)
@@ -262,8 +269,8 @@ def test_a_fit_searches_from_the_optimum_its_window_was_accepted_on() -> None:
     finds that minimum by its local searches and hands it on; the full search started from
     the hint finds it too, where its scan's walk over the fold parameter's grid can pass over
     that valley. A hint never makes a search worse: from a far point it changes nothing."""
-    from service.analysis import _windows
-    from service.analysis._likelihood import _nll_u, _sigma_comp, profile_memo
+    from service.analysis.predictor import windows as _windows
+    from service.analysis.predictor.likelihood import _nll_u, _sigma_comp, profile_memo
 
     sw = _beam_sweep("symmetric", 60, 0.0003858145395579972, 853510190, with_w=False,
                      step=0.08807646349095118, stop=0.0021586462116093513)  # fmt: skip

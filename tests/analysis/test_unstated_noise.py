@@ -16,9 +16,9 @@ import math
 import numpy as np
 import pytest
 
-from service.analysis._sweep import prepare_sweep
-from service.analysis._windows import _estimate_noise, _local_scatter
 from service.analysis.predict import paper_rule, predict
+from service.analysis.predictor.sweep import prepare_sweep
+from service.analysis.predictor.windows import _estimate_noise, _local_scatter
 
 pytest.importorskip("sim.euler_beam")
 

@@ -9,7 +9,7 @@ pitchforkEquilibriums, with regular corrections):
 (``h = 1/2`` near a fold, ``1`` near a pitchfork; see :data:`CANDIDATES`). A pitchfork law also
 comes in a variant that knows a secondary fold of the measured branch at ``mu* + delta``: the
 series run in the conformal variable ``z = 2x / (1 + sqrt(1 + x/delta))`` (``delta`` profiled;
-see :mod:`service.analysis._laws_kernels`). Physics: the trivial branch of a subcritical
+see :mod:`._kernels.laws`). Physics: the trivial branch of a subcritical
 pitchfork, unstable beyond mu*, may fold soon after it (the symmetric beam: U_A folds at
 mu2* = mu* + 0.0119); the equilibrium is then analytic in the fold's amplitude
 ``s = sqrt(mu* + delta - mu)``, so every series in ``x`` converges only within ``delta`` of mu*
@@ -18,11 +18,11 @@ and ``sigma^2(mu)`` carries a square-root branch point at ``mu* + delta``, while
 
 The number of correction terms and the window of "informative" points (the nearest points where
 the law holds) are chosen by a chi-square goodness-of-fit test against the measurement noise
-(:mod:`service.analysis._windows`, with the noise estimate); the candidates are compared on a
+(:mod:`.windows`, with the noise estimate); the candidates are compared on a
 common window by BIC, which gives the model probabilities.
 
 Public entry points (used by :mod:`service.analysis.classify` and
-:mod:`service.analysis._mu_star`): :func:`analyse`, :func:`probabilities`, :func:`refit_profile`,
+:mod:`.interval`): :func:`analyse`, :func:`probabilities`, :func:`refit_profile`,
 :func:`free_exponent_a`, :func:`free_exponent_b`, :func:`secondary_fold`,
 :func:`fewer_terms_rival`, :func:`fold_rival_gap`, :class:`ModelFit`,
 :data:`CANDIDATES`.
@@ -35,9 +35,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from service.analysis._damping import identify_damping
-from service.analysis._exponents import exponent_grid, free_exponent
-from service.analysis._likelihood import (
+from service.analysis.common import Flag
+from service.analysis.predictor.damping import identify_damping
+from service.analysis.predictor.exponents import exponent_grid, free_exponent
+from service.analysis.predictor.laws import CANDIDATES
+from service.analysis.predictor.likelihood import (
     _Comp,
     _nll_u,
     _polynomial_bound,
@@ -49,12 +51,11 @@ from service.analysis._likelihood import (
     _w_comp,
     _w_exps,
 )
-from service.analysis._sweep import Sweep
-from service.analysis._windows import (
+from service.analysis.predictor.sweep import Sweep
+from service.analysis.predictor.windows import (
     _KMAX,
     _KW_MAX,
     _MIN_NOISE_DOF,
-    CANDIDATES,
     _chi2_sf,
     _estimate_noise,
     _noise_flag,
@@ -64,7 +65,6 @@ from service.analysis._windows import (
     _static_window,
     _with_damping,
 )
-from service.analysis.common import Flag
 
 __all__ = [
     "CANDIDATES",
@@ -443,7 +443,7 @@ def analyse(
     Parameters
     ----------
     sweep : Sweep
-        From :func:`service.analysis._sweep.prepare_sweep`.
+        From :func:`.sweep.prepare_sweep`.
     law : (name, a, b, h), optional
         One law to fit: its name, time exponent ``a``, static exponent ``b`` (None: the
         eigenvalues alone) and correction step ``h``.
@@ -491,16 +491,8 @@ def fewer_terms_rival(sweep: Sweep, fit: ModelFit, level: float) -> tuple[ModelF
     is below ``_RIVAL_MIN``.
 
     The number of corrections is chosen on the data (AICc on the window, the same test the
-    rival is weighed by): an interval read from the chosen fit alone ignores that choice.
-    Measured on the normal form's symmetric plans (whose law is exact, no correction needed;
-    1800 calibration plans, seed 2026): 41 of 300 took a correction, by an AICc margin of
-    0-5.5 in 90 % of them, and were covered in 73 % (rms error / std 1.55), the other 259 in
-    94.6 %. On the beam the fewer-terms law misses by a margin of 26 to 1e5 (10 % and 90 %
-    quantiles of its folds; the pitchforks' 10 % quantiles 44 and 1265): weight below 1e-5.
-    With the rival in the interval (:func:`service.analysis._mu_star.interval`), coverage of
-    the normal form's asymmetric / symmetric / antisymmetric plans: 97.3 / 93.3 / 94.7 %
-    (96.0 / 91.7 / 93.3 % without), held-out seeds 7 and 11 96.7 / 96.3 / 97.3 % both
-    (96.3 / 95.0 / 96.7 and 95.0 / 95.3 / 96.7 % without); the beam's within one plan.
+    rival is weighed by): an interval read from the chosen fit alone ignores that choice
+    (ledger: docs/predictor.md, "Fewer-terms rival").
     """
     cf = int(fit.conformal)
     n, K = fit.n, fit.K

@@ -5,7 +5,7 @@ The window of "informative" points of a law (the nearest points where it holds w
 noise (:func:`_select_window`); the static law gets its own, usually wider window
 (:func:`_static_window`). Without a given noise the relative noise of ``|sigma^2|`` is estimated
 from the scatter about the best candidate (:func:`_estimate_noise`); observed rates of a damped
-strip are mapped to ``|sigma^2|`` (:func:`_with_damping`). Used by :mod:`service.analysis._laws`.
+strip are mapped to ``|sigma^2|`` (:func:`_with_damping`). Used by :mod:`.compare`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import special, stats
 
-from service.analysis._laws_kernels import REL_FLOOR as _REL_FLOOR
-from service.analysis._likelihood import (
+from service.analysis.common import Flag
+from service.analysis.predictor._kernels.laws import REL_FLOOR as _REL_FLOOR
+from service.analysis.predictor.laws import CANDIDATES
+from service.analysis.predictor.likelihood import (
     _Comp,
     _nll,
     _polynomial_bound,
@@ -29,14 +31,7 @@ from service.analysis._likelihood import (
     _variants,
     _w_comp,
 )
-from service.analysis._sweep import Sweep
-from service.analysis.common import Flag
-
-CANDIDATES: dict[str, tuple[float, float, float]] = {
-    "saddle-node": (0.25, 0.5, 0.5),
-    "subcritical-pitchfork": (0.5, 1.0, 1.0),
-    "supercritical-pitchfork": (0.5, 0.5, 1.0),
-}
+from service.analysis.predictor.sweep import Sweep
 
 _KMAX = 3  # most correction terms in the sigma^2 law
 _KW_MAX = 3  # most terms beyond the constant in the static law

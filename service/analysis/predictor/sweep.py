@@ -2,7 +2,7 @@
 
 :func:`prepare_sweep` checks a sweep at the door (finite values, matching lengths, strictly
 increasing control, stable eigenvalues, positive standard deviations) and returns a frozen
-:class:`Sweep`, the input of the profile-likelihood engine (:mod:`service.analysis._laws`), the
+:class:`Sweep`, the input of the profile-likelihood engine (:mod:`.compare`), the
 classification and the predictor. A bad value raises
 :class:`service.analysis.errors.ParameterError` naming the parameter and the value.
 """

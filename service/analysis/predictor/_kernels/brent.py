@@ -1,8 +1,8 @@
 """Brent's minimisation, the bookkeeping its three searches share.
 
-The fold parameter's refinement (:mod:`service.analysis._fold_kernels`), the search over mu*
-(:mod:`service.analysis._profile_kernels`) and the free exponent's (a Python objective,
-:mod:`service.analysis._exponents`) each choose their own trial point (their tolerances,
+The fold parameter's refinement (:mod:`._kernels.fold`), the search over mu*
+(:mod:`._kernels.profile`) and the free exponent's (a Python objective,
+:mod:`.exponents`) each choose their own trial point (their tolerances,
 starts and guards differ) from the parabola of :func:`brent_parabola` or a golden section, and
 keep the bracket and the three best points with :func:`brent_keep` (Brent 1973, ch. 5; the
 steps of scipy's ``fminbound``).

@@ -1,11 +1,11 @@
 """A damping nobody gave, identified from rates (``omega`` data without ``damping``).
 
 A rate below ``xi / 2`` is the slow pole of an over-damped mode, ``omega (xi - omega) =
-|sigma^2|`` (:func:`service.analysis._windows._with_damping`); near a fold that slow rate grows
+|sigma^2|`` (:func:`.windows._with_damping`); near a fold that slow rate grows
 like a pitchfork's frequency (both ``~ x^(1/2)``), so a damping is kept only on decisive
 evidence: an over-damped layer near mu* with under-damped points beyond it, fitting far better
 than the undamped laws given one more correction term instead. Used by
-:mod:`service.analysis._laws` before the candidates are fitted.
+:mod:`.compare` before the candidates are fitted.
 """
 
 from __future__ import annotations
@@ -15,9 +15,15 @@ import math
 import numpy as np
 from scipy import optimize
 
-from service.analysis._likelihood import _MEMO
-from service.analysis._sweep import Sweep
-from service.analysis._windows import _KMAX, _Sel, _select_window, _sigma_chi2, _with_damping
+from service.analysis.predictor.likelihood import _MEMO
+from service.analysis.predictor.sweep import Sweep
+from service.analysis.predictor.windows import (
+    _KMAX,
+    _Sel,
+    _select_window,
+    _sigma_chi2,
+    _with_damping,
+)
 
 __all__ = ["identify_damping"]
 

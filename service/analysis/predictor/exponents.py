@@ -4,7 +4,7 @@ exponent ``b``): the classification's check that the data follow the candidate's
 The exponent is profiled with mu* profiled too (or fixed at a fit's mu*), over a grid walked
 from the law's own exponent, then refined by Brent's method; its standard error is the
 distance where ``-2 log L`` rises by 1. The profile at each exponent is a search of
-:mod:`service.analysis._likelihood`.
+:mod:`.likelihood`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from service.analysis._brent import GOLD, brent_keep, brent_parabola
-from service.analysis._fold_kernels import nll_exponent_rows
-from service.analysis._likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
+from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_parabola
+from service.analysis.predictor._kernels.fold import nll_exponent_rows
+from service.analysis.predictor.likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
 
 def exponent_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
@@ -96,7 +96,7 @@ def free_exponent(
     ``center`` every grid point is evaluated (the static exponent's profile has a second
     valley at the grid's low edge, where a series in x^(b/2) fits too). ``hint``: ``(t, log
     u)`` of the law's own optimum (its fit's), where the search at ``center`` starts as well
-    (see :func:`~service.analysis._likelihood._profile`)."""
+    (see :func:`~.likelihood._profile`)."""
     last = float(mu_w[-1])
     known: dict[float, tuple[float, float]] = {}  # exponent -> (t, log u) at its optimum
 

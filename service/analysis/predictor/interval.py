@@ -20,17 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from service.analysis._laws import (
+from service.analysis.common import Flag
+from service.analysis.errors import ParameterError
+from service.analysis.predictor.classification import Classification, classify_sweep
+from service.analysis.predictor.compare import (
     CANDIDATES,
     ModelFit,
     analyse,
     fewer_terms_rival,
     refit_profile,
 )
-from service.analysis._sweep import Sweep
-from service.analysis.classify import Classification, classify_sweep
-from service.analysis.common import Flag
-from service.analysis.errors import ParameterError
+from service.analysis.predictor.sweep import Sweep
 
 __all__ = ["Fits", "fit_sweep", "interval"]
 
@@ -155,60 +155,17 @@ _RICHARDSON = 2.0  # bias of the main fit over the bias its neighbours reveal
 def _truncation_spread(sw: Sweep, fit: ModelFit) -> tuple[float, float]:
     """Downward and upward truncation bias of ``fit``'s mu*, read from neighbouring fits.
 
-    The neighbours are fits that truncate less than ``fit``: one more correction term (same
-    window or one point less), and the window without its one, two or three farthest points or
-    cut to half its size (same terms, and one more on the half window); and, truncating more,
-    the window one or two points larger (same terms): the truncation's effect on mu* is set
-    by the spacing of the points nearest mu*, which every smaller window shares, so on a fixed
-    grid it barely moves as the window shrinks (the beam's fold, 2 corrections on the nearest
-    5-8 points of one plan: -16.6 to -15.8 standard deviations), and shows where the window
-    grows (-13.3, -8.7 at 9 and 10 points). Fits with fewer terms are not neighbours: they
-    measure their own, larger truncation (on the beam they set the width: median |error| /
-    half-width 0.04-0.10 where a calibrated interval gives 0.34).
-
-    A neighbour's difference ``D = mu*_j - mu*`` carries noise as well as bias: both fits are
-    unbiased if the law holds and one of them is the more efficient, so the noise of ``D`` is
-    ``t^2 = |s_j^2 - s^2|`` (their 68 % half-widths; Hausman) and only ``sqrt(D^2 - t^2)``
-    (zero when ``|D| <= t``) counts as bias; counting ``D`` whole counted the noise twice (the
-    normal-form records, whose laws are exact, were covered in 98-100 % of plans).
-
-    A neighbour shares most of ``fit``'s points and is itself biased the same way (measured on
-    300 beam plans: the true error is 1.5-5x the neighbour's difference, same sign in 80-90 %):
-    the bias is taken as ``_RICHARDSON`` = 2 times the largest one, on the side it points to
-    (a neighbour keeping half the bias: Richardson's extrapolation with ratio 1/2). This
-    factor is the one free choice here. First chosen at 2.5 on the calibration's plans of seed
-    2026 with fewer neighbours (1 left the beam plans at 66-89 % coverage, 2 at 88-97 % before
-    the larger windows were neighbours, 95-97 % after); with every neighbour below (the
-    truncation limit's both sides, the fold's (n, K + 2)) 2.5 over-covered the beam, 300
-    plans per actuation and seed (asymmetric / symmetric / antisymmetric): seed 2026 99.7 /
-    98.3 / 97.7 %, held-out seeds 7 and 11 97.3 / 97.0 / 98.7 % and 98.3 / 95.7 / 97.3 %. At 2:
-    97.7 / 97.7 / 97.7 %, 96.0 / 96.0 / 97.3 %, 96.7 / 95.3 / 97.0 %; at 1.75 the folds at
-    the truncation limit (K = 3, some 45 % of the fold plans) fell to 89-92 % (seeds 7, 11,
-    2026) and a coarse lab grid (below) to 13 of 20 noise seeds.
-
-    A fold's law that needed every correction allowed (``corrections_exhausted``, K = 3: its
-    half-integer series then reaches only ``x^(3/2)`` beyond the leading term, a pitchfork's
-    ``x^3``) is at its truncation limit: there the larger windows' differences size the
-    truncation's effect but not the side of ``fit``'s own bias, which need not grow
-    monotonically with the window (one beam plan's larger windows came nearer mu*, another's
-    went farther, both on fixed grids), and their allowance widens both sides. Measured on the
-    1800 calibration plans (seed 2026): the beam's folds at K = 3 were covered in 85 % (142
-    plans; 99 % at K <= 2), 21 of their 22 misses with mu* above the interval and the larger
-    windows below the fit; a lab's grid 0, 0.1, ... (last record 0.082 before the fold's mu*,
-    noise 1e-4) was covered in 7 of 20 noise seeds. With both sides (factor 2.5): the beam's
-    folds covered in 99.3 % of 300 plans, 97 % and 96 % of 100 held-out plans (seeds 7, 11;
-    93 % and 88 % before), that grid in 20 of 20 (18 of 20 at the factor 2, the two misses
-    3e-4 and 5e-4 short of mu* on half-widths of 7e-3 and 2e-2); the pitchforks and the normal
-    form's exact laws unchanged.
-
-    A fold's series is also refitted with two more terms on the same window (its (n, K + 2)
-    neighbour; a pitchfork's, with terms up to x^5, misfits wildly and is not): on a fine grid
-    the fold's truncation bias is set by the nearest points, shared by every window and by one
-    more term (a lab's grid 0, 0.03, ..., the last record 0.012 before mu*, noise 1e-5: 2
-    corrections on 5 to 10 points all 1.8e-5 early, 15 statistical std, even on exact data), and
-    only the second term beyond reveals it (mu* 1.7e-5 later): that grid was covered in 6 of 20
-    noise seeds, now 19 (grid 0, 0.02, ...: 13, now 20); the 1800 calibration plans keep their
-    coverage.
+    The neighbours truncate less than ``fit``: one more correction term (same window or one
+    point less), the window without its one, two or three farthest points or cut to half its
+    size (same terms, and one more on the half window), a fold's series with two more terms on
+    the same window; and, truncating more, the window one or two points larger (same terms).
+    A neighbour's difference ``D = mu*_j - mu*`` carries noise as well as bias: only
+    ``sqrt(D^2 - t^2)``, ``t^2 = |s_j^2 - s^2|`` (their 68 % half-widths; Hausman), counts as
+    bias, and it is taken as ``_RICHARDSON`` times the largest one (a neighbour keeping half the
+    bias: Richardson's extrapolation with ratio 1/2), on the side it points to. A fold's law at
+    its truncation limit (``corrections_exhausted``) widens both sides by the larger windows'
+    differences. The factor and the neighbours are measured in docs/predictor.md (ledger:
+    "Truncation spread").
     """
     m0 = fit.profile.mu_star
     s0 = 0.5 * (fit.profile.hi68 - fit.profile.lo68)

@@ -1,8 +1,8 @@
 """The profile likelihood of laws linear in their coefficients (the engine's primitives).
 
-For a trial transition point ``mu*`` every law of :mod:`service.analysis._laws` is linear in its
+For a trial transition point ``mu*`` every law of :mod:`.compare` is linear in its
 coefficients, so ``-2 log L`` is a weighted linear least-squares residual (compiled:
-:mod:`service.analysis._laws_kernels`) and the likelihood is profiled over ``mu*`` (variable
+:mod:`._kernels.laws`) and the likelihood is profiled over ``mu*`` (variable
 projection): a 1-D search on a logarithmic grid of ``mu* - mu[-1]``, refined by Brent's method,
 with profile-likelihood intervals. A law that knows a secondary fold beyond ``mu*`` (conformal
 variable, see the kernels) profiles the fold distance as well, inside the kernel.
@@ -20,16 +20,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from service.analysis._fold_kernels import nll_rows
-from service.analysis._laws_kernels import poly_rss
-from service.analysis._profile_kernels import (
+from service.analysis.common import Flag
+from service.analysis.predictor._kernels.fold import nll_rows
+from service.analysis.predictor._kernels.laws import poly_rss
+from service.analysis.predictor._kernels.profile import (
     profile_local,
     profile_scan,
     profile_search,
     profile_search_scanned,
 )
-from service.analysis._sweep import Sweep
-from service.analysis.common import Flag
+from service.analysis.predictor.sweep import Sweep
 
 _GRID = 81  # scan of log(mu* - mu_last) for a plain law
 _GRID_CF = 61  # for a conformal law (the fold parameter profiled at every point)
@@ -413,7 +413,7 @@ _KCF = 2  # most corrections of a conformal law (one parameter more than the pla
 def _variants(p: float, h: float, K: int = 0) -> tuple[bool, ...]:
     """Plain law, and for a pitchfork (|sigma^2| ~ x) also the law that knows a secondary fold
     of the measured branch beyond mu* (series in the conformal variable z; see
-    :mod:`service.analysis._laws_kernels`). A subcritical pitchfork's trivial branch, unstable
+    :mod:`._kernels.laws`). A subcritical pitchfork's trivial branch, unstable
     past mu*, may fold soon after it (the symmetric beam: mu2* = mu* + 0.012); the series in
     x = mu* - mu then converges only within that distance, the series in z much farther."""
     return (False, True) if (p == 1.0 and h == 1.0 and K <= _KCF) else (False,)

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from service.analysis._sweep import prepare_sweep
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
+from service.analysis.predictor.sweep import prepare_sweep
 
 __all__ = ["PaperRule", "check_exponent", "paper_rule"]
 

@@ -1,6 +1,6 @@
-"""Compiled search of the profile likelihood over ``mu*`` (see :mod:`service.analysis._likelihood`).
+"""Compiled search of the profile likelihood over ``mu*`` (see :mod:`.likelihood`).
 
-The profile ``-2 log L(mu*)`` of a law (:mod:`service.analysis._laws_kernels`) is searched in
+The profile ``-2 log L(mu*)`` of a law (:mod:`._kernels.laws`) is searched in
 ``t = log(mu* - mu_last)``: a scan of a given grid, a bounded minimisation (Brent's parabolic
 interpolation with golden-section safeguard) in the bracket of the grid's lowest point (and,
 with ``polish > 1``, of the next lowest local minima: a valley narrower than the grid's step
@@ -10,8 +10,8 @@ root finder between the last grid point below and the first above). One call doe
 a profile costs no Python call per evaluation. A slow reference (the same steps with scipy's
 ``minimize_scalar`` and ``brentq``) lives in the tests.
 
-Data are the packed component arrays of :func:`service.analysis._likelihood._pack` passed as one
-tuple ``P = (D, E, M)`` (see :func:`service.analysis._laws_kernels._comp_nll`).
+Data are the packed component arrays of :func:`.likelihood._pack` passed as one
+tuple ``P = (D, E, M)`` (see :func:`._kernels.laws._comp_nll`).
 """
 
 from __future__ import annotations
@@ -21,14 +21,14 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._brent import GOLD, brent_keep, brent_parabola
-from service.analysis._fold_kernels import (
+from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_parabola
+from service.analysis.predictor._kernels.fold import (
     _profile_u,
     _profile_u_from,
     _profile_u_walk,
     _profile_u_warm,
 )
-from service.analysis._laws_kernels import _total, _work
+from service.analysis.predictor._kernels.laws import _total, _work
 
 _SQRT_EPS = 1.4901161193847656e-08
 _EPS = 2.220446049250313e-16

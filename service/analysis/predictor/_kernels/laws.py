@@ -1,4 +1,4 @@
-"""Compiled kernels of the profile likelihood (see :mod:`service.analysis._laws`).
+"""Compiled kernels of the profile likelihood (see :mod:`.compare`).
 
 For a trial transition point ``mu*`` every law is linear in its coefficients: the data ``y`` of
 one component are fitted by ``sum_j beta_j v^(e_j)`` with ``v = x = mu* - mu`` or, for a law
@@ -10,7 +10,7 @@ a series in ``z`` being a series in the fold's own amplitude ``s = sqrt(mu* + de
 (``z -> x`` as ``delta -> inf``). The kernels return ``-2 log L`` (up to constants) of the
 weighted linear least-squares fit (Householder QR), summed over components, at a trial mu*
 and fold parameter ``u = (mu* - mu_last) / delta`` (0: none); the fold parameter is profiled
-out per mu* in :mod:`service.analysis._fold_kernels`.
+out per mu* in :mod:`._kernels.fold`.
 
 Components are packed in three plain arrays (``D``: rows mu, y, wt of all components one after
 the other; ``E[c, :k]``: exponents; ``M[c] = (offset, n, k, known, lead, lead_col, signed,

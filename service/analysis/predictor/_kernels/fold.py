@@ -1,13 +1,13 @@
-"""Compiled profile of the secondary fold's parameter (see :mod:`service.analysis._laws_kernels`).
+"""Compiled profile of the secondary fold's parameter (see :mod:`._kernels.laws`).
 
 A law that knows a secondary fold at ``mu* + delta`` (the conformal variable of
-:func:`~service.analysis._laws_kernels._comp_nll`) has, besides its linear coefficients, the
+:func:`~._kernels.laws._comp_nll`) has, besides its linear coefficients, the
 fold parameter ``u = (mu* - mu_last) / delta`` in ``[0, u_max]``: at every trial mu* it is
 profiled out, over a grid of ``log u`` and then refined (golden-section/parabolic steps across
 a grid step, successive parabolic interpolation in a narrow bracket), from the whole grid or
 from a neighbouring mu*'s optimum (a minimisation's or root finder's successive steps, a
 scan's walk along mu*). ``nll_rows`` and ``nll_exponent_rows`` are the entry points of one
-or many evaluations; the searches over mu* (:mod:`service.analysis._profile_kernels`) call the
+or many evaluations; the searches over mu* (:mod:`._kernels.profile`) call the
 rest. A slow reference (scipy's bounded Brent over u, numpy least squares) lives in the tests.
 """
 
@@ -18,8 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis._brent import GOLD, brent_keep, brent_parabola
-from service.analysis._laws_kernels import _total, _work
+from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_parabola
+from service.analysis.predictor._kernels.laws import _total, _work
 
 # tolerance (in log u) of the fold parameter's refinement: precise data make the profile over
 # u a valley some 1e-4 wide (measured: a beam sweep with 1e-6 noise, -2 log L rising by 80 over
