@@ -67,6 +67,7 @@ def _lifespan(settings: Settings) -> Any:
         preload_backends()
         store = Store(settings.db_url)
         await to_thread.run_sync(store.create_all)
+        await to_thread.run_sync(store.recover_idempotent)  # keys of requests that died
         pool = make_analysis_pool(settings.executor, settings.analysis_workers)
         state = AppState(settings=settings, store=store, pool=pool)
         if settings.warm_pool:

@@ -129,6 +129,12 @@ class Settings(BaseSettings):
     job_time_limit_s: float = Field(
         default=1800.0, gt=0, description="Time limit of a job (failed with a reason beyond it)."
     )
+    idempotency_lease_s: float = Field(
+        default=10.0,
+        gt=0,
+        description="Lease of a claimed Idempotency-Key, renewed while its request runs: a key "
+        "whose request died is recovered by a retry after it (409 with Retry-After before).",
+    )
     uniform_rtol: float = Field(
         default=1e-3, gt=0, description="Max relative deviation of diff(t) from its mean."
     )

@@ -15,6 +15,7 @@ from sqlalchemy import JSON, DateTime, Double, Integer, String, UniqueConstraint
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Mapped, mapped_column
 
+from service.api.storage import idempotency
 from service.api.storage.models import DEFAULT_OWNER, Base, JobRow, new_id, sanitize, utcnow
 
 ATLAS_KIND = "atlas"
@@ -60,6 +61,7 @@ def create_atlas(store: Any, *, name: str | None, kind: str, spec: dict[str, Any
     with store.session() as s:
         s.add(job)
         s.add(atlas)
+        idempotency.bind(s, f"/v1/atlases/{aid}", 202)
     return atlas, job
 
 

@@ -335,9 +335,7 @@ class JobsMixin:
             )
             for row in rows:
                 row.heartbeat_at = now
-                new = self._requeue_or_fail(
-                    s, row, now, 10**9, "resuming: its runner was stopped"
-                )
+                new = self._requeue_or_fail(s, row, now, 10**9, "resuming: its runner was stopped")
                 n += new == "queued"
         return n
 

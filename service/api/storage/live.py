@@ -31,6 +31,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
+from service.api.storage import idempotency
 from service.api.storage.models import (
     DEFAULT_OWNER,
     Base,
@@ -124,6 +125,7 @@ def create_live_sweep(
         s.add(job)
         s.add(sweep)
         s.add(live)
+        idempotency.bind(s, f"/v1/sweeps/{sid}", 201)
     return sweep, job, live
 
 
@@ -198,6 +200,7 @@ def append_record(
         if finish_result is not None:
             values = _finished(finish_result, now, f"finished: budget of {seq} records spent")
         s.execute(update(JobRow).where(JobRow.id == sweep_id).values(**values))
+        idempotency.bind(s, f"/v1/sweeps/{sweep_id}/records/{seq}", 201)
     return row
 
 

@@ -158,6 +158,13 @@ class IdempotencyRow(Base):
     status: Mapped[int] = mapped_column(Integer)
     body: Mapped[dict | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(DateTime)
+    #: The claim of a pending key: its holder's token and how long it holds it (renewed while
+    #: the request runs); the resource its work committed (bound in the work's transaction)
+    #: and the status that work answers.
+    token: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    lease_until: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    resource: Mapped[str | None] = mapped_column(String(300), nullable=True)
+    resource_status: Mapped[int | None] = mapped_column(Integer, nullable=True)
 
 
 def make_engine(url: str) -> Engine:

@@ -10,6 +10,7 @@ import numpy as np
 from sqlalchemy import delete, func, select
 from sqlalchemy.orm import defer
 
+from service.api.storage import idempotency
 from service.api.storage.models import (
     DEFAULT_OWNER,
     SignalRow,
@@ -79,6 +80,7 @@ class SignalsMixin:
         )
         with self.session() as s:  # type: ignore[attr-defined]
             s.add(row)
+            idempotency.bind(s, f"/v1/signals/{row.id}", 201)
         return row
 
     def get_signal_meta(self, signal_id: str, scope: str | None = None) -> SignalRow | None:

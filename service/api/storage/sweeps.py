@@ -6,6 +6,7 @@ from typing import Any
 
 from sqlalchemy import func, select
 
+from service.api.storage import idempotency
 from service.api.storage.models import (
     DEFAULT_OWNER,
     JobRow,
@@ -50,11 +51,10 @@ class SweepsMixin:
         with self.session() as s:  # type: ignore[attr-defined]
             s.add(job)
             s.add(sweep)
+            idempotency.bind(s, f"/v1/sweeps/{sid}", 202)
         return sweep, job
 
-    def get_sweep(
-        self, sweep_id: str, scope: str | None = None
-    ) -> tuple[SweepRow, JobRow] | None:
+    def get_sweep(self, sweep_id: str, scope: str | None = None) -> tuple[SweepRow, JobRow] | None:
         with self.session() as s:  # type: ignore[attr-defined]
             sweep = s.get(SweepRow, sweep_id)
             if sweep is None or (scope is not None and sweep.owner != scope):
