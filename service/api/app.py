@@ -75,12 +75,14 @@ def _lifespan(settings: Settings) -> Any:
             def ready(avail: dict[str, bool]) -> None:
                 state.numerics_cache = (time.monotonic(), avail)
 
-            threading.Thread(
-                target=warm_pool,
-                args=(pool, settings.analysis_workers, ready),
-                name="snapwarn-warm",
-                daemon=True,
-            ).start()
+            def warm_all() -> None:  # the kernels load (or compile) before the app is ready
+                try:
+                    warm_pool(pool, settings.analysis_workers, ready)
+                finally:
+                    state.kernels_ready = True
+
+            state.kernels_ready = False
+            threading.Thread(target=warm_all, name="snapwarn-warm", daemon=True).start()
         runner = None
         if settings.run_jobs:
             runner = JobRunner(
@@ -181,6 +183,8 @@ _COMMON = {
     "401": "Missing, wrong or revoked API key.",
     "403": "Cross-site request or foreign Host refused.",
     "422": "Invalid input: the field and the value are named.",
+    "503": "The service is starting (its analysis workers load their kernels): retry after "
+    "Retry-After seconds.",
 }
 _WITH_BODY = {
     "400": "The body could not be read (not UTF-8, malformed).",

@@ -94,21 +94,32 @@ def make_pool(kind: str, workers: int, name: str) -> Executor:
 def warm_pool(
     pool: Executor, workers: int, on_ready: Callable[[dict[str, bool]], None] | None = None
 ) -> None:
-    """Start every worker and import the numerics there (best effort).
+    """Start every worker and load the numerics' kernels there (best effort; returns when
+    every worker is warm or has failed to warm).
 
-    ``on_ready`` receives which numerics entry points are installed.
+    One worker warms first: on a cache that lacks kernels it compiles them once and fills the
+    cache, then the others load them (instead of every worker compiling the same kernels at
+    once on the same cores). ``on_ready`` receives which numerics entry points are installed.
     """
     from service.api import warm
 
-    futs = [pool.submit(warm.warm) for _ in range(2 * workers)]
-    for f in futs:
-        try:
-            avail = f.result(timeout=300)
-            if on_ready is not None:
-                on_ready(avail)
-                on_ready = None
-        except Exception:  # noqa: BLE001 - warming is an optimisation
-            pass
+    def wait(futs: list[Future[dict[str, bool]]]) -> None:
+        nonlocal on_ready
+        for f in futs:
+            try:
+                avail = f.result(timeout=_WARM_TIMEOUT_S)
+                if on_ready is not None:
+                    on_ready(avail)
+                    on_ready = None
+            except Exception:  # noqa: BLE001 - warming is an optimisation
+                pass
+
+    wait([pool.submit(warm.warm)])
+    wait([pool.submit(warm.warm) for _ in range(2 * workers - 1)])
+
+
+#: How long one worker's warm-up may take (a cold cache on a loaded machine: minutes).
+_WARM_TIMEOUT_S = 900.0
 
 
 async def run_in_pool(pool: Executor, fn: Callable[..., T], *args: Any) -> T:

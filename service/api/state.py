@@ -23,6 +23,11 @@ from service.api.storage import JobRow, SignalRow, Store, as_utc
 T = TypeVar("T")
 log = logging.getLogger("snapwarn.api")
 
+#: How long an analysis request waits for the workers' warm-up before its 503 (seconds), and
+#: the ``Retry-After`` it then gets.
+WARM_WAIT_S = 10.0
+WARM_RETRY_AFTER_S = 10
+
 
 @dataclass
 class AppState:
@@ -32,6 +37,9 @@ class AppState:
     runner: JobRunner | None = None
     numerics_cache: tuple[float, dict[str, bool]] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    #: The analysis workers have loaded (or compiled) their kernels (``service.api.warm``);
+    #: False from start-up until then when the pool is warmed (``/healthz`` reports it).
+    kernels_ready: bool = True
 
     async def run(self, fn: Callable[..., T], *args: Any) -> T:
         """Await ``fn(*args)`` in the analysis pool, within ``request_time_limit_s``.
@@ -42,7 +50,13 @@ class AppState:
         and answered 422: send the work as a job.
         Arithmetic errors of the numerics (overflow, division by zero) are the input's doing:
         422 too, with a correlation id in the log.
+        While the workers warm up (start-up: their kernels load, or compile when numba's
+        cache lacks them) a call waits up to :data:`WARM_WAIT_S`, then is answered 503 with
+        ``Retry-After``: a server that is not ready is not the client's error, and its time
+        limit never counts the compiler's time.
         """
+        if not self.kernels_ready:
+            await self._wait_warm()
         try:
             return await self._run_limited(fn, *args)
         except BrokenProcessPool:
@@ -60,6 +74,19 @@ class AppState:
                 field="body",
                 value=None,
             ) from None
+
+    async def _wait_warm(self) -> None:
+        t0 = time.monotonic()
+        while not self.kernels_ready:
+            if time.monotonic() - t0 > WARM_WAIT_S:
+                raise ApiProblem(
+                    503,
+                    "the service is starting: its analysis workers are still loading (or, on "
+                    "a fresh install, compiling) their numerical kernels; retry shortly",
+                    slug="warming-up",
+                    headers={"Retry-After": str(WARM_RETRY_AFTER_S)},
+                )
+            await asyncio.sleep(0.05)
 
     async def _run_limited(self, fn: Callable[..., T], *args: Any) -> T:
         limit = self.settings.request_time_limit_s

@@ -49,3 +49,9 @@ class Health(BaseModel):
     numerics: dict[str, bool] = Field(
         default_factory=dict, description="Which numerics entry points are installed."
     )
+    ready: bool = Field(
+        default=True,
+        description="The analysis workers have loaded their numerical kernels (compiled once, "
+        "at install; a fresh install without them compiles at start-up). Until then analysis "
+        "requests wait up to 10 s, then get 503 with Retry-After.",
+    )

@@ -1,4 +1,4 @@
-"""``GET /healthz``: liveness, database, job workers, numerics installed."""
+"""``GET /healthz``: liveness, database, job workers, numerics installed, kernels ready."""
 
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ except PackageNotFoundError:  # pragma: no cover
     responses={503: {"description": "The database does not answer."}},
 )
 async def healthz(state: StateDep) -> JSONResponse:
-    """200 when the database answers (503 otherwise); live job workers; numerics installed."""
+    """200 when the database answers (503 otherwise); live job workers; numerics installed;
+    ``ready`` once the analysis workers have loaded their kernels."""
     try:
         await to_thread.run_sync(state.store.ping)
         db = "ok"
@@ -41,5 +42,6 @@ async def healthz(state: StateDep) -> JSONResponse:
         database=db,
         workers=workers,
         numerics=avail,
+        ready=state.kernels_ready,
     )
     return JSONResponse(doc.model_dump(), status_code=200 if db == "ok" else 503)
