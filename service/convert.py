@@ -79,7 +79,10 @@ PARITY: dict[str, tuple[type[wire.BaseModel], frozenset[str], frozenset[str]]] =
     ),
     "service.analysis.alarm:Alarm": (wire.Alarm, frozenset(), frozenset()),
     "service.analysis.predict:Prediction": (wire.Prediction, frozenset(), frozenset()),
-    "service.analysis.pipeline:WarnResult": (wire.SweepResult, frozenset(), frozenset()),
+    "service.analysis.pipeline:WarnResult": (
+        wire.SweepResult, frozenset(), frozenset({"n_set_aside"})
+    ),
+    "service.analysis.sweep_policy:SetAside": (wire.SetAside, frozenset(), frozenset()),
     # the simulator's results
     "sim.results:Resolution": (sim_wire.Resolution, frozenset(), frozenset()),
     "sim.results:BifurcationPoint": (sim_wire.BifurcationPoint, frozenset(), frozenset()),
@@ -242,8 +245,20 @@ def classification(c: Any) -> wire.Classification:
     return wire.Classification.model_validate(_fields(c, skip=("fits",)))
 
 
+#: alarm levels as stored, the current scale's and the former "none" (T/T0 <= 3: no judgement)
+_LEVELS = {"insufficient": "insufficient", "clear": "clear", "watch": "watch",
+           "warning": "warning", "critical": "critical", "none": "insufficient"}  # fmt: skip
+_RANK = {name: i for i, name in enumerate(("insufficient", "clear", "watch", "warning",
+                                           "critical"))}  # fmt: skip
+
+
 def alarm(a: Any) -> wire.Alarm:
     """An ``Alarm`` (or an older alarm mapping, completed by the alarm rule)."""
+    if isinstance(a, Mapping) and a.get("level") in _LEVELS:
+        return wire.Alarm.model_validate(
+            {**a, "level": _LEVELS[a["level"]], "rank": _RANK[_LEVELS[a["level"]]]}
+            if a["level"] == "none" else a
+        )
     if isinstance(a, Mapping):
         from service.analysis.alarm import alarm_for
 
@@ -285,7 +300,8 @@ def sweep_result(
     timestamps, resampling), listed first among that record's detection flags.
     ``time_unit``: the records' common time unit (their detections are in it), if named.
     """
-    doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections"))
+    doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections",
+                           "set_aside"))  # fmt: skip
     dets = []
     for d in r.detections:
         if isinstance(d, Mapping):
@@ -304,6 +320,8 @@ def sweep_result(
         alarm=[alarm(a) for a in r.alarm],
         flags=flags(r.flags),
         detections=dets,
+        set_aside=[wire.SetAside.model_validate(_fields(a)) for a in r.set_aside],
+        n_set_aside=len(r.set_aside),
     )
 
 
@@ -312,11 +330,7 @@ def sweep_document(doc: Mapping[str, Any]) -> wire.SweepResult:
     (written by the former ``WarnResult.to_dict()``: mu* at the top level, alarms without a
     level)."""
     d = dict(doc)
-    d["alarm"] = [
-        wire.Alarm.model_validate(a) if isinstance(a, Mapping) and "level" in a else alarm(a)
-        for a in (d.get("alarm") or [])
-        if isinstance(a, Mapping)
-    ]
+    d["alarm"] = [alarm(a) for a in (d.get("alarm") or []) if isinstance(a, Mapping)]
     if d.get("prediction") is None and d.get("mu_star_interval") is not None:
         keys = ("mu_star", "mu_star_interval", "mu_star_std", "a", "transition",
                 "probabilities", "baseline", "classification")  # fmt: skip
@@ -372,6 +386,9 @@ def live_update(
         record_duration=plain(u.record_duration),
         record_dt=plain(u.record_dt),
         flags=flags(u.flags),
+        set_aside=[wire.SetAside.model_validate(_fields(a)) for a in u.set_aside],
+        n_set_aside=len(u.set_aside),
+        record_advice=u.record_advice,
         finished=finished,
         created_at=created_at,
     )

@@ -1,27 +1,34 @@
 """The alarm after a measurement and the one rule that chooses the next measurement.
 
-Both the predictor (:func:`service.analysis.predict.predict`, its ``alarm`` and
-``next_safe_mu``) and the early-warning sweep (:func:`service.analysis.pipeline.warn`) use the
-objects of this module, so that the alarm a user reads and the step the pipeline takes follow
-the same rule.
+The sweep policy (:mod:`service.analysis.sweep_policy`), used by ``warn``, the batch sweep and
+the live sweep, and the predictor (:func:`service.analysis.predict.predict`) use the objects of
+this module, so that the alarm a user reads and the step the lab takes follow one rule.
 
-Alarm levels (``T = 1/sqrt|sigma^2|`` the time scale of the fundamental, ``T0`` at the first
-point of the sweep; paper, Discussion: the slowdown ``T ~ (mu* - mu)^(-a)`` announces the
-transition):
+Alarm levels say what the lab must do (``rank`` orders them, 0 lowest). ``lo, hi`` is the
+interval of mu*, ``mu`` the last usable control, ``gap = lo - mu``, ``step`` the lab's step (its
+plan's step, else the largest step between its records) and ``span`` the controls travelled:
 
-==========  =====================================================================
-level       when
-==========  =====================================================================
-none        ``T / T0 <= 3`` and no interval near the last point
-watch       ``T / T0 > 3``
-warning     ``T / T0 > 10`` (the paper's threshold)
-critical    the interval's lower end lies within one half-width of the last point
-==========  =====================================================================
+============  ====  =====================================================================
+level         rank  when (and what to do)
+============  ====  =====================================================================
+insufficient  0     no prediction yet, or its interval is wider than ``span``: too little
+                    evidence to judge; step by the advice (the model-free bound guards)
+clear         1     ``gap > 4 step``, or the type is ``none`` (no loss of stability): go on
+watch         2     ``2 step < gap <= 4 step``: the interval is a few steps ahead; the
+                    advice now shortens the steps
+warning       3     ``step < gap <= 2 step``: within two steps; record only at the advice
+critical      4     ``gap <= step`` (the next step would reach the interval), or a record
+                    grew (past the transition): only the advised, smaller steps, or stop
+============  ====  =====================================================================
 
-The next measurement (:func:`next_measurement`) advances a fraction of the way to a safe bound
-on mu*: the smaller of the predictor's trusted bound (its interval's lower end) and the
-model-free two-point ``sigma^4`` bound; the step never exceeds a multiple of the last step
-(trust region) nor an absolute cap.
+The width decides whether there is evidence (``insufficient``); danger is counted in the lab's
+steps, so a wide interval alone never raises the top level. ``T/T0`` (``T = 1/sqrt|sigma^2|``,
+``T0`` at the first point) is kept in the alarm as information.
+
+The next measurement (:func:`next_measurement`) advances a fraction of the way to the safe
+bound: the interval's lower end, any record past the transition, and (until the interval is
+trusted) the model-free two-point ``sigma^4`` bound; a step never exceeds a multiple of the last
+step (trust region) nor an absolute cap, so steps grow when far and shrink near.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ from service.analysis.errors import ParameterError
 
 __all__ = [
     "ALARM_LEVELS",
+    "ALARM_RANK",
     "Alarm",
     "NextMeasurement",
     "alarm_for",
@@ -44,9 +52,10 @@ __all__ = [
     "sigma4_bound",
 ]
 
-ALARM_LEVELS = ("none", "watch", "warning", "critical")
-WATCH_RATIO = 3.0
-WARNING_RATIO = 10.0  # the paper's T > 10 T0
+ALARM_LEVELS = ("insufficient", "clear", "watch", "warning", "critical")
+ALARM_RANK = {name: i for i, name in enumerate(ALARM_LEVELS)}
+#: The interval's lower end within this many lab steps: watch, warning, critical.
+WATCH_STEPS, WARNING_STEPS, CRITICAL_STEPS = 4.0, 2.0, 1.0
 
 
 @dataclass(frozen=True)
@@ -56,11 +65,12 @@ class Alarm:
     Attributes
     ----------
     level : str
-        One of :data:`ALARM_LEVELS`: ``"none"``, ``"watch"``, ``"warning"``, ``"critical"``.
+        One of :data:`ALARM_LEVELS`.
     reason : str
         One sentence with the numbers that set the level.
     mu : float
-        Last measured control value (unit of ``mu``).
+        Last usable control value (unit of ``mu``); the control of a record that grew when one
+        did.
     t_ratio : float
         ``T / T0 = sqrt(sigma^2(0) / sigma^2(mu))`` at the last point (dimensionless).
     mu_star : float
@@ -68,8 +78,15 @@ class Alarm:
     mu_star_interval : tuple of float
         Its interval ``(lo, hi)`` (95 % by default); ``(nan, nan)`` without a prediction.
     distance : float
-        ``(mu* - mu) / half-width`` of the interval: how many half-widths remain; NaN without a
-        prediction.
+        ``(mu* - mu) / half-width`` of the interval; NaN without a prediction.
+    rank : int
+        Position of ``level`` in :data:`ALARM_LEVELS` (0 lowest).
+    step : float
+        The lab's step the danger is counted in (unit of ``mu``; NaN when unknown).
+    steps_left : float
+        ``(lo - mu) / step``: lab steps left to the interval's lower end.
+    widths_left : float
+        ``(lo - mu) / (hi - lo)``: the same distance in widths of the interval.
     """
 
     level: str
@@ -79,6 +96,19 @@ class Alarm:
     mu_star: float = math.nan
     mu_star_interval: tuple[float, float] = (math.nan, math.nan)
     distance: float = math.nan
+    rank: int = 0
+    step: float = math.nan
+    steps_left: float = math.nan
+    widths_left: float = math.nan
+
+    def __post_init__(self) -> None:
+        if self.level not in ALARM_RANK:
+            raise ParameterError("level", self.level, f"unknown alarm level {self.level!r}")
+        object.__setattr__(self, "rank", ALARM_RANK[self.level])  # the level's, always
+
+
+def _num(x: float) -> str:
+    return f"{x:.4g}"
 
 
 def alarm_for(
@@ -86,41 +116,75 @@ def alarm_for(
     t_ratio: float,
     mu_star: float = math.nan,
     interval: tuple[float, float] = (math.nan, math.nan),
+    *,
+    step: float = math.nan,
+    span: float = math.nan,
+    transition: str | None = None,
+    past: float = math.nan,
 ) -> Alarm:
-    """The alarm at the last measured ``mu``.
+    """The alarm at the last usable control ``mu`` (the scale of the module docstring).
 
     Parameters
     ----------
     mu : float
-        Last measured control value.
+        Last usable control value.
     t_ratio : float
-        ``T / T0`` at ``mu`` (>= 0).
+        ``T / T0`` at ``mu`` (>= 0; information only).
     mu_star : float, optional
         Predicted transition point (NaN: no prediction yet).
     interval : tuple of float, optional
         Its interval ``(lo, hi)``.
+    step : float, optional
+        The lab's step (unit of ``mu``); without it danger is counted in interval widths.
+    span : float, optional
+        Controls travelled by the usable records (``mu - first``); an interval wider than it
+        is too little evidence. NaN: not checked.
+    transition : str, optional
+        The predicted type; ``"none"`` (no loss of stability) is never a snap alarm.
+    past : float, optional
+        Lowest control of a record that grew (past the transition); NaN if none.
 
     Returns
     -------
     Alarm
     """
     lo, hi = float(interval[0]), float(interval[1])
-    half = 0.5 * (hi - lo)
-    has_pred = math.isfinite(mu_star) and math.isfinite(half) and half > 0
-    dist = (mu_star - mu) / half if has_pred else math.nan
-    if has_pred and lo - mu <= half:
-        level = "critical"
-        reason = (
-            f"the interval's lower end {lo:.6g} is within one half-width ({half:.3g}) of the "
-            f"last point mu={mu:.6g}"
-        )
-    elif t_ratio > WARNING_RATIO:
-        level, reason = "warning", f"T/T0 = {t_ratio:.3g} > {WARNING_RATIO:g}"
-    elif t_ratio > WATCH_RATIO:
-        level, reason = "watch", f"T/T0 = {t_ratio:.3g} > {WATCH_RATIO:g}"
-    else:
-        level, reason = "none", f"T/T0 = {t_ratio:.3g} <= {WATCH_RATIO:g}"
-    return Alarm(level, reason, float(mu), float(t_ratio), float(mu_star), (lo, hi), float(dist))
+    mu, mu_star = float(mu), float(mu_star)
+    width = hi - lo
+    has_pred = math.isfinite(mu_star) and math.isfinite(width) and width >= 0
+    dist = (mu_star - mu) / (0.5 * width) if has_pred and width > 0 else math.nan
+    gap = lo - mu if has_pred else math.nan
+    step = float(step) if math.isfinite(step) and step > 0 else math.nan
+    steps_left = gap / step if math.isfinite(step) else math.nan
+    widths_left = gap / width if has_pred and width > 0 else math.nan
+
+    def make(level: str, reason: str, at: float = mu) -> Alarm:
+        return Alarm(level, reason, at, float(t_ratio), mu_star, (lo, hi), float(dist),
+                     ALARM_RANK[level], step, float(steps_left), float(widths_left))  # fmt: skip
+
+    if math.isfinite(past):
+        return make("critical", f"the record at {_num(past)} grows: the strip is past its "
+                    "transition there", at=float(past))  # fmt: skip
+    if transition == "none":
+        return make("clear", "the predictor finds no loss of stability (type none): no snap "
+                    "is expected")  # fmt: skip
+    if not has_pred:
+        return make("insufficient", f"no prediction yet (T/T0 = {t_ratio:.3g}): too little "
+                    "evidence to judge")  # fmt: skip
+    if math.isfinite(span) and width > span:
+        return make("insufficient", f"the interval [{_num(lo)}, {_num(hi)}] is wider "
+                    f"({_num(width)}) than the controls travelled ({_num(span)}): too little "
+                    "evidence to judge")  # fmt: skip
+    n = steps_left if math.isfinite(steps_left) else widths_left
+    unit = f"steps of {_num(step)}" if math.isfinite(steps_left) else "interval widths"
+    where = f"the interval's lower end {_num(lo)} is {n:.3g} {unit} above the last control"
+    if not n > CRITICAL_STEPS:
+        return make("critical", f"{where}: the next step would reach the interval")
+    if n <= WARNING_STEPS:
+        return make("warning", f"{where}: record only at the advised controls")
+    if n <= WATCH_STEPS:
+        return make("watch", f"{where}: the advice now shortens the steps")
+    return make("clear", f"{where}: far from the transition")
 
 
 @dataclass(frozen=True)
@@ -134,8 +198,8 @@ class NextMeasurement:
     bound : float
         The safe bound on mu* the step respects (``inf`` when none applies).
     source : str
-        What set ``bound``: ``"interval"`` (the predictor's trusted lower end), ``"sigma4"``
-        (the model-free two-point bound) or ``"none"``.
+        What set ``bound``: ``"interval"`` (the predictor's lower end), ``"sigma4"`` (the
+        model-free two-point bound), ``"past_transition"`` (a record that grew) or ``"none"``.
     limited_by : str
         What set the step: ``"bound"``, ``"growth"`` (trust region), ``"max_step"`` or
         ``"no_safe_step"``.
@@ -226,6 +290,8 @@ def next_measurement(
     max_step: float = math.inf,
     min_t_ratio: float = 1.0,
     sigma4_when_trusted: bool = True,
+    lower_bound: float | None = None,
+    past: float = math.inf,
 ) -> NextMeasurement:
     """The next control value of an upward sweep.
 
@@ -240,8 +306,8 @@ def next_measurement(
     y : array_like, shape (n,)
         ``|sigma^2|`` (1/time^2) at ``mu``.
     trusted_bound : float, optional
-        The predictor's trusted lower bound on mu* (its interval's lower end); ignored when not
-        beyond ``mu[-1]``.
+        The predictor's trusted lower bound on mu* (its interval's lower end); one not beyond
+        ``mu[-1]`` leaves no safe step.
     margin : float
         Distance (unit of ``mu``) kept below the bound, >= 0.
     step_fraction : float
@@ -252,6 +318,11 @@ def next_measurement(
         Absolute cap on the step (unit of ``mu``), > 0 (``inf``: none).
     min_t_ratio : float
         Slowdown ``T/T0`` from which the sigma^4 bound applies (see :func:`sigma4_bound`).
+    lower_bound : float, optional
+        An untrusted interval's lower end: it bounds the step too (the advice stays strictly
+        below every interval's lower end) but leaves the sigma^4 bound in charge as well.
+    past : float
+        Lowest control of a record that grew (past the transition): a bound as well.
     sigma4_when_trusted : bool
         Whether the sigma^4 bound also caps a step that a trusted bound already limits (True:
         the smaller of both, a single prediction; False: a sequential sweep whose intervals
@@ -274,13 +345,17 @@ def next_measurement(
     max_step = _positive("max_step", max_step, allow_inf=True)
     last = float(m[-1])
     bound, source = math.inf, "none"
-    if trusted_bound is not None and math.isfinite(trusted_bound) and trusted_bound > last:
+    if trusted_bound is not None and math.isfinite(trusted_bound):
         bound, source = float(trusted_bound), "interval"
     b4 = sigma4_bound(m, y, min_t_ratio=min_t_ratio)
     if source == "interval" and not sigma4_when_trusted:
         b4 = math.inf
+    if lower_bound is not None and math.isfinite(lower_bound) and lower_bound < bound:
+        bound, source = float(lower_bound), "interval"
     if b4 < bound:
         bound, source = b4, "sigma4"
+    if past < bound:
+        bound, source = float(past), "past_transition"
     cap, why = max_step, "max_step"
     growth = max_step_growth * (last - float(m[-2]))
     if growth < cap:

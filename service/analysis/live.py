@@ -1,25 +1,16 @@
 """A live sweep: a lab adds one record at a time and asks where it may go next.
 
-This is :func:`service.analysis.pipeline.warn` turned inside out. ``warn`` drives a simulator;
-here the experiment drives itself and every record arrives with its control value. Each update
-
-1. detects the new record (:func:`service.analysis.detect.detect`): its fundamental
-   ``sigma^2 = -s1 s2``, its error and the static level, with the detector's flags;
-2. classifies and predicts over every record measured so far
-   (:func:`service.analysis.predict.predict`, once four records with a fundamental exist):
-   the transition with its probabilities, ``mu*`` with its 95 % interval;
-3. raises the alarm (:func:`service.analysis.alarm.alarm_for`) and chooses the next safe control
-   value with the one policy of the project (:func:`service.analysis.alarm.next_measurement`):
-   a fraction of the way to the interval's lower end once the predictor can be trusted
-   (:func:`service.analysis.alarm.interval_trusted`: the slowdown has begun and two consecutive
-   intervals overlap), the model-free two-point ``sigma^4`` bound before that, minus the
-   sweep's margin. The value is never at or beyond ``mu*`` minus the margin.
+This is :func:`service.analysis.pipeline.warn` turned inside out: the experiment drives itself
+and every record arrives with its control value. Each update detects the new record
+(:func:`service.analysis.detect.detect`) and feeds it, with the records so far, to the one sweep
+policy (:mod:`service.analysis.sweep_policy`, the one ``warn`` and the batch sweep use): records
+that cannot be trusted are set aside with their reason (the sweep recovers at the next good
+record), the rest are averaged per control and predicted from three distinct controls on; the
+alarm and the next safe control follow (:mod:`service.analysis.alarm`).
 
 The lab may do something else than advised: a record at or below a control already measured
 (``out_of_order``, ``repeated_control``) or beyond the last advised value (``past_safe_value``)
-is accepted and flagged, never reordered in the record list. The fit uses the records with a
-fundamental in increasing control order; records at one control are averaged into one point
-(:func:`_fit_set`), as a batch sweep of the same records averages them.
+is accepted and flagged, never reordered in the record list.
 
 The module is pure numerics (numpy, the detector and the predictor); storing records, streaming
 updates and the HTTP door live in ``service.api``.
@@ -28,28 +19,29 @@ updates and the HTTP door live in ``service.api``.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from service.analysis.alarm import (
-    Alarm,
-    NextMeasurement,
-    alarm_for,
-    interval_trusted,
-    next_measurement,
-)
-from service.analysis.common import Flag, unique_flags
+from service.analysis import sweep_policy
+from service.analysis.alarm import Alarm, NextMeasurement
+from service.analysis.common import Flag
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
-from service.analysis.measurement import Measurement, measurement_from_detection
+from service.analysis.measurement import Measurement
 from service.analysis.pipeline import WarnResult
-from service.analysis.predict import Prediction, bounded_by, predict
-from service.analysis.predictor.sweep import group_mean
-from service.analysis.sampling import next_record_sampling
+from service.analysis.predict import Prediction
+from service.analysis.sweep_policy import (
+    SIGMA4_MIN_T_RATIO,
+    PolicyUpdate,
+    SetAside,
+    SweepPlan,
+    SweepPolicy,
+    SweepRecord,
+    fit_points,
+)
 
 __all__ = [
     "LivePlan",
@@ -61,110 +53,15 @@ __all__ = [
     "update",
 ]
 
-#: Records with a fundamental needed before the predictor runs (as in ``warn``).
-MIN_PREDICT = 4
-#: The sigma^4 bound applies once the slowdown shows (T/T0 >= this) and MIN_PREDICT records exist
-#: (the first pairs, before the slowdown, can overshoot; as in ``warn``).
-SIGMA4_MIN_T_RATIO = 1.05
+#: How a live sweep advises: the sweep policy's plan.
+LivePlan = SweepPlan
+#: What a live sweep keeps of one record: the sweep policy's record.
+LiveRecord = SweepRecord
+#: Distinct usable controls before the predictor runs (the policy's).
+MIN_PREDICT = sweep_policy.MIN_RECORDS
+__all__ += ["MIN_PREDICT", "SIGMA4_MIN_T_RATIO"]
 #: Relative tolerance when comparing a control value with the advised one.
 _RTOL = 1e-12
-
-
-@dataclass(frozen=True)
-class LivePlan:
-    """How a live sweep advises (the sweep's options; control units throughout).
-
-    Attributes
-    ----------
-    step : float or None
-        Largest step of the control (the first steps, before any bound on mu* exists). Without
-        it the step never exceeds ``max_step_growth`` times the last one (the lab's own
-        spacing), and after the first record no advice can be given.
-    margin : float
-        Distance kept below the safe bound on mu* (>= 0).
-    target_width : float or None
-        The sweep has converged once the trusted interval is narrower than this; default
-        ``1e-6 * max(|mu*|, span of the controls)``.
-    step_fraction : float
-        Fraction of the room to the bound that a step takes, in (0, 1).
-    max_step_growth : float or None
-        A step is at most this multiple of the previous one (trust region). Default: none when
-        ``step`` caps the steps (as ``warn``), 2 without ``step``.
-    method : str
-        Detector method.
-    level : float
-        Confidence level of the interval.
-    """
-
-    step: float | None = None
-    margin: float = 0.0
-    target_width: float | None = None
-    step_fraction: float = 0.5
-    max_step_growth: float | None = None
-    method: str = "auto"
-    level: float = 0.95
-
-    def __post_init__(self) -> None:
-        if self.step is not None and not (math.isfinite(self.step) and self.step > 0):
-            raise ParameterError("step", self.step, f"step must be > 0, got step={self.step!r}")
-        if not (math.isfinite(self.margin) and self.margin >= 0):
-            raise ParameterError(
-                "margin", self.margin, f"margin must be finite and >= 0, got margin={self.margin!r}"
-            )
-        tw = self.target_width
-        if tw is not None and not (math.isfinite(tw) and tw > 0):
-            raise ParameterError(
-                "target_width", tw, f"target_width must be > 0, got target_width={tw!r}"
-            )
-        if not 0 < self.step_fraction < 1:
-            raise ParameterError(
-                "step_fraction",
-                self.step_fraction,
-                f"step_fraction must be in (0, 1), got step_fraction={self.step_fraction!r}",
-            )
-        if self.max_step_growth is not None and not self.max_step_growth > 0:
-            raise ParameterError(
-                "max_step_growth",
-                self.max_step_growth,
-                f"max_step_growth must be > 0, got max_step_growth={self.max_step_growth!r}",
-            )
-        if not 0 < self.level < 1:
-            raise ParameterError(
-                "level", self.level, f"level must be in (0, 1), got level={self.level!r}"
-            )
-
-
-@dataclass(frozen=True)
-class LiveRecord:
-    """What a live sweep keeps of one record (enough to assess the next one).
-
-    Attributes
-    ----------
-    seq : int
-        Position in arrival order (1, 2, ...).
-    control : float
-        Control value the record was taken at (user unit).
-    measurement : Measurement or None
-        The record's fundamental and static level; None when the detector found no mode.
-    flags : tuple of Flag
-        Record flags (``out_of_order``, ``repeated_control``, ``past_safe_value``, ``no_mode``).
-    interval : tuple of float or None
-        The 95 % interval of mu* after this record (None without a prediction): the next
-        update's trust test compares its interval with it.
-    next_control : float
-        The control advised after this record (NaN: none).
-    time_unit : str or None
-        The time unit its measurement is in: the sweep's (its first record's), a record
-        written in another known unit being converted to it.
-    """
-
-    seq: int
-    control: float
-    measurement: Measurement | None
-    flags: tuple[Flag, ...] = ()
-    interval: tuple[float, float] | None = None
-    next_control: float = math.nan
-    time_unit: str | None = None
 
 
 @dataclass(frozen=True)
@@ -178,25 +75,26 @@ class LiveUpdate:
     detection : Detection
         The new record's detection.
     n_records, n_used : int
-        Records so far, and those in the fit (a fundamental, distinct increasing controls).
+        Records so far, and those in the fit.
     prediction : Prediction or None
-        Classification (transition, probabilities) and mu* with its interval; None until
-        :data:`MIN_PREDICT` records with a fundamental exist or when the predictor fails.
+        Classification and mu* with its interval; None below three usable controls or when
+        the predictor fails.
     alarm : Alarm
-        Level, T/T0, mu* and the distance to it in half-widths.
     next : NextMeasurement or None
         The advised next control value (``next.mu``; NaN when no safe step is left); None
         when no advice is possible (one record and no ``step``).
     trusted : bool
-        Whether the predictor's interval bounded the advice (else the model-free bound did).
+        Whether the predictor's interval alone bounded the advice.
     converged : bool
-        The trusted interval is narrower than the plan's target width: the lab may stop.
+        The lab may stop (:class:`service.analysis.sweep_policy.PolicyUpdate`).
     record_duration, record_dt : float
-        Suggested length and sample step of the next record (the new record's time unit):
-        40 periods of the expected fundamental, 50 samples per period of the last one (as
-        ``warn`` samples); NaN without a fundamental.
+        Suggested length and sample step of the next record (the new record's time unit).
     flags : tuple of Flag
-        Flags of the update: the predictor's, ``no_safe_step``, ``predictor_failed``.
+        Flags of the update (the policy's).
+    set_aside : tuple of SetAside
+        Records left out of the prediction, with their reasons.
+    record_advice : str
+        How the record length was chosen.
     """
 
     record: LiveRecord
@@ -211,6 +109,9 @@ class LiveUpdate:
     record_duration: float = math.nan
     record_dt: float = math.nan
     flags: tuple[Flag, ...] = field(default=())
+    set_aside: tuple[SetAside, ...] = ()
+    record_advice: str = ""
+    policy: PolicyUpdate | None = field(default=None, repr=False, compare=False)
 
     @property
     def next_control(self) -> float:
@@ -219,15 +120,24 @@ class LiveUpdate:
 
     @property
     def used_in_fit(self) -> bool:
-        """The record has a fundamental (a repeated control is averaged with the others)."""
-        return self.record.measurement is not None
+        """The record is in the fit (not set aside, below any record that grew)."""
+        return self.record.seq not in {a.seq for a in self.set_aside} and (
+            self.record.measurement is not None
+            and self.record.control < (self.policy.past if self.policy else math.inf)
+        )
+
+    @property
+    def n_set_aside(self) -> int:
+        """Records set aside."""
+        return len(self.set_aside)
 
 
 # ----------------------------------------------------------------------------------- steps
 def measure(
     w: Any, *, dt: float, control: float, method: str = "auto"
 ) -> tuple[Detection, Measurement | None, tuple[Flag, ...]]:
-    """Detect one record and reduce it to the sweep's measurement.
+    """Detect one record and reduce it to the sweep's measurement
+    (:func:`service.analysis.sweep_policy.reduce_detection`).
 
     Parameters
     ----------
@@ -243,90 +153,16 @@ def measure(
     Returns
     -------
     detection, measurement, flags
-        ``measurement`` is None (flag ``no_mode``) when the detector found no fundamental.
+        ``measurement`` is None (flag ``no_mode`` or ``past_transition``) when the record
+        gives no point of the sweep.
     """
     c = float(control)
     if not math.isfinite(c):
         raise ParameterError("control", control, f"control must be finite, got {control!r}")
     arr = np.asarray(w, dtype=float)
     det = detect(arr, dt=float(dt), method=method)
-    if "unstable" in det.flag_codes:  # the record grows: past the transition, not a point of it
-        return det, None, (
-            Flag(
-                "past_transition",
-                f"the record at control={c!r} grows (flag unstable): the strip is unstable "
-                "there, past its transition; it is left out of the fit",
-            ),
-        )
-    try:
-        m = measurement_from_detection(c, det, (arr.size - 1) * float(dt), float(dt))
-    except ValueError as exc:
-        return det, None, (Flag("no_mode", str(exc)),)
-    return det, m, ()
-
-
-def _past(records: Sequence[LiveRecord]) -> float:
-    """The lowest control of a record that grew (flag ``past_transition``); inf if none."""
-    return min(
-        (r.control for r in records if any(f.code == "past_transition" for f in r.flags)),
-        default=math.inf,
-    )
-
-
-def _fit_records(records: Sequence[LiveRecord]) -> list[Measurement]:
-    """The records' measurements the fit uses: a fundamental, below any record that grew (past
-    the transition), in increasing control (arrival order within one control)."""
-    past = _past(records)
-    out = [r.measurement for r in records if r.measurement is not None and r.control < past]
-    out.sort(key=lambda m: m.mu)  # stable
-    return out
-
-
-def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
-    """Measurements of the fit, one per control: the records at one control averaged as the
-    predictor averages a table's repeated rows (:func:`service.analysis.predictor.sweep.group_mean`:
-    weights ``1/std^2`` when every record has its std, else plain means), so that a live sweep
-    and a batch sweep of the same records fit the same points."""
-    ms = _fit_records(records)
-    if len({m.mu for m in ms}) == len(ms):
-        return ms
-    mu = np.array([m.mu for m in ms])
-    starts = np.flatnonzero(np.r_[True, np.diff(mu) != 0])
-
-    def mean(name: str, std: str) -> tuple[np.ndarray, np.ndarray]:
-        v, sd = np.array([getattr(m, name) for m in ms]), np.array([getattr(m, std) for m in ms])
-        ok = bool(np.all(np.isfinite(sd) & (sd > 0)))
-        avg, avg_sd = group_mean(v, sd if ok else None, starts)
-        return avg, (avg_sd if avg_sd is not None else np.full(starts.size, np.nan))
-
-    s2, s2_sd = mean("sigma2", "sigma2_std")
-    w, w_sd = mean("w_static", "w_static_std")
-    return [
-        replace(ms[i], sigma2=float(s2[g]), sigma2_std=float(s2_sd[g]),
-                omega=math.sqrt(abs(float(s2[g]))), w_static=float(w[g]),
-                w_static_std=float(w_sd[g]))  # fmt: skip
-        for g, i in enumerate(starts)
-    ]
-
-
-def _predict(ms: Sequence[Measurement], level: float) -> tuple[Prediction | None, list[Flag]]:
-    if len(ms) < MIN_PREDICT:
-        return None, []
-    names = ("mu", "sigma2", "sigma2_std", "w_static", "w_static_std")
-    col = {k: np.array([getattr(m, k) for m in ms]) for k in names}
-    s2_std = col["sigma2_std"]
-    try:
-        pred = predict(
-            col["mu"],
-            col["sigma2"],
-            sigma2_std=s2_std if np.all(np.isfinite(s2_std) & (s2_std > 0)) else None,
-            w_static=col["w_static"],
-            w_static_std=np.maximum(col["w_static_std"], 1e-15),
-            level=level,
-        )
-    except (ValueError, ArithmeticError) as exc:  # ParameterError, LinAlgError, overflow
-        return None, [Flag("predictor_failed", f"no prediction from {len(ms)} records: {exc}")]
-    return pred, []
+    m, flags = sweep_policy.reduce_detection(det, c, (arr.size - 1) * float(dt), float(dt))
+    return det, m, flags
 
 
 def _record_flags(
@@ -373,8 +209,11 @@ def assess(
     detection_flags: tuple[Flag, ...] = (),
     timings: dict[str, tuple[float, float]] | None = None,
     time_unit: str | None = None,
+    name: str | None = None,
 ) -> LiveUpdate:
-    """The warning after adding one measured record to ``previous`` (in arrival order).
+    """The warning after adding one measured record to ``previous`` (in arrival order): the
+    sweep policy (:class:`service.analysis.sweep_policy.SweepPolicy`) fed the stored records
+    and this one.
 
     Parameters
     ----------
@@ -387,12 +226,13 @@ def assess(
     plan : LivePlan, optional
         The sweep's options.
     detection_flags : tuple of Flag
-        Flags :func:`measure` returned (``no_mode``).
+        Flags :func:`measure` returned (``no_mode``, ``past_transition``).
     timings : dict, optional
-        Gets ``"predict"``: the (wall, CPU) seconds of the classification and prediction (the
-        rest is the alarm, the advice and the sampling policy).
+        Gets ``"predict"``: the (wall, CPU) seconds of the prediction.
     time_unit : str, optional
-        The time unit of the record's measurement (kept with it, :class:`LiveRecord`).
+        The time unit of the record's measurement.
+    name : str, optional
+        The record's name (file name), for the reason it may be set aside.
 
     Returns
     -------
@@ -401,127 +241,28 @@ def assess(
     plan = plan or LivePlan()
     control = float(control)
     rflags = _record_flags(previous, control, measurement, detection_flags)
-    seq = len(previous) + 1
-    provisional = LiveRecord(seq, control, measurement, rflags)
-    ms = _fit_set([*previous, provisional])
-    t0, c0 = time.perf_counter(), time.process_time()
-    pred, uflags = _predict(ms, plan.level)
-    if timings is not None:
-        timings["predict"] = (time.perf_counter() - t0, time.process_time() - c0)
-    last = ms[-1] if ms else None
-    t_ratio = ms[0].omega / last.omega if last is not None and last.omega > 0 else math.nan
-    has_pred = pred is not None and math.isfinite(pred.mu_star)
-    interval = tuple(pred.mu_star_interval) if has_pred else None
-    alarm = alarm_for(
-        last.mu if last is not None else control,
-        t_ratio,
-        pred.mu_star if has_pred else math.nan,
-        interval or (math.nan, math.nan),
-    )
-    past = _past([*previous, provisional])
-    if math.isfinite(past) and pred is not None:  # mu* lies below the record that grew
-        pred = bounded_by(pred, past)
-        interval = tuple(pred.mu_star_interval) if has_pred else None
-    if math.isfinite(past):  # a record grew: the strip is past its transition there
-        alarm = Alarm(
-            "critical",
-            f"the record at mu={past:.6g} grows: the strip is past its transition there",
-            past, alarm.t_ratio, pred.mu_star if has_pred else math.nan,
-            interval or (math.nan, math.nan), math.nan,
-        )  # fmt: skip
-    prev_interval = previous[-1].interval if previous else None
-    trusted = bool(
-        has_pred
-        and prev_interval is not None
-        and interval_trusted(interval, prev_interval, last.mu, t_ratio)
-    )
-    nxt = _advise(ms, pred if trusted else None, plan)
-    if nxt is not None and not math.isfinite(nxt.mu):
-        uflags.append(
-            Flag(
-                "no_safe_step",
-                f"no control value beyond {last.mu!r} stays below the safe bound "
-                f"{nxt.bound!r} minus the margin {plan.margin!r}",
-            )
-        )
-    converged = trusted and _narrow(interval, pred.mu_star, ms, plan)
-    if pred is not None:
-        uflags.extend(pred.flags)
-    duration, dt = _record_advice(last, nxt, pred)
-    record = LiveRecord(
-        seq, control, measurement, rflags, interval, nxt.mu if nxt is not None else math.nan,
-        time_unit,
+    policy = SweepPolicy(plan, previous)
+    u = policy.add(
+        LiveRecord(0, control, measurement, rflags, time_unit=time_unit, name=name,
+                   detection=detection),
+        timings=timings,
     )  # fmt: skip
     return LiveUpdate(
-        record=record,
+        record=policy.records[-1],
         detection=detection,
-        n_records=seq,
-        n_used=len(_fit_records([*previous, provisional])),
-        prediction=pred,
-        alarm=alarm,
-        next=nxt,
-        trusted=trusted,
-        converged=converged,
-        record_duration=duration,
-        record_dt=dt,
-        flags=tuple(unique_flags(uflags)),
-    )
-
-
-def _narrow(
-    interval: tuple[float, float], mu_star: float, ms: Sequence[Measurement], plan: LivePlan
-) -> bool:
-    """The interval is narrower than the plan's target width (default ``1e-6 * max(|mu*|,
-    span of the controls)``)."""
-    width = plan.target_width
-    if width is None:
-        width = 1e-6 * max(abs(mu_star), ms[-1].mu - ms[0].mu)
-    return bool(interval[1] - interval[0] < width)
-
-
-def _record_advice(
-    last: Measurement | None, nxt: NextMeasurement | None, pred: Prediction | None
-) -> tuple[float, float]:
-    """Length and step of the next record
-    (:func:`service.analysis.sampling.next_record_sampling`, as ``warn`` samples); NaN when the
-    last record gives no time scale."""
-    if last is None or not (last.omega > 0 and math.isfinite(last.omega)):
-        return math.nan, math.nan
-    target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
-    try:
-        duration, dt = next_record_sampling(last, target, pred)
-    except (ArithmeticError, ValueError):  # a degenerate record: no advice on sampling
-        return math.nan, math.nan
-    return float(duration), float(dt)
-
-
-def _advise(
-    ms: Sequence[Measurement], trusted: Prediction | None, plan: LivePlan
-) -> NextMeasurement | None:
-    """The next control value by :func:`service.analysis.alarm.next_measurement`, with the
-    parameters of ``warn``: a sequential sweep, whose trusted interval alone bounds the step
-    (near a pitchfork the sigma^4 bound lands about halfway to mu* and would halve every
-    step)."""
-    max_step = plan.step if plan.step is not None else math.inf
-    growth = plan.max_step_growth
-    if growth is None:
-        growth = math.inf if plan.step is not None else 2.0
-    if not ms:
-        return None
-    if len(ms) == 1:
-        if plan.step is None:
-            return None
-        return NextMeasurement(ms[0].mu + plan.step, math.inf, "none", "max_step")
-    return next_measurement(
-        [m.mu for m in ms],
-        [abs(m.sigma2) for m in ms],
-        trusted_bound=trusted.mu_star_interval[0] if trusted is not None else None,
-        margin=plan.margin,
-        step_fraction=plan.step_fraction,
-        max_step_growth=growth,
-        max_step=max_step,
-        min_t_ratio=SIGMA4_MIN_T_RATIO if len(ms) >= MIN_PREDICT else math.inf,
-        sigma4_when_trusted=False,
+        n_records=u.n_records,
+        n_used=u.n_used,
+        prediction=u.prediction,
+        alarm=u.alarm,
+        next=u.next,
+        trusted=u.trusted,
+        converged=u.converged,
+        record_duration=u.record_duration,
+        record_dt=u.record_dt,
+        flags=u.flags,
+        set_aside=u.set_aside,
+        record_advice=u.record_advice,
+        policy=u,
     )
 
 
@@ -541,7 +282,7 @@ def update(
 
 def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
            alarms: Sequence[dict] = (), stopped: str = "closed",
-           prediction: Prediction | None = None) -> WarnResult:  # fmt: skip
+           update: LiveUpdate | None = None) -> WarnResult:  # fmt: skip
     """The sweep's final result, in the shape of :func:`~service.analysis.pipeline.warn`'s.
 
     Parameters
@@ -553,17 +294,19 @@ def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,
         The alarm after each record (as stored with each update).
     stopped : str
         Why the sweep ended: ``"closed"`` (by the lab) or ``"budget"``.
-    prediction : Prediction, optional
-        The prediction over these same records (the last update's), kept instead of fitting
-        again; without it the records are fitted here.
+    update : LiveUpdate, optional
+        The update after these same records (kept instead of assessing them again).
     """
-    plan = plan or LivePlan()
-    ms = _fit_set(records)
-    if prediction is not None:
-        pred, flags = prediction, []
-    else:
-        pred, flags = _predict(ms, plan.level)
-    for r in records:
-        flags.extend(f for f in r.flags if f.code != "no_mode")
-    return WarnResult(None, None, tuple(ms), pred, tuple(alarms), stopped, None,
-                      tuple(unique_flags(flags)))  # fmt: skip
+    from service.analysis.pipeline import result_of
+
+    u = update.policy if update is not None and update.policy is not None else None
+    if u is None:
+        u = SweepPolicy(plan, records).result()
+    extra = [f for r in records for f in r.flags
+             if f.code in ("out_of_order", "repeated_control", "past_safe_value")]  # fmt: skip
+    return result_of(u, alarms=tuple(alarms) or (u.alarm,), stopped=stopped, extra_flags=extra)
+
+
+def _fit_set(records: Sequence[LiveRecord]) -> list[Measurement]:
+    """The points of the fit of these records (one per control; the policy's)."""
+    return fit_points(sweep_policy._sort_out(records)[0])

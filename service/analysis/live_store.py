@@ -60,6 +60,7 @@ def record_to_dict(r: LiveRecord) -> dict[str, Any]:
         "interval": list(r.interval) if r.interval is not None else None,
         "next_control": r.next_control,
         "time_unit": r.time_unit,
+        "name": r.name,
     }
 
 
@@ -78,4 +79,5 @@ def record_from_dict(d: dict[str, Any]) -> LiveRecord:
         interval=interval,
         next_control=math.nan if nxt is None else float(nxt),
         time_unit=d.get("time_unit"),
+        name=d.get("name"),
     )

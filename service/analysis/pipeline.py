@@ -24,13 +24,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from service.analysis.alarm import Alarm, alarm_for, interval_trusted, next_measurement
-from service.analysis.common import Flag
+from service.analysis.alarm import Alarm, alarm_for
+from service.analysis.common import Flag, unique_flags
 from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
-from service.analysis.measurement import Measurement, measurement_from_detection
-from service.analysis.predict import Prediction, bounded_by, paper_rule, predict
-from service.analysis.sampling import PERIODS, next_record_sampling
+from service.analysis.measurement import Measurement
+from service.analysis.predict import Prediction, paper_rule
+from service.analysis.sampling import PERIODS
+from service.analysis.sweep_policy import (
+    PolicyUpdate,
+    SetAside,
+    SweepPlan,
+    SweepPolicy,
+    record_of,
+    reduce_detection,
+)
 
 Progress = Callable[[float, str], None]
 
@@ -63,6 +71,10 @@ class WarnResult:
     flags : tuple of Flag
     detections : tuple of (Detection, float, str or None)
         Recorded sweeps: each record's detection, its control value and its name.
+    set_aside : tuple of SetAside
+        Records left out of the prediction, each with its reason and name.
+    next_control : float
+        The next safe control after the last record (NaN: none).
     """
 
     actuation: str | None
@@ -74,67 +86,30 @@ class WarnResult:
     truth: dict | None = None
     flags: tuple[Flag, ...] = ()
     detections: tuple[tuple[Detection, float, str | None], ...] = field(default=(), repr=False)
+    set_aside: tuple[SetAside, ...] = ()
+    next_control: float = math.nan
+
+    @property
+    def n_set_aside(self) -> int:
+        """Records set aside (``set_aside`` lists them with their reasons)."""
+        return len(self.set_aside)
 
 
-def _predict(
-    ms: Sequence[Measurement], damping: float | None, *, strict: bool = False, least: int = 4
-) -> Prediction | None:
-    """The prediction from the measurements (None with fewer than ``least``); a table the
-    predictor refuses gives None, or raises its ``ParameterError`` when ``strict`` (a lab's
-    records: the user must hear why)."""
-    if len({m.mu for m in ms}) < least:  # records repeating a control count once
-        return None
-    arr = lambda name: np.array([getattr(m, name) for m in ms])  # noqa: E731
-    s2_std = arr("sigma2_std")
-    try:
-        return predict(
-            arr("mu"),
-            arr("sigma2"),
-            sigma2_std=s2_std if np.all(np.isfinite(s2_std) & (s2_std > 0)) else None,
-            w_static=arr("w_static"),
-            w_static_std=np.maximum(arr("w_static_std"), 1e-15),
-            damping=damping,
-        )
-    except ValueError:
-        if strict:
-            raise
-        return None
-
-
-def _t_ratio(ms: Sequence[Measurement]) -> float:
-    return ms[0].omega / ms[-1].omega if ms[-1].omega > 0 else math.inf
-
-
-def _alarm(ms: Sequence[Measurement], pred: Prediction | None) -> Alarm:
-    """The alarm after the last measurement (:func:`service.analysis.alarm.alarm_for`)."""
-    if pred is not None and math.isfinite(pred.mu_star):
-        return alarm_for(ms[-1].mu, _t_ratio(ms), pred.mu_star, pred.mu_star_interval)
-    return alarm_for(ms[-1].mu, _t_ratio(ms))
-
-
-def _next_mu(
-    ms: Sequence[Measurement], pred: Prediction | None, prev: Prediction | None, first_step: float
-) -> tuple[float, bool]:
-    """(next control value, whether the predictor's interval was trusted) by the one policy
-    (:func:`service.analysis.alarm.next_measurement`): half the way to the safe bound, at most
-    ``first_step``. The interval bounds the step once the slowdown has begun (T/T0 >= 2) and
-    two consecutive intervals overlap; before that the model-free sigma^4 bound does (from four
-    points and T/T0 >= 1.05: the first pairs, before the slowdown shows, can overshoot)."""
-    last = ms[-1].mu
-    trusted = (
-        pred is not None and prev is not None
-        and math.isfinite(pred.mu_star) and math.isfinite(prev.mu_star)
-        and interval_trusted(pred.mu_star_interval, prev.mu_star_interval, last, _t_ratio(ms))
-    )  # fmt: skip
-    if len(ms) < 2:
-        return last + first_step, False
-    nxt = next_measurement(
-        [m.mu for m in ms], [abs(m.sigma2) for m in ms],
-        trusted_bound=pred.mu_star_interval[0] if (trusted and pred is not None) else None,
-        step_fraction=0.5, max_step_growth=math.inf, max_step=first_step,
-        min_t_ratio=1.05 if len(ms) >= 4 else math.inf, sigma4_when_trusted=False,
-    )  # fmt: skip
-    return nxt.mu, trusted
+def result_of(
+    u: PolicyUpdate,
+    *,
+    alarms: Sequence[Alarm | dict] = (),
+    stopped: str = "done",
+    detections: Sequence[tuple[Detection, float, str | None]] = (),
+    extra_flags: Sequence[Flag] = (),
+    actuation: str | None = None,
+    model: str | None = None,
+) -> WarnResult:
+    """The sweep document's result from the policy's last update (the one prediction, alarm and
+    advice of every door): ``alarms`` the alarm after each record, the last being ``u.alarm``."""
+    return WarnResult(actuation, model, u.measurements, u.prediction, tuple(alarms) or (u.alarm,),
+                      stopped, None, tuple(unique_flags([*u.flags, *extra_flags])),
+                      tuple(detections), u.set_aside, u.next_control)  # fmt: skip
 
 
 def warn(
@@ -197,11 +172,12 @@ def warn(
         )
     base = Scene(actuation=actuation, mu=0.0, damping=damping, kick=kick, snr_db=snr_db,
                  **(scene_options or {}))  # fmt: skip
-    ms: list[Measurement] = []
+    policy = SweepPolicy(SweepPlan(step=first_step, target_width=rel_width,
+                                   control_resolution=1e-12))  # fmt: skip
     alarm: list[Alarm] = []
     flags: list[Flag] = []
-    pred: Prediction | None = None
-    prev_pred: Prediction | None = None
+    u: PolicyUpdate | None = None
+    omega0 = math.nan
     stopped = "budget"
     mu_next, duration, dt, kick_k = 0.0, first_duration, first_dt, kick
     for k in range(max_measurements):
@@ -215,35 +191,36 @@ def warn(
             break
         try:
             det = detect(sig.w, dt=sig.dt)
-            m = measurement_from_detection(mu_next, det, sig.t[-1], sig.dt)
         except ValueError as exc:
             flags.append(Flag("no_mode", str(exc)))
             stopped = "no-mode"
             break
-        ms.append(m)
-        pred = _predict(ms, None)
-        alarm.append(_alarm(ms, pred))
+        m, rflags = reduce_detection(det, mu_next, sig.t[-1], sig.dt)
+        u = policy.add(record_of(mu_next, det, m, rflags))
+        alarm.append(u.alarm)
+        if m is not None and not math.isfinite(omega0):
+            omega0 = m.omega
         if progress is not None:
             al = alarm[-1]
-            msg = f"mu={m.mu:.6g} T/T0={al.t_ratio:.3g}"
+            msg = f"mu={mu_next:.6g} T/T0={al.t_ratio:.3g} alarm={al.level}"
             if math.isfinite(al.mu_star):
                 lo, hi = al.mu_star_interval
                 msg += f" mu*={al.mu_star:.8g} [{lo:.8g}, {hi:.8g}]"
             progress((k + 1) / max_measurements, msg)
-        # next control value: a fraction of the way to a safe bound on mu*
-        cand, trusted = _next_mu(ms, pred, prev_pred, first_step)
-        prev_pred = pred
-        if trusted and pred is not None:
-            lo, hi = pred.mu_star_interval
-            if hi - lo < rel_width:
-                stopped = "converged"
-                break
-        if not cand > m.mu or cand - m.mu < 1e-12 * max(1.0, abs(m.mu)):
+        if u.converged:
+            stopped = "converged"
+            break
+        cand = u.next_control
+        if not cand > mu_next or not math.isfinite(u.record_duration):
             stopped = "no-safe-step"
             break
-        duration, dt = next_record_sampling(m, cand, pred)
-        kick_k = kick * min(1.0, (2 * math.pi / duration * PERIODS) / ms[0].omega) ** KICK_POWER
+        duration, dt = u.record_duration, u.record_dt
+        kick_k = kick * min(1.0, (2 * math.pi / duration * PERIODS) / omega0) ** KICK_POWER
         mu_next = cand
+    ms = list(u.measurements) if u is not None else []
+    pred = u.prediction if u is not None else None
+    if u is not None:
+        flags = [*u.flags, *flags]
     truth = None
     try:  # the bifurcation of exactly the backend and resolution that were simulated
         from sim.backends import BACKENDS
@@ -271,7 +248,8 @@ def warn(
         if pred.baseline is not None:
             truth["baseline_error"] = pred.baseline.mu_star - truth["mu_star"]
     return WarnResult(actuation, model, tuple(ms), pred, tuple(alarm), stopped, truth,
-                      tuple(flags))  # fmt: skip
+                      tuple(unique_flags(flags)), (), u.set_aside if u is not None else (),
+                      u.next_control if u is not None else math.nan)  # fmt: skip
 
 
 def sweep_from_signals(
@@ -280,6 +258,7 @@ def sweep_from_signals(
     names: Sequence[str] | None = None,
     method: str = "auto",
     progress: Progress | None = None,
+    plan: SweepPlan | None = None,
 ) -> WarnResult:
     """Detect every recorded signal, then classify and predict (the lab-data path).
 
@@ -294,17 +273,17 @@ def sweep_from_signals(
         Labels for the per-record detections (e.g. file names).
     method : str
         Detector method.
+    plan : SweepPlan, optional
+        The sweep policy's options (the lab's step, margin, control resolution).
     """
     if len(records) < 3:
         raise ParameterError(
             "records", len(records), f"records must hold at least 3 signals, got {len(records)}"
         )
+    plan = plan or SweepPlan()
     order = np.argsort([float(r[2]) for r in records], kind="stable")
-    controls = [float(records[j][2]) for j in order]  # repeated: averaged by the predictor
-    ms: list[Measurement] = []
+    policy = SweepPolicy(plan)
     dets: list[tuple[Detection, float, str | None]] = []
-    flags: list[Flag] = []
-    past: list[float] = []  # controls of records that grow (the strip is unstable there)
     for i, j in enumerate(order):
         w, dt, control = records[j]
         w = np.asarray(w, dtype=float)
@@ -315,58 +294,17 @@ def sweep_from_signals(
             label = f"{name} (control {control!r})" if name else f"at control {control!r}"
             raise ParameterError(exc.parameter, exc.value, f"record {label}: {exc}") from None
         dets.append((det, float(control), name))
-        if any(f.code == "unstable" for f in det.flags):
-            past.append(float(control))
-        elif not past:  # records beyond a growing one are past the transition too
-            try:
-                ms.append(measurement_from_detection(float(control), det, (w.size - 1) * dt, dt))
-            except ValueError as exc:
-                flags.append(Flag("no_mode", str(exc)))
+        m, rflags = reduce_detection(det, float(control), (w.size - 1) * float(dt), float(dt))
+        policy.append(record_of(control, det, m, rflags, name=name))
         if progress is not None:
             progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
-    pred = _predict(ms, None, strict=True, least=3)
-    if pred is None:
-        flags.append(
-            Flag(
-                "too_few_records",
-                f"{len(ms)} record(s) with a stable fundamental below the transition: a "
-                "prediction needs at least 3",
-            )
-        )
-    # after each record its slowdown; after the last, the final prediction as well (the
-    # alarm a user reads is the one of warn and of a live sweep fed the same records)
-    alarm = [_alarm(ms[: k + 1], pred if k == len(ms) - 1 else None) for k in range(len(ms))]
-    if past:
-        if pred is not None:
-            pred = bounded_by(pred, past[0])
-        flags.append(_past_flag(past, controls))
-        alarm.append(_past_alarm(past[0], ms, pred))
-    return WarnResult(None, None, tuple(ms), pred, tuple(alarm), "done", None, tuple(flags),
-                      tuple(dets))  # fmt: skip
+    u = policy.result(strict=True)
+    # after each record its slowdown; after the last, the policy's alarm (the alarm a user
+    # reads is the one of warn and of a live sweep fed the same records)
+    ms = u.measurements
+    alarms = [alarm_for(m.mu, ms[0].omega / m.omega if m.omega > 0 else math.inf)
+              for m in ms[:-1]]  # fmt: skip
+    return result_of(u, alarms=[*alarms, u.alarm], stopped="done", detections=dets)
 
 
-def _past_flag(past: Sequence[float], controls: Sequence[float]) -> Flag:
-    """The sweep's flag for records that grow: the strip is unstable there (past mu*)."""
-    beyond = [c for c in controls if c > past[0]]
-    return Flag(
-        "past_transition",
-        f"the record at control={past[0]:.6g} grows (flag unstable): the strip is unstable "
-        f"there, past its transition (mu* < {past[0]:.6g}); it"
-        + (f" and the {len(beyond)} record(s) beyond it are" if beyond else " is")
-        + " left out of the prediction",
-    )
-
-
-def _past_alarm(mu: float, ms: Sequence[Measurement], pred: Prediction | None) -> Alarm:
-    """The alarm at a record that grows: critical, whatever the slowdown says."""
-    t_ratio = _t_ratio(ms) if ms else math.nan  # (T has no meaning in a growing record)
-    mu_star = pred.mu_star if pred is not None else math.nan
-    interval = pred.mu_star_interval if pred is not None else (math.nan, math.nan)
-    return Alarm(
-        "critical",
-        f"the record at mu={mu:.6g} grows: the strip is past its transition there",
-        float(mu), float(t_ratio), float(mu_star), interval, math.nan,
-    )  # fmt: skip
-
-
-__all__ = ["WarnResult", "paper_rule", "sweep_from_signals", "warn"]
+__all__ = ["WarnResult", "paper_rule", "result_of", "sweep_from_signals", "warn"]

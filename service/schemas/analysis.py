@@ -29,7 +29,7 @@ Transition = Literal[
     "undetermined",
     "custom",  # a prediction with the caller's own exponent a (neither 1/4 nor 1/2)
 ]
-AlarmLevel = Literal["none", "watch", "warning", "critical"]
+AlarmLevel = Literal["insufficient", "clear", "watch", "warning", "critical"]
 
 
 class _Result(BaseModel):
@@ -156,7 +156,9 @@ class Classification(_Result):
 
 
 class Alarm(_Result):
-    """The alarm after a measurement (levels: none, watch, warning, critical)."""
+    """The alarm after a measurement: what the lab must do, on an ordered scale (``rank`` 0
+    lowest): insufficient (too little evidence), clear, watch, warning, critical (the next
+    step would reach the interval of mu*, or a record grew past the transition)."""
 
     level: AlarmLevel
     reason: str = ""
@@ -167,6 +169,23 @@ class Alarm(_Result):
     distance: Num = Field(
         default=None, description="(mu* - mu) in half-widths of the interval."
     )
+    rank: int = Field(default=0, ge=0, description="The level's rank (0 lowest).")
+    step: Num = Field(default=None, description="The lab's step danger is counted in.")
+    steps_left: Num = Field(
+        default=None, description="(interval's lower end - mu) in the lab's steps."
+    )
+    widths_left: Num = Field(
+        default=None, description="(interval's lower end - mu) in widths of the interval."
+    )
+
+
+class SetAside(_Result):
+    """A record left out of the prediction, with the reason (named by its file)."""
+
+    seq: int
+    control: Num
+    name: str | None = None
+    reason: str
 
 
 class Prediction(_Result):
@@ -223,6 +242,13 @@ class SweepResult(_Result):
     detections: list[RecordDetection] = Field(
         default_factory=list, description="Per-record detections (recorded sweeps)."
     )
+    set_aside: list[SetAside] = Field(
+        default_factory=list, description="Records left out of the prediction, with reasons."
+    )
+    n_set_aside: int = Field(default=0, description="How many records were set aside.")
+    next_control: Num = Field(
+        default=None, description="The next safe control after the last record (null: none)."
+    )
 
 
 __all__ = [
@@ -239,6 +265,7 @@ __all__ = [
     "Prediction",
     "RecordDetection",
     "Regime",
+    "SetAside",
     "SweepResult",
     "Transition",
     "Truth",

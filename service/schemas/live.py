@@ -19,6 +19,7 @@ from service.schemas.analysis import (
     Measurement,
     Num,
     Prediction,
+    SetAside,
     Transition,
 )
 
@@ -112,20 +113,29 @@ class LiveUpdate(BaseModel):
         "(null: no safe step left, or no advice yet).",
     )
     next_bound: Num = Field(default=None, description="The safe bound on mu* it respects.")
-    next_bound_source: Literal["interval", "sigma4", "none"] = Field(
+    next_bound_source: Literal["interval", "sigma4", "past_transition", "none"] = Field(
         default="none",
-        description="'interval' (the trusted predictor), 'sigma4' (model-free), 'none'.",
+        description="'interval' (the predictor's lower end), 'sigma4' (model-free), "
+        "'past_transition' (a record that grew), 'none'.",
     )
     next_limited_by: str = Field(
         default="no_advice", description="'bound', 'growth', 'max_step', 'no_safe_step'..."
     )
     trusted: bool = Field(description="The predictor's interval bounded the advice.")
-    converged: bool = Field(description="The trusted interval is narrower than the target.")
+    converged: bool = Field(
+        description="The trusted interval is narrower than the target, or the next step is "
+        "below the control resolution: the lab may stop."
+    )
     record_duration: Num = Field(
         default=None, description="Suggested length of the next record (record time unit)."
     )
     record_dt: Num = Field(default=None, description="Suggested sample step of the next record.")
     flags: list[Flag] = Field(default_factory=list)
+    set_aside: list[SetAside] = Field(
+        default_factory=list, description="Records left out of the prediction, with reasons."
+    )
+    n_set_aside: int = Field(default=0, description="How many records were set aside.")
+    record_advice: str = Field(default="", description="How the record length was chosen.")
     finished: bool = Field(default=False, description="This record spent the budget.")
     created_at: datetime | None = None
     server_ms: float | None = Field(

@@ -103,7 +103,8 @@ def test_warn_json_document(capsys) -> None:
     for m in doc["measurements"]:
         assert {"mu", "omega", "sigma2", "sigma2_std", "w_static"} <= set(m)
     assert "mu_star" in p["baseline"] and doc["alarm"][-1]["level"] in (
-        "none", "watch", "warning", "critical")  # fmt: skip
+        "insufficient", "clear", "watch", "warning", "critical")  # fmt: skip
+    assert doc["alarm"][-1] == p["alarm"]  # one alarm per document
 
 
 def test_simulated_record_round_trip_through_detect_keeps_static_level(tmp_path, capsys) -> None:

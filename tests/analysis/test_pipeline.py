@@ -47,8 +47,11 @@ def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
     # the alarm rises as the strip slows down
     ratios = [a.t_ratio for a in res.alarm]
     assert ratios[-1] > 5 and ratios[-1] == max(ratios)
-    assert res.alarm[-1].level == "watch"  # T/T0 = 6.5: between 3 and 10
-    assert res.alarm[-1] == res.prediction.alarm  # one alarm rule for the pipeline and predict
+    # the danger rises as the sweep nears mu*: the last step of 0.2 would reach the interval
+    ranks = [a.rank for a in res.alarm]
+    assert ranks == sorted(ranks) and res.alarm[-1].level == "critical"
+    assert res.alarm[-1].steps_left < 1
+    assert res.alarm[-1] == res.prediction.alarm  # one alarm per document
 
 
 @pytest.mark.slow

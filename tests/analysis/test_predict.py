@@ -95,7 +95,9 @@ def test_predict_given_law_beats_paper_rule(kind: str) -> None:
     # the alarm: T / T0 and the distance in half-widths
     assert p.alarm.t_ratio == pytest.approx(math.sqrt(d["sigma2"][0] / d["sigma2"][-1]))
     assert p.alarm.distance == pytest.approx((p.mu_star - d["mu"][-1]) / (0.5 * (hi - lo)))
-    assert p.alarm.level in {"watch", "warning", "critical"}
+    # without the lab's step the danger is counted in widths of the interval
+    assert p.alarm.widths_left == pytest.approx((lo - d["mu"][-1]) / (hi - lo))
+    assert p.alarm.level in {"clear", "watch", "warning", "critical"}
 
 
 @pytest.mark.parametrize("kind", KINDS)

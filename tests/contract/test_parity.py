@@ -112,7 +112,9 @@ def test_older_stored_documents_still_read() -> None:
     }  # fmt: skip
     doc = convert.sweep_document(old)
     assert doc.prediction is not None and doc.prediction.mu_star == 2.0
-    assert doc.alarm[0].level == "warning" and doc.alarm[0].distance == pytest.approx(10.0)
+    # the current scale, without the lab's step, counts the gap in widths: 0.09 / 0.02 = 4.5
+    assert doc.alarm[0].level == "clear" and doc.alarm[0].distance == pytest.approx(10.0)
+    assert doc.alarm[0].widths_left == pytest.approx(4.5) and doc.alarm[0].rank == 1
     assert doc.prediction.classification.transition == "saddle-node"
 
 

@@ -385,7 +385,7 @@ def _update(
     final = None
     if finishing:  # the final document reuses this update's prediction (no second fit)
         r = numerics.finish([*previous, u.record], plan=plan, stopped="budget",
-                            prediction=u.prediction)  # fmt: skip
+                            update=u)  # fmt: skip
         final = convert.sweep_result(r).model_dump(mode="json")
     timing["serialise"] = _since(t)
     return {"doc": doc, "stored": live_store.record_to_dict(u.record), "record": u.record,

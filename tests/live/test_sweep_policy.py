@@ -1,0 +1,126 @@
+"""The one sweep policy (``service.analysis.sweep_policy``) and the alarm scale.
+
+References: the closed-form records of ``_records`` (exact sigma^2, saddle-node at mu* = 1.8),
+hand-computed alarm cases (gap in the lab's steps and in widths), and the other doors of the
+same records (batch ``sweep_from_signals``, the live ``update``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from _records import DT, MU_STAR, record, sigma2_of
+
+from service.analysis import live
+from service.analysis.alarm import ALARM_LEVELS, alarm_for
+from service.analysis.measurement import Measurement
+from service.analysis.pipeline import sweep_from_signals
+from service.analysis.sweep_policy import SweepPlan, SweepRecord, evaluate
+
+GROW = None
+
+
+def growing(n: int = 4000) -> np.ndarray:
+    t = np.arange(n) * DT
+    return 0.01 + 1e-3 * np.exp(0.5 * t) * np.sin(15.0 * t)
+
+
+def point(mu: float, sigma2: float | None = None) -> Measurement:
+    s2 = sigma2_of(mu) if sigma2 is None else sigma2
+    return Measurement(mu, math.sqrt(abs(s2)), s2, 1e-3 * abs(s2), 0.05 * (MU_STAR - mu) ** 0.5,
+                       1e-6, "underdamped", 8.0, DT)  # fmt: skip
+
+
+# ------------------------------------------------------------------------------ the scale
+def test_the_scale_counts_danger_in_lab_steps_and_evidence_in_widths() -> None:
+    a = alarm_for(10.0, 1.2)
+    assert (a.level, a.rank) == ("insufficient", 0)
+    # [23, 600] from 22.5 with steps of 2.5: wider than the 22.5 travelled: no judgement, never
+    # the top level because the interval is wide (before: critical)
+    a = alarm_for(22.5, 1.5, 50.0, (23.0, 600.0), step=2.5, span=22.5)
+    assert a.level == "insufficient"
+    for lo, level in ((40.0, "clear"), (30.5, "watch"), (27.0, "warning"), (24.0, "critical")):
+        a = alarm_for(22.5, 1.5, lo + 1.0, (lo, lo + 2.0), step=2.5, span=22.5)
+        assert a.level == level, (lo, a)
+        assert a.steps_left == pytest.approx((lo - 22.5) / 2.5)
+        assert a.widths_left == pytest.approx((lo - 22.5) / 2.0)
+        assert a.rank == ALARM_LEVELS.index(level)
+    # a transition without loss of stability is never a snap alarm
+    assert alarm_for(22.5, 1.5, 25.0, (24.0, 26.0), step=2.5, span=22.5,
+                     transition="none").level == "clear"  # fmt: skip
+    # a record that grew: the top level, at that record
+    a = alarm_for(22.5, 1.5, 25.0, (24.0, 26.0), step=2.5, span=22.5, past=23.0)
+    assert (a.level, a.rank, a.mu) == ("critical", 4, 23.0)
+
+
+# ----------------------------------------------------------------------------- the records
+def test_a_record_whose_fundamental_cannot_enter_is_set_aside_by_name() -> None:
+    """sigma2 = +5.03 on one record in the middle (before: 'sigma2[17]=5.03' ended the sweep)."""
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65]
+    recs = [SweepRecord(k + 1, c, point(c), name=f"rec_{k:02d}.csv")
+            for k, c in enumerate(controls)]  # fmt: skip
+    recs[3] = SweepRecord(4, 0.9, point(0.9, 5.03), name="rec_03.csv")
+    u = evaluate(recs, SweepPlan())
+    assert u.n_set_aside == 1 and u.set_aside[0].name == "rec_03.csv"
+    assert "5.03" in u.set_aside[0].reason and "rec_03.csv" in u.set_aside[0].reason
+    assert u.n_used == 6 and u.prediction is not None
+    lo, hi = u.prediction.mu_star_interval
+    assert lo <= MU_STAR <= hi
+    assert "record_set_aside" in [f.code for f in u.flags]
+    # three usable controls still answer; two do not (and say why)
+    few = [SweepRecord(k + 1, c, point(c)) for k, c in enumerate((0.0, 0.6, 1.2))]
+    assert evaluate(few).prediction is not None
+    u2 = evaluate([*few[:2], SweepRecord(3, 1.2, point(1.2, 5.03))])
+    assert u2.prediction is None and "too_few_records" in [f.code for f in u2.flags]
+    assert u2.alarm.level == "insufficient"
+
+
+def test_the_advice_stays_below_every_bound() -> None:
+    """Below the point estimate always, below the lower end of an interval that is evidence,
+    below a record that grew; a live sweep recovers at the next good record."""
+    plan = live.LivePlan(step=0.3)
+    recs, ups = [], []
+    for mu in (0.0, 0.3, 0.6, 0.9, 1.2, 1.4):
+        u = live.update(recs, record(mu)[1], dt=DT, control=mu, plan=plan)
+        recs.append(u.record)
+        ups.append(u)
+    for u in ups[2:]:
+        p = u.prediction
+        lo, hi = p.mu_star_interval
+        assert u.next_control < p.mu_star
+        last = max(m.mu for m in u.policy.measurements)
+        if u.trusted or hi - lo <= last:
+            assert u.next_control < lo
+    # a record that grows at 1.55 (a lab that stepped too far): advice below it
+    g = live.update(recs, growing(), dt=DT, control=1.55, plan=plan)
+    assert g.alarm.level == "critical" and g.next_control < 1.55
+    # ... then a stable record above it: the growing one was not past the transition; it is set
+    # aside with its reason and the sweep goes on from the stable record
+    recs.append(g.record)
+    u = live.update(recs, record(1.6)[1], dt=DT, control=1.6, plan=plan)
+    assert u.n_set_aside == 1 and "stable record" in u.set_aside[0].reason
+    assert math.isfinite(u.next_control) and 1.6 < u.next_control < MU_STAR
+    assert u.alarm.level != "insufficient" and u.used_in_fit
+
+
+# ------------------------------------------------------------------------------- the doors
+def test_batch_and_live_give_one_answer() -> None:
+    """The same records through the batch door and the live door (fed in control order): the
+    same mu*, interval, alarm and next safe control (one policy, not two copies of it)."""
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72]
+    rng = np.random.default_rng(3)
+    batch, recs = [], []
+    for mu in controls:
+        w = record(mu)[1] + 1e-4 * rng.standard_normal(4000)
+        batch.append((w, DT, mu))
+        u = live.update(recs, w, dt=DT, control=mu)
+        recs.append(u.record)
+    b = sweep_from_signals(batch[::-1])  # any order: the batch sorts by control
+    assert b.prediction.mu_star == u.prediction.mu_star
+    assert b.prediction.mu_star_interval == u.prediction.mu_star_interval
+    assert b.alarm[-1] == u.alarm and b.prediction.alarm == u.alarm
+    assert b.next_control == u.next_control
+    closed = live.finish(recs)
+    assert closed.next_control == u.next_control and closed.alarm[-1] == u.alarm
