@@ -146,5 +146,7 @@ def test_text_line_of_each_stage() -> None:
         recs.append(u.record)
         lines.append(line(convert.live_update(u), f"mu_{mu}.csv"))
     assert lines[0].startswith("#1 mu_0.0.csv control=0 | sigma2=")
-    assert "mu*" not in lines[2] and "next<=0.9" in lines[2]
-    assert "mu*=1.8" in lines[4] and "next<=1.5 (sigma4)" in lines[4]
+    assert "mu*" not in lines[1] and "next<=0.6" in lines[1]
+    assert "mu*=1.8" in lines[2] and "alarm=insufficient" in lines[2]  # three records answer
+    # [1.62, 2.32] is evidence (no wider than the 1.2 travelled): its lower end bounds the step
+    assert "mu*=1.8" in lines[4] and "(interval)" in lines[4] and "alarm=warning" in lines[4]
