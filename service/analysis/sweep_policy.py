@@ -29,7 +29,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from service.analysis.predictor.sweep import group_mean
 from service.analysis.alarm import (
     Alarm,
     NextMeasurement,
@@ -41,6 +40,7 @@ from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement, measurement_from_detection
 from service.analysis.predict import Prediction, bounded_by, predict
+from service.analysis.predictor.sweep import group_mean
 from service.analysis.sampling import PERIODS, next_record_sampling
 
 if TYPE_CHECKING:
@@ -335,8 +335,8 @@ def _sort_out(
 def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
     """The measurements of the usable records, one per control in increasing control: the
     records at one control averaged as the predictor averages a table's repeated rows
-    (:func:`service.analysis.predictor.sweep.group_mean`: weights ``1/std^2`` when every record has its
-    std, else plain means)."""
+    (:func:`service.analysis.predictor.sweep.group_mean`: weights ``1/std^2`` when every record
+    has its std, else plain means)."""
     ms = sorted((r.measurement for r in records if r.measurement is not None), key=lambda m: m.mu)
     if len({m.mu for m in ms}) == len(ms):
         return ms
