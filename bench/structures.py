@@ -25,9 +25,11 @@ the coverage of the truth by the 95 % interval (the fold for imperfect softening
 perfect columns, the snap load of the truss) and the intervals wholly later than it (the
 dangerous side); for stiffening imperfect columns (no loss of stability): a snap named with
 p >= 0.9, the snap probability ``p(saddle-node) + p(subcritical)`` >= 0.9, "no transition" said
-(over all plans and over plans that reach within 1 % of ``P_c``); mu* outside its own interval;
-flags contradicting the interval (``mu_star_at_last_point`` or ``interval_reaches_last_point``
-with an interval above the last load, ``interval_huge`` quoting another interval); median
+(over all plans and over plans that reach within 1 % of ``P_c``), and where it is said, the
+interval's coverage of the load of least stiffness and mu*'s relative error to it; mu* outside
+its own interval; flags contradicting the interval (``mu_star_at_last_point`` or
+``interval_reaches_last_point`` with an interval above the last load, ``interval_huge`` quoting
+another interval); median
 errors ``|mu* - truth| / truth`` ours and the paper's rule (``baseline``), and in interval
 half-widths (the half on the truth's side).
 
@@ -169,6 +171,11 @@ def score(p: Plan, row: dict[str, Any], doc: dict[str, Any]) -> dict[str, Any]:
     row["confident_wrong"] = row["wrong"] and probs.get(named, 1.0) >= 0.9
     row["said_none"] = named in NONE_NAMES
     row["snap_named_p90"] = named in SNAP_NAMES and probs.get(named, 1.0) >= 0.9
+    if p.least_stiffness_load is not None and named in NONE_NAMES:
+        # "no transition": mu* and its interval then locate the least stiffness
+        c = p.least_stiffness_load
+        row["covers_least"] = lo <= c <= hi
+        row["err_least"] = abs(mu_star - c) / c
     if p.critical is not None:
         c = p.critical
         row["covers"] = lo <= c <= hi
@@ -309,6 +316,10 @@ def summary(rows: list[dict[str, Any]]) -> list[dict[str, str]]:
             "none said": _frac(ok, "said_none") if kind == "imperfect-stiffening" else "-",
             "none said (within 1 %)": (_frac(near, "said_none")
                                        if kind == "imperfect-stiffening" else "-"),
+            "least stiffness covered (if none)": (
+                _frac(ok, "covers_least") if kind == "imperfect-stiffening" else "-"
+            ),
+            "median err least": _med(ok, "err_least") if kind == "imperfect-stiffening" else "-",
             "mu* outside": _frac(ok, "star_outside"),
             "flag contradicts": f"{sum(bool(r['contradicting']) for r in ok)}/{len(ok)}",
             "median err": _med(ok, "err"), "median err rule": _med(ok, "err_base"),
