@@ -216,6 +216,7 @@ def main(argv: list[str] | None = None) -> int:
              if i < (n if row == "all" else n1)]  # fmt: skip
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    commit = _commit()  # the code measured: read before the run (the worktree may move on)
     t0 = time.perf_counter()
     if args.table_only:
         rows = _read(out.with_suffix(".csv"))
@@ -226,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python bench/lab_records.py " + " ".join(argv if argv is not None else sys.argv[1:])
     text = (
         "# The detector on independent lab records\n\n"
-        f"Product commit: `{_commit()}`. Command: `{cmd.strip()}` "
+        f"Product commit: `{commit}`. Command: `{cmd.strip()}` "
         f"({n} records in `all`, {n1} per other row, seed {args.seed}, {wall:.0f} s wall on "
         f"{args.jobs} process(es)).\n\n"
         "Records: tests/labrec/labgen.py (`draw_record`); the detector: "
