@@ -1,6 +1,6 @@
 """The detector on lab records it did not make: the fundamental right, flagged, or silently wrong.
 
-    python bench/lab_records.py                 # 300 records per row (about 10 min on one core)
+    python bench/lab_records.py --n 300 --n-single 40 --jobs 2   # the committed table
     python bench/lab_records.py --quick         # 30 per row, a smoke run
     python bench/lab_records.py --n 500 --seed 7 --jobs 2
 
