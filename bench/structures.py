@@ -9,7 +9,8 @@ perfect and imperfect, with exact truths (the independent generators of tests/st
 Per kind of structure (:data:`_struct_plans.KINDS`: perfect softening / stiffening columns, an
 imperfect softening column that snaps at a fold before ``P_c``, an imperfect stiffening column
 that never loses stability, the saddle-node of a symmetric truss and of one with unequal bars
-and a free apex, two degrees of freedom) ``N`` random lab plans
+and a free apex, two degrees of freedom, and two imperfect columns joined by a spring,
+softening or stiffening) ``N`` random lab plans
 (``_struct_plans.random_plan``: coarse and fine grids, stops 1e-3 to 1e-1 before the load the
 lab must not cross, noise 1e-5 to 1e-3, static data in half; ``--input mixed`` draws the table's
 form per plan: sigma2 with or without its std, omega with or without) go through
@@ -75,7 +76,11 @@ RIGHT = {
     "imperfect-stiffening": NONE_NAMES,
     "truss": ("saddle-node",),
     "truss-asymmetric": ("saddle-node",),
+    "coupled-softening": ("saddle-node", "subcritical-pitchfork"),
+    "coupled-stiffening": NONE_NAMES,
 }
+#: the kinds that never lose stability
+NO_LOSS = ("imperfect-stiffening", "coupled-stiffening")
 #: names that are wrong (a withheld type, "undetermined", is neither)
 WRONG = {
     "perfect-softening": ("saddle-node", "supercritical-pitchfork", *NONE_NAMES),
@@ -310,16 +315,16 @@ def summary(rows: list[dict[str, Any]]) -> list[dict[str, str]]:
             "right": _frac(ok, "right"), "confident wrong": _frac(ok, "confident_wrong"),
             "covers": _frac(ok, "covers"), "late": _frac(ok, "late"),
             "snap p>=0.9 named": (_frac(ok, "snap_named_p90")
-                                  if kind == "imperfect-stiffening" else "-"),
+                                  if kind in NO_LOSS else "-"),
             "p(snap)>=0.9": (f"{sum(r['p_snap'] >= 0.9 for r in ok)}/{len(ok)}"
-                             if kind == "imperfect-stiffening" else "-"),
-            "none said": _frac(ok, "said_none") if kind == "imperfect-stiffening" else "-",
+                             if kind in NO_LOSS else "-"),
+            "none said": _frac(ok, "said_none") if kind in NO_LOSS else "-",
             "none said (within 1 %)": (_frac(near, "said_none")
-                                       if kind == "imperfect-stiffening" else "-"),
+                                       if kind in NO_LOSS else "-"),
             "least stiffness covered (if none)": (
-                _frac(ok, "covers_least") if kind == "imperfect-stiffening" else "-"
+                _frac(ok, "covers_least") if kind in NO_LOSS else "-"
             ),
-            "median err least": _med(ok, "err_least") if kind == "imperfect-stiffening" else "-",
+            "median err least": _med(ok, "err_least") if kind in NO_LOSS else "-",
             "mu* outside": _frac(ok, "star_outside"),
             "flag contradicts": f"{sum(bool(r['contradicting']) for r in ok)}/{len(ok)}",
             "median err": _med(ok, "err"), "median err rule": _med(ok, "err_base"),

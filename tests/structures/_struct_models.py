@@ -423,3 +423,231 @@ class AsymmetricTruss:
     def omega2(self, F: float) -> float:
         w = self.equilibrium(F)
         return float(np.linalg.eigvalsh(self.hessian(self.u_on_path(w), w))[0] / self.mass)
+
+
+@dataclass(frozen=True)
+class CoupledColumns:
+    """Two rigid-bar columns side by side, tops joined by a horizontal spring, both under the
+    axial dead load ``P``: two degrees of freedom ``(theta1, theta2)``.
+
+    ``V = sum_i k_i (phi_i^2 / 2 + beta phi_i^4 / 4) + c L^2 (sin theta1 - sin theta2)^2 / 2
+    - P L sum_i (1 - cos theta_i)``, ``phi_i = theta_i - eps_i`` (each bar's stress-free
+    angle), each bar's moment of inertia ``I`` about its hinge. The perfect pair buckles at
+    ``P_c = lambda_min(K0) / L``, ``K0 = [[k1 + c L^2, -c L^2], [-c L^2, k2 + c L^2]]``; an
+    imperfect one follows the path parametrised by the angle ``theta_d`` of the bar that leads
+    the critical mode (the other angle and the load from ``V' = 0`` by Newton's method), snaps
+    where ``det V'' = 0`` along it (softening) or never (stiffening); the fundamental's
+    ``omega^2`` is the least eigenvalue of ``V'' / I``.
+    """
+
+    k1: float = 100.0
+    k2: float = 120.0
+    c: float = 50.0
+    L: float = 1.0
+    inertia: float = 0.1
+    beta: float = -0.5
+    eps1: float = 1e-3
+    eps2: float = 5e-4
+
+    def _c_l2(self) -> float:
+        return self.c * self.L * self.L
+
+    def energy(self, th: np.ndarray, P: float) -> float:
+        t1, t2 = th
+        u = 0.0
+        for k, t, e in ((self.k1, t1, self.eps1), (self.k2, t2, self.eps2)):
+            phi = t - e
+            u += k * (0.5 * phi**2 + 0.25 * self.beta * phi**4)
+        u += 0.5 * self._c_l2() * (math.sin(t1) - math.sin(t2)) ** 2
+        return u - P * self.L * (2.0 - math.cos(t1) - math.cos(t2))
+
+    def gradient(self, th: np.ndarray, P: float) -> np.ndarray:
+        t1, t2 = th
+        ds = math.sin(t1) - math.sin(t2)
+        g = np.empty(2)
+        for i, (k, t, e) in enumerate(((self.k1, t1, self.eps1), (self.k2, t2, self.eps2))):
+            phi = t - e
+            g[i] = k * (phi + self.beta * phi**3) - P * self.L * math.sin(t)
+        g[0] += self._c_l2() * ds * math.cos(t1)
+        g[1] -= self._c_l2() * ds * math.cos(t2)
+        return g
+
+    def hessian(self, th: np.ndarray, P: float) -> np.ndarray:
+        t1, t2 = th
+        s1, s2, c1, c2 = math.sin(t1), math.sin(t2), math.cos(t1), math.cos(t2)
+        cl2 = self._c_l2()
+        b = self.beta
+        h11 = self.k1 * (1 + 3 * b * (t1 - self.eps1) ** 2) + cl2 * (c1 * c1 - (s1 - s2) * s1)
+        h22 = self.k2 * (1 + 3 * b * (t2 - self.eps2) ** 2) + cl2 * (c2 * c2 + (s1 - s2) * s2)
+        h12 = -cl2 * c1 * c2
+        return np.array([[h11 - P * self.L * c1, h12], [h12, h22 - P * self.L * c2]])
+
+    @property
+    def p_c(self) -> float:
+        cl2 = self._c_l2()
+        K0 = np.array([[self.k1 + cl2, -cl2], [-cl2, self.k2 + cl2]])
+        return float(np.linalg.eigvalsh(K0)[0] / self.L)
+
+    def _lead(self) -> int:
+        """The bar that leads the critical mode (its largest component)."""
+        cl2 = self._c_l2()
+        K0 = np.array([[self.k1 + cl2, -cl2], [-cl2, self.k2 + cl2]])
+        v = np.linalg.eigh(K0)[1][:, 0]
+        return int(np.argmax(np.abs(v)))
+
+    def _sign(self) -> float:
+        """The side the pair leans to: the imperfection's projection on the critical mode."""
+        cl2 = self._c_l2()
+        K0 = np.array([[self.k1 + cl2, -cl2], [-cl2, self.k2 + cl2]])
+        v = np.linalg.eigh(K0)[1][:, 0]
+        v = v * np.sign(v[self._lead()])
+        proj = float(v @ (np.diag([self.k1, self.k2]) @ np.array([self.eps1, self.eps2])))
+        return 1.0 if proj >= 0 else -1.0
+
+    def point_on_path(self, td: float, guess: tuple[float, float] | None = None) -> tuple:
+        """``(theta (2,), P)`` in equilibrium with the leading angle ``td`` (Newton on the other
+        angle and the load, from ``guess`` or the unloaded pair's angles)."""
+        d = self._lead()
+        o = 1 - d
+        if guess is None:
+            th0 = self._unloaded()
+            guess = (float(th0[o]), 0.0)
+        x = np.array(guess, dtype=float)
+        for _ in range(100):
+            th = np.empty(2)
+            th[d], th[o] = td, x[0]
+            g = self.gradient(th, x[1])
+            H = self.hessian(th, x[1])
+            J = np.array([[H[d, o], -self.L * math.sin(td)], [H[o, o], -self.L * math.sin(x[0])]])
+            r = np.array([g[d], g[o]])
+            step = np.linalg.solve(J, -r)
+            x = x + step
+            if abs(step[0]) <= 1e-15 + 1e-13 * abs(x[0]) and abs(step[1]) <= 1e-13 * max(
+                abs(x[1]), self.p_c
+            ):
+                break
+        else:  # pragma: no cover
+            raise RuntimeError(f"no equilibrium found at theta_d={td!r}")
+        th = np.empty(2)
+        th[d], th[o] = td, x[0]
+        return th, float(x[1])
+
+    def _unloaded(self) -> np.ndarray:
+        """The angles at ``P = 0`` (Newton from the stress-free angles)."""
+        th = np.array([self.eps1, self.eps2])
+        for _ in range(100):
+            step = np.linalg.solve(self.hessian(th, 0.0), -self.gradient(th, 0.0))
+            th = th + step
+            if np.max(np.abs(step)) < 1e-16:
+                break
+        return th
+
+    def _path(self, n: int = 400) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The path on a grid of the leading angle from its unloaded value to 0.5 rad (on the
+        side it leans to): ``(td, theta (n, 2), P)``, continued point to point."""
+        d, o = self._lead(), 1 - self._lead()
+        t0 = float(self._unloaded()[d])
+        s = self._sign()
+        tds = t0 + s * (np.geomspace(1e-7, 0.5, n))
+        ths, Ps = [], []
+        guess = None
+        for td in tds:
+            th, P = self.point_on_path(float(td), guess)
+            guess = (float(th[o]), P)
+            ths.append(th)
+            Ps.append(P)
+        return tds, np.array(ths), np.array(Ps)
+
+    def _fold(self) -> tuple[np.ndarray, float] | None:
+        tds, ths, Ps = self._path()
+        o = 1 - self._lead()
+        dets = np.array([np.linalg.det(self.hessian(th, P)) for th, P in zip(ths, Ps)])
+        bad = np.flatnonzero(dets <= 0)
+        if bad.size == 0 or bad[0] == 0:
+            return None
+        j = int(bad[0])
+        a, b = float(tds[j - 1]), float(tds[j])
+        g = (float(ths[j - 1][o]), float(Ps[j - 1]))
+
+        def det_at(td: float) -> float:
+            th, P = self.point_on_path(td, g)
+            return float(np.linalg.det(self.hessian(th, P)))
+
+        td_f = _brent(det_at, a, b)
+        return self.point_on_path(td_f, g)
+
+    def fold(self) -> tuple[np.ndarray, float] | None:
+        """``(theta_f (2,), P_f)``: the limit point (``V' = 0``, ``det V'' = 0``), or None."""
+        return _fold_of(self)
+
+    def critical_load(self) -> float | None:
+        f = self.fold()
+        return None if f is None else f[1]
+
+    def equilibrium_angles(self, P: float) -> np.ndarray:
+        """Both angles on the fundamental path at ``P`` (rad)."""
+        tds, ths, Ps = self._path_cached()
+        f = self.fold()
+        if f is not None and P >= f[1]:
+            raise ValueError(f"P={P!r} >= the fold load {f[1]!r}")
+        if P == 0.0:
+            return self._unloaded()
+        d, o = self._lead(), 1 - self._lead()
+        fall = np.flatnonzero(np.diff(Ps) <= 0)
+        k = int(fall[0]) if fall.size else Ps.size - 1  # the load rises up to Ps[k]
+        j = int(np.searchsorted(Ps[: k + 1], P))
+        if j == 0:  # between the unloaded pair and the first grid point
+            j = 1
+        if j <= k:
+            a, b = float(tds[j - 1]), float(tds[j])
+        elif f is not None:  # between the last rising grid point and the fold
+            j, a, b = k + 1, float(tds[k]), float(f[0][d])
+        else:
+            raise ValueError(f"P={P!r} beyond the path computed (to {Ps[k]!r})")
+        g = (float(ths[j - 1][o]), float(Ps[j - 1]))
+        if j == 1:
+            g = (float(self._unloaded()[o]), 0.0)
+            a = float(self._unloaded()[d])
+        td = _brent(lambda t: self.point_on_path(t, g)[1] - P, a, b)
+        return self.point_on_path(td, g)[0]
+
+    def _path_cached(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return _path_of(self)
+
+    def equilibrium(self, P: float) -> float:
+        """The static level: the leading bar's angle (rad)."""
+        return float(self.equilibrium_angles(P)[self._lead()])
+
+    def omega2(self, P: float) -> float:
+        th = self.equilibrium_angles(P)
+        return float(np.linalg.eigvalsh(self.hessian(th, P))[0] / self.inertia)
+
+
+@functools.lru_cache(maxsize=256)
+def _path_of(model: CoupledColumns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return model._path()
+
+
+def coupled_least_stiffness(model: CoupledColumns) -> tuple[float, float] | None:
+    """``(P_min, K_min)``: the least eigenvalue of ``V''`` along the path of a pair that never
+    folds, and the load where it occurs (Brent's minimisation on the leading angle, to
+    ``1e-10`` rad); None when the pair folds."""
+    if model.fold() is not None:
+        return None
+    tds, ths, Ps = model._path_cached()
+    o = 1 - model._lead()
+    lam = np.array([np.linalg.eigvalsh(model.hessian(th, P))[0] for th, P in zip(ths, Ps)])
+    j = int(np.argmin(lam))
+    if j == 0 or j == lam.size - 1:  # pragma: no cover - a minimum inside the path
+        raise ValueError("the least stiffness is not inside the path computed")
+    g = (float(ths[j - 1][o]), float(Ps[j - 1]))
+
+    def lam_at(td: float) -> float:
+        th, P = model.point_on_path(td, g)
+        return float(np.linalg.eigvalsh(model.hessian(th, P))[0])
+
+    lo, hi = sorted((float(tds[j - 1]), float(tds[j + 1])))
+    res = optimize.minimize_scalar(lam_at, bounds=(lo, hi), method="bounded",
+                                   options={"xatol": 1e-10})  # fmt: skip
+    th, P = model.point_on_path(float(res.x), g)
+    return P, float(res.fun)

@@ -25,7 +25,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from _struct_models import AsymmetricTruss, LinkColumn, VonMisesTruss
+from _struct_models import (
+    AsymmetricTruss,
+    CoupledColumns,
+    LinkColumn,
+    VonMisesTruss,
+    coupled_least_stiffness,
+)
 
 KINDS = (
     "perfect-softening",
@@ -34,6 +40,8 @@ KINDS = (
     "imperfect-stiffening",
     "truss",
     "truss-asymmetric",
+    "coupled-softening",
+    "coupled-stiffening",
 )
 INPUTS = ("sigma2", "sigma2-no-std", "omega", "omega-no-std")
 #: the truth's transition: what a lab sees at the load it must not cross
@@ -44,6 +52,8 @@ TRANSITION = {
     "imperfect-stiffening": "none",  # no loss of stability
     "truss": "saddle-node",
     "truss-asymmetric": "saddle-node",
+    "coupled-softening": "saddle-node",  # two imperfect columns joined by a spring
+    "coupled-stiffening": "none",
 }
 
 
@@ -71,7 +81,7 @@ class Plan:
     p_c : float or None
         The perfect column's critical load (None for the truss).
     eps : float
-        Stress-free angle (rad; 0 = perfect).
+        Stress-free angle (rad; 0 = perfect; the first bar's for coupled columns).
     least_stiffness_load, least_omega2 : float or None
         Imperfect stiffening only: where the stiffness along the path is least, and the
         ``omega^2`` there.
@@ -168,6 +178,8 @@ def make_model(
         stiff0 = float(np.linalg.eigvalsh(model.hessian(0.0, 0.0))[0])
         return "truss-asymmetric", AsymmetricTruss(k1=k, k2=k * ratio, rise=rise,
                                                    mass=stiff0 / w0**2)  # fmt: skip
+    if kind.startswith("coupled"):
+        return "coupled-columns", _coupled(rng, kind.endswith("softening"), w0)
     imperfect = kind.startswith("imperfect")
     if eps is None:
         sign = 1.0 if rng.random() < 0.5 else -1.0
@@ -194,6 +206,30 @@ def make_model(
         raise ValueError(f"family must be column-rotational or column-lateral, got {family!r}")
     spring = family.split("-")[1]
     return family, LinkColumn(spring, k=k, L=L, inertia=kr / w0**2, beta=beta, eps=eps)
+
+
+def _coupled(rng: np.random.Generator, softening: bool, w0: float) -> CoupledColumns:
+    """Two imperfect columns joined at the top: ``k2 / k1`` in [1, 1.5], ``c L^2 / k1`` in
+    [0.2, 2], ``beta`` as a single column's, each ``|eps_i|`` log-uniform in [1e-4, 3e-3] with
+    a random sign; ``P_c`` log-uniform in [20, 500] N. Drawn again (at most 20 times) until
+    the pair folds (softening) or does not (stiffening)."""
+    for _ in range(20):
+        L = rng.uniform(0.5, 2.0)
+        ratio, gam = rng.uniform(1.0, 1.5), rng.uniform(0.2, 2.0)
+        beta = rng.uniform(-1.5, -0.3) if softening else rng.uniform(-0.1, 1.0)
+        e1, e2 = (
+            (1.0 if rng.random() < 0.5 else -1.0) * _log_uniform(rng, 1e-4, 3e-3) for _ in "12"
+        )
+        unit = CoupledColumns(k1=1.0, k2=ratio, c=gam / L**2, L=L, beta=beta, eps1=e1, eps2=e2)
+        k1 = _log_uniform(rng, 20.0, 500.0) / unit.p_c
+        m = CoupledColumns(k1=k1, k2=k1 * ratio, c=k1 * gam / L**2, L=L, beta=beta, eps1=e1,
+                           eps2=e2)  # fmt: skip
+        stiff0 = float(np.linalg.eigvalsh(m.hessian(m._unloaded(), 0.0))[0])
+        m = CoupledColumns(k1=m.k1, k2=m.k2, c=m.c, L=L, inertia=stiff0 / w0**2, beta=beta,
+                           eps1=e1, eps2=e2)  # fmt: skip
+        if (m.fold() is not None) == softening:
+            return m
+    raise RuntimeError("no coupled pair of the kind asked in 20 draws")  # pragma: no cover
 
 
 def random_plan(
@@ -254,7 +290,7 @@ def random_plan(
     static = bool(rng.random() < 0.5) if static is None else static
 
     critical = model.critical_load()
-    p_c = model.p_c if isinstance(model, LinkColumn) else None
+    p_c = model.p_c if isinstance(model, (LinkColumn, CoupledColumns)) else None
     p_ref = critical if critical is not None else p_c
     assert p_ref is not None
     h_rel = rng.uniform(0.02, 0.1) if grid == "coarse" else rng.uniform(0.004, 0.02)
@@ -270,6 +306,9 @@ def random_plan(
     least_load = least_om2 = None
     if isinstance(model, LinkColumn) and model.least_stiffness() is not None:
         _, least_load, k_min = model.least_stiffness()
+        least_om2 = k_min / model.inertia
+    if isinstance(model, CoupledColumns) and critical is None:
+        least_load, k_min = coupled_least_stiffness(model)
         least_om2 = k_min / model.inertia
 
     sd2 = r * omega2
@@ -302,7 +341,8 @@ def random_plan(
     return Plan(
         index=index, kind=kind, family=family, mu=mu, damping=xi,
         transition=TRANSITION[kind], critical=critical, p_c=p_c,
-        eps=float(getattr(model, "eps", 0.0)), least_stiffness_load=least_load,
+        eps=float(getattr(model, "eps", getattr(model, "eps1", 0.0))),
+        least_stiffness_load=least_load,
         least_omega2=least_om2, stop=d, rel=r, omega2_true=omega2, q_true=q, model=model,
         **cols,
     )  # fmt: skip

@@ -15,7 +15,13 @@ from scipy import integrate, optimize
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from _struct_models import AsymmetricTruss, LinkColumn, VonMisesTruss  # noqa: E402
+from _struct_models import (  # noqa: E402
+    AsymmetricTruss,
+    CoupledColumns,
+    LinkColumn,
+    VonMisesTruss,
+    coupled_least_stiffness,
+)
 from _struct_plans import KINDS, impulse_record, random_plan, write_records  # noqa: E402
 
 SOFT = [
@@ -185,6 +191,8 @@ TRUTH = {
     "imperfect-stiffening": "none",
     "truss": "saddle-node",
     "truss-asymmetric": "saddle-node",
+    "coupled-softening": "saddle-node",
+    "coupled-stiffening": "none",
 }
 
 
@@ -206,9 +214,11 @@ def test_random_plans_carry_their_truth(kind: str) -> None:
         if kind == "imperfect-softening":
             assert p.critical < p.p_c
             assert np.all(np.sign(p.q_true) == np.sign(p.eps))
-        if kind == "imperfect-stiffening":
+        if kind in ("imperfect-stiffening", "coupled-stiffening"):
             assert p.critical is None and p.least_stiffness_load is not None
-            assert p.least_omega2 <= om2.min() * (1 + 1e-12)
+            assert p.least_omega2 <= om2.min() * (1 + 1e-9)
+        if kind == "coupled-softening":
+            assert p.critical < p.p_c
         if kind.startswith("perfect"):
             assert p.critical == p.p_c and np.all(p.q_true == 0)
             # the pitchfork's stiffness is linear in the load: omega^2 (P_c - P)^-1 constant
@@ -321,3 +331,78 @@ def test_asymmetric_truss_energy_derivatives_and_fold(ratio: float) -> None:
     assert lo < F_f < hi and a.u_on_path(0.5 * w_f) != 0.0
     r = a.omega2(F_f * (1 - 1e-8)) / a.omega2(F_f * (1 - 1e-10))
     assert r == pytest.approx(10.0, rel=1e-3)
+
+
+@pytest.mark.parametrize("beta", [-0.5, 0.5])
+def test_coupled_columns_reduce_to_one_column(beta: float) -> None:
+    """Equal bars with equal stress-free angles lean together: the spring between them stays
+    unstretched, and each bar is the single column."""
+    pair = CoupledColumns(k1=100.0, k2=100.0, c=70.0, L=1.0, inertia=0.1, beta=beta,
+                          eps1=1e-3, eps2=1e-3)  # fmt: skip
+    one = LinkColumn("rotational", k=100.0, L=1.0, inertia=0.1, beta=beta, eps=1e-3)
+    assert pair.p_c == pytest.approx(one.p_c, rel=1e-13)
+    if beta < 0:
+        assert pair.critical_load() == pytest.approx(one.critical_load(), rel=1e-12)
+    else:
+        assert pair.critical_load() is None
+        P, K = coupled_least_stiffness(pair)
+        _, P1, K1 = one.least_stiffness()
+        assert P == pytest.approx(P1, rel=1e-8) and K == pytest.approx(K1, rel=1e-10)
+    for P in (10.0, 60.0, 0.97 * (one.critical_load() or one.p_c)):
+        np.testing.assert_allclose(pair.equilibrium_angles(P), one.equilibrium(P), rtol=1e-10)
+        assert pair.omega2(P) == pytest.approx(one.omega2(P), rel=1e-9)
+
+
+@pytest.mark.parametrize("beta", [-1.0, 0.4])
+def test_coupled_columns_against_the_energy(beta: float) -> None:
+    pair = CoupledColumns(k1=80.0, k2=110.0, c=40.0, L=1.3, inertia=0.2, beta=beta,
+                          eps1=-2e-3, eps2=5e-4)  # fmt: skip
+    th, P = np.array([0.03, -0.05]), 45.0
+    h = 1e-6
+    E = np.eye(2)
+    g_fd = [(pair.energy(th + h * E[i], P) - pair.energy(th - h * E[i], P)) / (2 * h)
+            for i in range(2)]  # fmt: skip
+    np.testing.assert_allclose(pair.gradient(th, P), g_fd, rtol=1e-7, atol=1e-8)
+    hh = 1e-5
+    H_fd = np.array([(pair.gradient(th + hh * E[i], P) - pair.gradient(th - hh * E[i], P))
+                     / (2 * hh) for i in range(2)])  # fmt: skip
+    np.testing.assert_allclose(pair.hessian(th, P), H_fd, rtol=1e-7, atol=1e-6)
+    top = pair.critical_load() or pair.p_c
+    for frac in (0.3, 0.9, 0.99):
+        Pl = frac * top
+        eq = pair.equilibrium_angles(Pl)
+        assert np.max(np.abs(pair.gradient(eq, Pl))) < 1e-10 * pair.k1
+        # a local minimum of the energy, found by BFGS from the stress-free angles
+        res = optimize.minimize(lambda t, Pl=Pl: pair.energy(t, Pl), [pair.eps1, pair.eps2],
+                                jac=lambda t, Pl=Pl: pair.gradient(t, Pl), method="BFGS",
+                                options={"gtol": 1e-12})  # fmt: skip
+        np.testing.assert_allclose(res.x, eq, rtol=1e-6, atol=1e-9)
+        assert pair.omega2(Pl) == pytest.approx(
+            np.linalg.eigvalsh(H_fd_at(pair, eq, Pl))[0] / pair.inertia, rel=1e-6
+        )
+    if beta < 0:  # the fold: a joint root of V' = 0 and det V'' = 0 from another start
+        th_f, P_f = pair.fold()
+
+        def eqs(z: np.ndarray) -> list[float]:
+            g = pair.gradient(z[:2], z[2]) / pair.k1
+            return [g[0], g[1], np.linalg.det(pair.hessian(z[:2], z[2])) / pair.k1**2]
+
+        z, _, ier, msg = optimize.fsolve(eqs, [1.3 * th_f[0], 1.3 * th_f[1], pair.p_c],
+                                         xtol=1e-13, full_output=True)  # fmt: skip
+        assert ier in (1, 3), msg
+        assert z[2] == pytest.approx(P_f, rel=1e-11) and P_f < pair.p_c
+        r = pair.omega2(P_f * (1 - 1e-8)) / pair.omega2(P_f * (1 - 1e-10))
+        assert r == pytest.approx(10.0, rel=1e-3)
+    else:
+        assert pair.fold() is None
+        P_m, K_m = coupled_least_stiffness(pair)
+        loads = np.linspace(0.6 * pair.p_c, 1.1 * pair.p_c, 301)
+        lam = [pair.omega2(float(x)) * pair.inertia for x in loads]
+        assert min(lam) >= K_m * (1 - 1e-9) and min(lam) > 0
+
+
+def H_fd_at(pair: CoupledColumns, th: np.ndarray, P: float) -> np.ndarray:
+    """The Hessian by central differences of the analytic gradient."""
+    hh, E = 1e-5, np.eye(2)
+    return np.array([(pair.gradient(th + hh * E[i], P) - pair.gradient(th - hh * E[i], P))
+                     / (2 * hh) for i in range(2)])  # fmt: skip
