@@ -125,10 +125,11 @@ def start_server(tmp: Path) -> tuple[subprocess.Popen, str]:
     proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)  # fmt: skip
     url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 600  # ready: its analysis worker has loaded its kernels
     while time.monotonic() < deadline:
         try:
-            if httpx2.get(url + "/healthz", timeout=1.0).status_code == 200:
+            r = httpx2.get(url + "/healthz", timeout=1.0)
+            if r.status_code == 200 and r.json().get("ready", True):
                 return proc, url
         except httpx2.HTTPError:
             pass

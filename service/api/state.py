@@ -25,7 +25,7 @@ log = logging.getLogger("snapwarn.api")
 
 #: How long an analysis request waits for the workers' warm-up before its 503 (seconds), and
 #: the ``Retry-After`` it then gets.
-WARM_WAIT_S = 10.0
+WARM_WAIT_S = 60.0
 WARM_RETRY_AFTER_S = 10
 
 

@@ -53,5 +53,5 @@ class Health(BaseModel):
         default=True,
         description="The analysis workers have loaded their numerical kernels (compiled once, "
         "at install; a fresh install without them compiles at start-up). Until then analysis "
-        "requests wait up to 10 s, then get 503 with Retry-After.",
+        "requests wait up to 60 s, then get 503 with Retry-After.",
     )
