@@ -223,3 +223,28 @@ def test_a_20_mb_csv_of_1e7_rows_is_413_fast_with_bounded_memory(tmp_path) -> No
             assert grew < 200e6, f"{door}: peak RSS grew {grew / 1e6:.0f} MB"
     finally:
         server.stop()
+
+
+# ------------------------------------------------------------------ live records: all or nothing
+async def test_a_live_record_refused_after_reading_leaves_no_signal(asgi) -> None:  # noqa: ANN001
+    """A live record was stored as a signal while its analysis ran: a 422 (or a 503, or a
+    kill) left the signal behind. Now the signal and the record commit together, or neither."""
+    _, client = asgi
+    sid = await _live_sweep(client)
+    t = np.arange(2000) * 0.01
+    w = (np.exp(-0.05 * t) * np.sin(2 * np.pi * 1.3 * t)).tolist()
+    r = await client.post(f"/v1/sweeps/{sid}/records",
+                          json={"control": 0.1, "dt": 0.01, "w": w, "unit": "s"})  # fmt: skip
+    assert r.status_code == 201, r.text[:300]
+    got = await client.get(f"/v1/signals/{r.json()['signal_id']}")  # stored with its record
+    assert got.status_code == 200 and got.json()["n"] == 2000
+    before = (await client.get("/v1/signals?limit=1")).json()["total"]
+    # read fine, refused by the sweep (a time unit it cannot convert): 422, and no signal
+    bad = {"control": 0.2, "dt": 0.01, "w": w, "unit": "fortnights"}
+    r = await client.post(f"/v1/sweeps/{sid}/records", json=bad)
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "unit", r.text[:300]
+    data = "t [fortnights],w\n" + "".join(f"{k * 0.01:.2f},{v}\n" for k, v in enumerate(w))
+    r = await client.post(f"/v1/sweeps/{sid}/records", files={"file": ("f.csv", data, "text/csv")},
+                          data={"control": "0.2"})  # fmt: skip
+    assert r.status_code == 422, r.text[:300]
+    assert (await client.get("/v1/signals?limit=1")).json()["total"] == before

@@ -21,7 +21,7 @@ from service.api.routers._common import RECORDING_FORM_FIELDS
 from service.api.state import AppState
 from service.schemas.live import LiveRecordIn
 
-__all__ = ["RECORD_FORM_SCHEMA", "record_from_form", "record_from_json", "store_recording"]
+__all__ = ["RECORD_FORM_SCHEMA", "record_from_form", "record_from_json", "signal_for"]
 
 RECORD_FORM_SCHEMA = {
     "type": "object",
@@ -136,9 +136,11 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
             "metadata": {"file": {"filename": upload.filename, **rec.metadata}}}  # fmt: skip
 
 
-async def store_recording(
-    state: AppState, item: dict[str, Any], live_row: Any, caller: Caller
-) -> str:
+async def signal_for(item: dict[str, Any], live_row: Any, caller: Caller) -> Any:
+    """The row of the record's samples as a new signal (encoded off the event loop), to be
+    stored in the record's own transaction (``storage.live.append_record``)."""
+    from service.api.storage.signals import signal_row
+
     rec: recordings.Recording = item["recording"]
     control = {"name": live_row.control_name, "value": item["control"],
                "unit": live_row.control_unit}  # fmt: skip
@@ -146,11 +148,10 @@ async def store_recording(
     meta["live_sweep"] = live_row.id
     if rec.flags:
         meta["flags"] = [convert.flag(f).model_dump() for f in rec.flags]
-    row = await to_thread.run_sync(
-        lambda: state.store.add_signal(
+    return await to_thread.run_sync(
+        lambda: signal_row(
             w=rec.w, dt=rec.dt, t0=rec.t0, t=rec.t, source=rec.source, name=item.get("name"),
             unit=rec.unit, value_unit=rec.value_unit, control=control, metadata=meta,
             owner=caller.owner,
         )
     )  # fmt: skip
-    return row.id

@@ -152,8 +152,8 @@ async def add_record(
             f"{st.row.control_unit!r}",
         )  # fmt: skip
     stored = None
-    if "recording" in item:  # stored while the numerics run (the update names its id)
-        stored = asyncio.ensure_future(_live_input.store_recording(state, item, st.row, caller))
+    if "recording" in item:  # its signal's row made while the numerics run; stored with it
+        stored = asyncio.ensure_future(_live_input.signal_for(item, st.row, caller))
         item["w"], item["dt"] = item["recording"].w, item["recording"].dt
         item["unit"] = item["recording"].unit
     timing["read"] = time.perf_counter() - t0
@@ -311,13 +311,15 @@ async def _append(
         measured = out["measured"]
         t0 = time.perf_counter()
         signal_id = item.get("signal_id")
-        if stored is not None:
-            signal_id = item["signal_id"] = await stored
+        new_signal = None
+        if stored is not None:  # the record's signal: stored with the record, or neither
+            new_signal = await stored
+            signal_id = new_signal.id
         out["doc"]["signal_id"] = signal_id
         append = partial(
             store_live.append_record, state.store, sweep_id, st.row.version,
             signal_id=signal_id, control=item["control"], record=out["stored"],
-            doc=out["doc"], finish_result=out["final"],
+            doc=out["doc"], finish_result=out["final"], new_signal=new_signal,
         )  # fmt: skip
         row = await to_thread.run_sync(append)
         timing["store"] = timing.get("store", 0.0) + time.perf_counter() - t0

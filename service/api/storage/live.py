@@ -162,12 +162,16 @@ def append_record(
     record: dict[str, Any],
     doc: dict[str, Any],
     finish_result: dict[str, Any] | None = None,
+    new_signal: Any = None,
 ) -> LiveRecordRow | None:
     """Append record ``version + 1`` if the sweep is still open at ``version``.
 
     Returns the stored row, or None when another record (or a close) came first: the caller
     reads the new state, recomputes and retries. With ``finish_result`` the record spends the
     budget: the sweep finishes and its job succeeds with that result, in the same transaction.
+    ``new_signal``: the record's samples as a new signal's row (``signals.signal_row``), stored
+    in the same transaction, or neither (no signal is left behind by a record refused, too
+    busy or killed); its id is the record's ``signal_id``.
     """
     seq = version + 1
     now = utcnow()
@@ -186,6 +190,10 @@ def append_record(
         )
         if res.rowcount != 1:
             return None
+        if new_signal is not None:
+            s.add(new_signal)
+            signal_id = new_signal.id
+            doc = {**doc, "signal_id": signal_id}
         row = LiveRecordRow(
             sweep_id=sweep_id,
             seq=seq,

@@ -36,48 +36,53 @@ def _scoped(q: Any, scope: str | None) -> Any:
 _NO_SAMPLES = (defer(SignalRow.w, raiseload=True), defer(SignalRow.t, raiseload=True))
 
 
+def signal_row(
+    *,
+    w: np.ndarray,
+    dt: float,
+    t0: float,
+    t: np.ndarray | None,
+    source: str,
+    name: str | None = None,
+    unit: str | None = None,
+    value_unit: str | None = None,
+    control: dict[str, Any] | None = None,
+    metadata: dict[str, Any] | None = None,
+    owner: str = DEFAULT_OWNER,
+) -> SignalRow:
+    """A new signal's row (samples encoded, hashed), to be added in some transaction."""
+    wb = encode_f64(w)
+    return SignalRow(
+        id=new_id(),
+        owner=owner,
+        name=sanitize(name),
+        n=int(w.size),
+        dt=float(dt),
+        t0=float(t0),
+        unit=sanitize(unit),
+        value_unit=sanitize(value_unit),
+        control_name=sanitize((control or {}).get("name")),
+        control_value=(control or {}).get("value"),
+        control_unit=sanitize((control or {}).get("unit")),
+        meta=sanitize(metadata or {}),
+        source=source,
+        w=wb,
+        t=encode_f64(t) if t is not None else None,
+        has_t=t is not None,
+        sha256=hashlib.sha256(wb).hexdigest(),
+        created_at=utcnow(),
+    )
+
+
 class SignalsMixin:
     """Signal access of :class:`~service.api.storage.Store`.
 
     ``scope`` is the owner a read is restricted to (None: every owner, for admins and jobs).
     """
 
-    def add_signal(
-        self,
-        *,
-        w: np.ndarray,
-        dt: float,
-        t0: float,
-        t: np.ndarray | None,
-        source: str,
-        name: str | None = None,
-        unit: str | None = None,
-        value_unit: str | None = None,
-        control: dict[str, Any] | None = None,
-        metadata: dict[str, Any] | None = None,
-        owner: str = DEFAULT_OWNER,
-    ) -> SignalRow:
-        wb = encode_f64(w)
-        row = SignalRow(
-            id=new_id(),
-            owner=owner,
-            name=sanitize(name),
-            n=int(w.size),
-            dt=float(dt),
-            t0=float(t0),
-            unit=sanitize(unit),
-            value_unit=sanitize(value_unit),
-            control_name=sanitize((control or {}).get("name")),
-            control_value=(control or {}).get("value"),
-            control_unit=sanitize((control or {}).get("unit")),
-            meta=sanitize(metadata or {}),
-            source=source,
-            w=wb,
-            t=encode_f64(t) if t is not None else None,
-            has_t=t is not None,
-            sha256=hashlib.sha256(wb).hexdigest(),
-            created_at=utcnow(),
-        )
+    def add_signal(self, **fields: Any) -> SignalRow:
+        """Store a signal (the fields of :func:`signal_row`); returns its row."""
+        row = signal_row(**fields)
         with self.session() as s:  # type: ignore[attr-defined]
             s.add(row)
             idempotency.bind(s, f"/v1/signals/{row.id}", 201)
