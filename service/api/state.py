@@ -40,6 +40,9 @@ class AppState:
     #: The analysis workers have loaded (or compiled) their kernels (``service.api.warm``);
     #: False from start-up until then when the pool is warmed (``/healthz`` reports it).
     kernels_ready: bool = True
+    #: The analysis functions that have answered once in this process's pool (their kernels
+    #: compiled): a time limit passed by any other is the first compilation's, not the input's.
+    warm_fns: set[str] = field(default_factory=set)
 
     async def run(self, fn: Callable[..., T], *args: Any) -> T:
         """Await ``fn(*args)`` in the analysis pool, within ``request_time_limit_s``.
@@ -90,20 +93,38 @@ class AppState:
 
     async def _run_limited(self, fn: Callable[..., T], *args: Any) -> T:
         limit = self.settings.request_time_limit_s
+        name = _name(fn)
         if isinstance(self.pool, LightPool):  # it kills the worker of a call past its limit
             try:
-                return await self.pool.run(fn, *args, timeout=limit)
+                out = await self.pool.run(fn, *args, timeout=limit)
             except TimeLimitExceeded:
-                raise self._time_limit(fn, limit) from None
+                raise self._time_limit(fn, limit, name not in self.warm_fns) from None
+            self.warm_fns.add(name)
+            return out
         try:
-            return await asyncio.wait_for(run_in_pool(self.pool, fn, *args), timeout=limit)
+            out = await asyncio.wait_for(run_in_pool(self.pool, fn, *args), timeout=limit)
         except TimeoutError:
             self._replace_pool(kill=True)
-            raise self._time_limit(fn, limit) from None
+            raise self._time_limit(fn, limit, name not in self.warm_fns) from None
+        self.warm_fns.add(name)
+        return out
 
     @staticmethod
-    def _time_limit(fn: Callable[..., Any], limit: float) -> ApiProblem:
-        log.warning("%s passed the request time limit of %g s", getattr(fn, "__name__", fn), limit)
+    def _time_limit(fn: Callable[..., Any], limit: float, cold: bool = False) -> ApiProblem:
+        """422 for work past the limit; 503 with Retry-After when it was the function's first
+        call here (the numerics' kernels compiling, tens of seconds on a busy machine: not the
+        input's fault; a retry finds them compiled in the on-disk cache)."""
+        log.warning("%s passed the request time limit of %g s", _name(fn), limit)
+        if cold:
+            return ApiProblem(
+                503,
+                f"the computation passed the request time limit of {limit:g} s on its first "
+                "use since the server started (the numerics compiling their kernels); retry "
+                "in a minute",
+                title="Warming up",
+                slug="warming-up",
+                headers={"Retry-After": "60"},
+            )
         return ApiProblem(
             422,
             f"the computation passed the request time limit of {limit:g} s (setting "
@@ -204,3 +225,10 @@ async def _state(request: Request) -> AppState:
 
 
 StateDep = Annotated[AppState, Depends(_state)]
+
+
+def _name(fn: Any) -> str:
+    """A stable name of the function a pool call runs (through ``functools.partial``)."""
+    while hasattr(fn, "func"):
+        fn = fn.func
+    return f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}"
