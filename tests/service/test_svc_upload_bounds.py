@@ -9,6 +9,7 @@ formats' headers are checked against their data before anything is read.
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import numpy as np
@@ -233,8 +234,12 @@ async def test_a_live_record_refused_after_reading_leaves_no_signal(asgi) -> Non
     sid = await _live_sweep(client)
     t = np.arange(2000) * 0.01
     w = (np.exp(-0.05 * t) * np.sin(2 * np.pi * 1.3 * t)).tolist()
-    r = await client.post(f"/v1/sweeps/{sid}/records",
-                          json={"control": 0.1, "dt": 0.01, "w": w, "unit": "s"})  # fmt: skip
+    for _ in range(60):  # the analysis workers may still be loading their kernels: 503
+        r = await client.post(f"/v1/sweeps/{sid}/records",
+                              json={"control": 0.1, "dt": 0.01, "w": w, "unit": "s"})  # fmt: skip
+        if r.status_code != 503:
+            break
+        await asyncio.sleep(2.0)
     assert r.status_code == 201, r.text[:300]
     got = await client.get(f"/v1/signals/{r.json()['signal_id']}")  # stored with its record
     assert got.status_code == 200 and got.json()["n"] == 2000
