@@ -236,20 +236,26 @@ def _rtol_hint(scene: dict[str, Any], elements: int) -> str:
 
 
 def check_queue(store: Store, owner: str, settings: Settings) -> None:
-    """429 when ``owner`` already has ``max_active_jobs_per_owner`` queued or running jobs."""
+    """429 when ``owner`` already has ``max_active_jobs_per_owner`` queued or running jobs (a
+    quick answer before any work; the bound itself is held by the store, which counts and
+    queues in one locked transaction: ``max_active`` of ``Store.create_job``)."""
     n = store.count_active_jobs(owner)
     if n >= settings.max_active_jobs_per_owner:
-        raise ApiProblem(
-            429,
-            f"{n} jobs of this owner are queued or running, the limit is "
-            f"{settings.max_active_jobs_per_owner} (setting SNAPWARN_MAX_ACTIVE_JOBS_PER_OWNER); "
-            "retry when some have finished, or cancel some",
-            title="Too many jobs",
-            slug="too-many-jobs",
-            field="jobs",
-            value=n,
-            headers={"Retry-After": "10"},
-        )
+        raise queue_full(n, settings.max_active_jobs_per_owner)
+
+
+def queue_full(n: int, limit: int) -> ApiProblem:
+    """The 429 of an owner whose queue is full."""
+    return ApiProblem(
+        429,
+        f"{n} jobs of this owner are queued or running, the limit is {limit} (setting "
+        "SNAPWARN_MAX_ACTIVE_JOBS_PER_OWNER); retry when some have finished, or cancel some",
+        title="Too many jobs",
+        slug="too-many-jobs",
+        field="jobs",
+        value=n,
+        headers={"Retry-After": "10"},
+    )
 
 
 #: Bounds of a time axis: the step and every time stay where their squares and inverses are

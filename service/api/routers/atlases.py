@@ -107,12 +107,18 @@ async def create_atlas(req: AtlasRequest, state: StateDep, caller: CallerDep) ->
             raise invalid("spec.elements", c.inputs["elements"], f"exceeds the limit of "
                           f"{state.settings.max_elements} (setting SNAPWARN_MAX_ELEMENTS)")
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
-    limit = min(spec.timeout_s, time_limit_s())
+    # under the job time limit like every job: the engine's own bound stops it first (the
+    # finished cells stored), with a grace for the summary before the job's limit
+    job_limit = state.settings.job_time_limit_s
+    grace = min(300.0, 0.1 * job_limit)
+    limit = min(spec.timeout_s, time_limit_s(), job_limit - grace)
+    run_spec = {**spec.to_dict(), "timeout_s": limit}
     atlas, job = await to_thread.run_sync(
         lambda: store_atlases.create_atlas(
             state.store, name=req.name or spec.name, kind=spec.kind, spec=spec.to_dict(),
-            params={"spec": spec.to_dict()}, cells_total=len(spec.cells), owner=caller.owner,
-            time_limit_s=limit + 300.0)  # fmt: skip
+            params={"spec": run_spec}, cells_total=len(spec.cells), owner=caller.owner,
+            time_limit_s=limit + grace,
+            max_active=state.settings.max_active_jobs_per_owner)  # fmt: skip
     )
     if state.runner is not None:
         state.runner.wake()

@@ -54,6 +54,7 @@ async def create_simulation(
                 params,
                 owner=caller.owner,
                 time_limit_s=state.settings.job_time_limit_s,
+                max_active=state.settings.max_active_jobs_per_owner,
             )
         )
         if state.runner is not None:

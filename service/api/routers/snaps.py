@@ -83,7 +83,8 @@ async def create_snap(req: SnapRequest, state: StateDep, caller: CallerDep) -> J
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
     row = await to_thread.run_sync(
         lambda: state.store.create_job("snap", params, owner=caller.owner,
-                                       time_limit_s=state.settings.job_time_limit_s)
+                                       time_limit_s=state.settings.job_time_limit_s,
+                                       max_active=state.settings.max_active_jobs_per_owner)
     )  # fmt: skip
     if state.runner is not None:
         state.runner.wake()

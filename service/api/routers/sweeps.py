@@ -162,6 +162,7 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
             req.name,
             owner=caller.owner,
             time_limit_s=state.settings.job_time_limit_s,
+            max_active=state.settings.max_active_jobs_per_owner,
         )
     )
     if state.runner is not None:

@@ -16,6 +16,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Mapped, mapped_column
 
 from service.api.storage import idempotency
+from service.api.storage.jobs import reserve
 from service.api.storage.models import DEFAULT_OWNER, Base, JobRow, new_id, sanitize, utcnow
 
 ATLAS_KIND = "atlas"
@@ -49,7 +50,8 @@ class AtlasCellRow(Base):
 
 def create_atlas(store: Any, *, name: str | None, kind: str, spec: dict[str, Any],
                  params: dict[str, Any], cells_total: int, owner: str = DEFAULT_OWNER,
-                 time_limit_s: float | None = None) -> tuple[AtlasRow, JobRow]:  # fmt: skip
+                 time_limit_s: float | None = None,
+                 max_active: int | None = None) -> tuple[AtlasRow, JobRow]:  # fmt: skip
     """The atlas row and its queued job (same id), in one transaction."""
     aid = new_id()
     now = utcnow()
@@ -59,6 +61,7 @@ def create_atlas(store: Any, *, name: str | None, kind: str, spec: dict[str, Any
                  message="queued", attempts=0, owner=owner, time_limit_s=time_limit_s,
                  run_s=0.0, created_at=now)  # fmt: skip
     with store.session() as s:
+        reserve(s, owner, max_active)
         s.add(job)
         s.add(atlas)
         idempotency.bind(s, f"/v1/atlases/{aid}", 202)

@@ -13,7 +13,7 @@ import socket
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, func, select, update
+from sqlalchemy import delete, func, select, text, update
 
 from service.api.storage.models import (
     DEFAULT_OWNER,
@@ -79,6 +79,30 @@ def time_limit_error(row: JobRow, elapsed: float) -> dict[str, Any]:
     }
 
 
+def reserve(s: Any, owner: str, max_active: int | None) -> None:
+    """Inside the transaction that queues a job: 429 when ``owner`` already has ``max_active``
+    queued or running jobs. The owner's lock is taken first (PostgreSQL: a transaction-level
+    advisory lock on the owner; SQLite: the database's write lock), so concurrent requests
+    count and insert one after the other: the limit holds under concurrency."""
+    if max_active is None:
+        return
+    if s.get_bind().dialect.name == "postgresql":
+        s.execute(text("SELECT pg_advisory_xact_lock(hashtext(:k))"), {"k": f"jobs:{owner}"})
+    else:  # a write statement takes SQLite's write lock now (it matches no row)
+        s.execute(update(JobRow).where(JobRow.id == "").values(owner=JobRow.owner))
+    n = int(
+        s.execute(
+            select(func.count())
+            .select_from(JobRow)
+            .where(JobRow.owner == owner, JobRow.status.in_(ACTIVE))
+        ).scalar_one()
+    )
+    if n >= max_active:
+        from service.api.limits import queue_full
+
+        raise queue_full(n, max_active)
+
+
 class JobsMixin:
     """Job access of :class:`~service.api.storage.Store` (``scope``: see ``SignalsMixin``)."""
 
@@ -90,7 +114,9 @@ class JobsMixin:
         job_id: str | None = None,
         owner: str = DEFAULT_OWNER,
         time_limit_s: float | None = None,
+        max_active: int | None = None,
     ) -> JobRow:
+        """Queue a job; ``max_active``: the owner's queue bound, checked atomically."""
         row = JobRow(
             id=job_id or new_id(),
             kind=kind,
@@ -105,6 +131,7 @@ class JobsMixin:
             created_at=utcnow(),
         )
         with self.session() as s:  # type: ignore[attr-defined]
+            reserve(s, owner, max_active)
             s.add(row)
         return row
 

@@ -7,6 +7,7 @@ from typing import Any
 from sqlalchemy import func, select
 
 from service.api.storage import idempotency
+from service.api.storage.jobs import reserve
 from service.api.storage.models import (
     DEFAULT_OWNER,
     JobRow,
@@ -29,6 +30,7 @@ class SweepsMixin:
         *,
         owner: str = DEFAULT_OWNER,
         time_limit_s: float | None = None,
+        max_active: int | None = None,
     ) -> tuple[SweepRow, JobRow]:
         sid = new_id()
         now = utcnow()
@@ -49,6 +51,7 @@ class SweepsMixin:
             created_at=now,
         )
         with self.session() as s:  # type: ignore[attr-defined]
+            reserve(s, owner, max_active)
             s.add(job)
             s.add(sweep)
             idempotency.bind(s, f"/v1/sweeps/{sid}", 202)
