@@ -94,7 +94,13 @@ WRONG = {
         "supercritical-pitchfork",
         *NONE_NAMES,
     ),
+    "coupled-softening": ("supercritical-pitchfork", "pitchfork", *NONE_NAMES),
+    "coupled-stiffening": SNAP_NAMES,
 }
+
+
+if not set(RIGHT) == set(WRONG) == set(KINDS):  # a kind added to the generators needs both
+    raise RuntimeError(f"RIGHT and WRONG must name every kind of {KINDS}")
 
 
 def draw_plans(n: int, seed: int, input_: str) -> list[Plan]:
