@@ -383,9 +383,8 @@ def impulse_record(
     return plan.q_true[i] + x + noise * peak * rng.standard_normal(n)
 
 
-def write_records(
+def records(
     plan: Plan,
-    folder: Any,
     *,
     zeta: float = 0.01,
     noise: float = 1e-3,
@@ -393,32 +392,40 @@ def write_records(
     samples_per_period: float = 20.0,
     max_samples: int = 200_000,
     seed: int = 0,
-) -> Any:
-    """The plan as a lab's impulse records: one CSV ``t,w`` per load and a manifest
-    ``path,control`` (the ``snapwarn sweep`` door), returned as the manifest's path.
+) -> list[tuple[np.ndarray, float, float]]:
+    """The plan as a lab's impulse records, ``[(w, dt, load), ...]``.
 
     One sample step for every record (``samples_per_period`` samples in the fastest period)
     and one length (``periods`` periods of the slowest, at most ``max_samples``); the damping
     ``xi = 2 zeta omega_0`` of the first (least loaded) record, the same at every load (so the
     damping ratio grows as the mode softens).
     """
-    from pathlib import Path
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     om = np.sqrt(plan.omega2_true)
     dt = 2.0 * math.pi / float(om.max()) / samples_per_period
     n = int(min(max_samples, math.ceil(periods * 2.0 * math.pi / float(om.min()) / dt)))
     xi = 2.0 * zeta * float(om[0])
     rng = np.random.default_rng(seed)
+    return [
+        (impulse_record(plan, i, dt=dt, n=n, damping=xi, noise=noise, rng=rng), dt, float(P))
+        for i, P in enumerate(plan.mu)
+    ]
+
+
+def write_records(plan: Plan, folder: Any, **kw: Any) -> Any:
+    """:func:`records` (same keywords) written as a lab's files: one CSV ``t,w`` per load and a
+    manifest ``path,control`` (the ``snapwarn sweep`` door), returned as the manifest's path.
+    """
+    from pathlib import Path
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
     lines = ["path,control"]
-    for i, P in enumerate(plan.mu):
-        w = impulse_record(plan, i, dt=dt, n=n, damping=xi, noise=noise, rng=rng)
-        t = dt * np.arange(n)
+    for i, (w, dt, P) in enumerate(records(plan, **kw)):
+        t = dt * np.arange(w.size)
         name = f"rec{i:03d}.csv"
         body = "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(t, w))
         (folder / name).write_text("t,w\n" + body + "\n")
-        lines.append(f"{name},{float(P)!r}")
+        lines.append(f"{name},{P!r}")
     manifest = folder / "manifest.csv"
     manifest.write_text("\n".join(lines) + "\n")
     return manifest
