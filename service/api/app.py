@@ -19,7 +19,7 @@ from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from service.api import pages
-from service.api.auth import get_caller
+from service.api.auth import get_caller, is_loopback
 from service.api.errors import BodyLimitMiddleware, install_handlers
 from service.api.executor import make_analysis_pool, make_pool, warm_pool
 from service.api.hotpath import HotPathMiddleware
@@ -35,7 +35,7 @@ from service.api.routers import (
     simulations,
     sweeps,
 )
-from service.api.security import SecurityMiddleware
+from service.api.security import SecurityMiddleware, redact_logs
 from service.api.settings import Settings
 from service.api.state import AppState
 from service.api.storage import Store
@@ -68,6 +68,12 @@ def _lifespan(settings: Settings) -> Any:
         store = Store(settings.db_url)
         await to_thread.run_sync(store.create_all)
         await to_thread.run_sync(store.recover_idempotent)  # keys of requests that died
+        redact_logs()
+        if settings.auth == "off" and not is_loopback(settings.host):
+            logging.getLogger("snapwarn").warning(
+                "WARNING: API keys are off (SNAPWARN_AUTH=off) on %s, beyond loopback: anyone "
+                "who can reach this server acts as an admin", settings.host,
+            )  # fmt: skip
         pool = make_analysis_pool(settings.executor, settings.analysis_workers)
         state = AppState(settings=settings, store=store, pool=pool)
         if settings.warm_pool:

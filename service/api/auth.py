@@ -4,7 +4,10 @@ Keys (``snapwarn keys create``) are stored as SHA-256 digests and compared in co
 They are required on /v1 when the server listens beyond loopback (``SNAPWARN_AUTH=auto``, the
 default), always with ``SNAPWARN_AUTH=on``, never with ``SNAPWARN_AUTH=off`` (explicit opt-out).
 Without a key on a loopback server every request is ``Caller(owner="local", admin=True)``; a
-key that is sent is always checked (so owners stay apart on loopback too).
+key that is sent is always checked (so owners stay apart on loopback too). That trust is the
+socket peer's: a request that carries forwarding headers (``Forwarded``, ``X-Forwarded-*``,
+``X-Real-IP``: it came through a reverse proxy, whatever its ``Host``) or whose peer is not a
+loopback address needs a key, unless keys are turned off (``SNAPWARN_AUTH=off``).
 
 Every resource row carries the ``owner`` that created it; a caller reads its own rows only (an
 admin reads all): anything else answers 404, as if the resource did not exist.
@@ -108,6 +111,24 @@ def _beyond_loopback(h: str) -> bool:
         return False
 
 
+#: Headers a reverse proxy adds: a request carrying one came from elsewhere.
+FORWARDING_HEADERS = (
+    b"forwarded", b"x-forwarded-for", b"x-forwarded-host", b"x-forwarded-proto",
+    b"x-forwarded-port", b"x-real-ip", b"x-client-ip", b"true-client-ip", b"via",
+)  # fmt: skip
+
+
+def proxied(request: Request) -> bool:
+    """True when the request did not come straight from a loopback peer: forwarding headers
+    (a reverse proxy on this machine forwards from anywhere) or a socket peer beyond
+    loopback (an in-process client names no IP: it passes)."""
+    for k, _ in request.scope.get("headers", ()):
+        if k in FORWARDING_HEADERS:
+            return True
+    client = request.scope.get("client")
+    return bool(client) and _beyond_loopback(str(client[0]).strip("[]"))
+
+
 def _token(request: Request) -> str | None:
     auth = request.headers.get("authorization", "")
     if auth[:7].lower() == "bearer ":
@@ -134,7 +155,7 @@ async def get_caller(request: Request) -> Caller:
     settings: Settings = st.settings if st else request.app.state.settings
     token = _token(request)
     if token is None:
-        if keys_required(settings, request):
+        if keys_required(settings, request) or (settings.auth != "off" and proxied(request)):
             raise _unauthorized(False)
         return LOCAL_CALLER
     if settings.api_key and hmac.compare_digest(

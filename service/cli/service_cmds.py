@@ -42,7 +42,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("auto", "on", "off"),
         default=None,
         help="API keys on /v1: 'auto' (default) requires them beyond loopback, "
-        "'off' is an explicit opt-out",
+        "'off' is an explicit opt-out (beyond loopback only with --i-know)",
+    )
+    p.add_argument(
+        "--i-know",
+        action="store_true",
+        help="serve without API keys (--auth off) on an address beyond loopback: anyone who "
+        "can reach it is an admin",
     )
     p.set_defaults(func=_serve)
 
@@ -153,9 +159,23 @@ def _serve(args: argparse.Namespace) -> int:
     settings = _settings()
     import uvicorn
 
-    from service.api.auth import keys_required
+    from service.api.auth import is_loopback, keys_required
 
-    keys = "API keys required" if keys_required(settings) else "no API key needed (loopback)"
+    open_beyond = settings.auth == "off" and not is_loopback(settings.host)
+    if open_beyond and not args.i_know:
+        raise bad("--auth", "off", f"on {settings.host} (beyond loopback) lets anyone who can "
+                  "reach the server act as an admin: add --i-know to do so anyway, or create "
+                  "keys ('snapwarn keys create') and keep --auth auto")  # fmt: skip
+    if open_beyond:
+        keys = "NO API KEYS (--auth off) on an address beyond loopback: anyone who can reach it "
+        keys += "is an admin"
+        sys.stderr.write(f"snapwarn: WARNING: {keys}\n")
+    elif keys_required(settings):
+        keys = "API keys required"
+    elif settings.auth == "off":
+        keys = "API keys off (--auth off)"
+    else:
+        keys = "no API key needed from this machine (loopback; proxied requests need one)"
     sys.stderr.write(
         f"snapwarn: serving on http://{settings.host}:{settings.port} (db {settings.db_url}; "
         f"{keys})\n"

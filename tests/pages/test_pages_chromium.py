@@ -17,11 +17,20 @@ import pytest
 from _pages_cdp import Browser, Tab
 from _pages_site import Site, wait_job
 
-COOKIE = "snapwarn_key"
+COOKIE = "snapwarn_session"
+
+
+def _session(site: Site, key: str) -> str:
+    """A page session made by logging in with ``key`` (the cookie holds a random token)."""
+    import httpx2
+
+    r = httpx2.post(site.base + "/login", data={"key": key, "next": "/"}, timeout=60)
+    assert r.status_code == 303, r.text[:300]
+    return r.cookies[COOKIE]
 
 
 def _login_cookie(site: Site, key: str) -> list[dict[str, Any]]:
-    return [{"name": COOKIE, "value": key, "url": site.base, "httpOnly": True}]
+    return [{"name": COOKIE, "value": _session(site, key), "url": site.base, "httpOnly": True}]
 
 
 def _open(
@@ -228,9 +237,9 @@ def test_time_bound(site: Site) -> None:
     """The sweep page answers within a few seconds (charts drawn server-side)."""
     import httpx2
 
+    cookies = {COOKIE: _session(site, site.key_a)}
     t0 = time.monotonic()
-    r = httpx2.get(site.base + f"/sweeps/{site.sweep_id}", cookies={COOKIE: site.key_a},
-                   timeout=60)  # fmt: skip
+    r = httpx2.get(site.base + f"/sweeps/{site.sweep_id}", cookies=cookies, timeout=60)
     assert r.status_code == 200
     assert time.monotonic() - t0 < 30
 

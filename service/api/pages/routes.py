@@ -31,7 +31,7 @@ from service.schemas import Sweep
 from service.schemas.analysis import SweepResult
 
 HERE = Path(__file__).parent
-COOKIE = "snapwarn_key"
+COOKIE = "snapwarn_session"
 RECENT = 20
 #: A page's event stream ends after this long (s); the browser reconnects where it left off.
 EVENTS_TIMEOUT_S = 300.0
@@ -71,24 +71,23 @@ templates.env.filters["pct"] = lambda x: f"{100 * float(x or 0):.0f} %"
 
 
 # ------------------------------------------------------------------------------ the caller
-def _with_cookie_key(request: Request) -> Request:
-    """The request with the cookie's key as a bearer token (when no header carries one)."""
-    key = request.cookies.get(COOKIE)
-    has_header = request.headers.get("authorization") or request.headers.get("x-api-key")
-    if not key or has_header:
-        return request
-    scope = dict(request.scope)
-    scope["headers"] = [
-        *request.scope["headers"],
-        (b"authorization", f"Bearer {key}".encode("latin-1", "replace")),
-    ]
-    return Request(scope)
+#: Lifetime of a page session (seconds).
+SESSION_TTL_S = 12 * 3600.0
 
 
 async def page_caller(request: Request) -> Caller | None:
-    """The caller, as the API sees it; None when a key is needed and missing or wrong."""
+    """The caller, as the API sees it (a key in a header), else the page session's (the
+    cookie's random token, looked up by its digest); None when a key is needed and there is
+    neither."""
+    token = request.cookies.get(COOKIE)
+    has_header = request.headers.get("authorization") or request.headers.get("x-api-key")
+    st = getattr(request.app.state, "snapwarn", None)
+    if token and not has_header and st is not None:
+        found = await to_thread.run_sync(st.store.session_caller, token)
+        if found is not None:
+            return Caller(owner=found[0], admin=found[1], key_id=found[2])
     try:
-        return await get_caller(_with_cookie_key(request))
+        return await get_caller(request)
     except ApiProblem as exc:
         if exc.status == 401:
             return None
@@ -143,16 +142,35 @@ async def login(request: Request, key: str = Form(...), next: str = Form("/")) -
         (k, v) for k, v in request.scope["headers"] if k not in (b"authorization", b"x-api-key")
     ] + [(b"authorization", f"Bearer {key}".encode("latin-1", "replace"))]
     try:
-        await get_caller(Request(scope))
+        caller = await get_caller(Request(scope))
     except ApiProblem:
         return _page(request, "login.html", {"next": _safe_next(next), "failed": True}, 401)
+    st = request.app.state.snapwarn
+    token = await to_thread.run_sync(
+        st.store.create_session, caller.owner, caller.admin, caller.key_id, SESSION_TTL_S
+    )  # the cookie holds a random session token (stored as its digest), never the key
     resp = RedirectResponse(_safe_next(next), status_code=303)
-    resp.set_cookie(COOKIE, key, httponly=True, samesite="strict", path="/")
+    resp.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/",
+                    secure=_tls(request), max_age=int(SESSION_TTL_S))  # fmt: skip
     return resp
 
 
+def _tls(request: Request) -> bool:
+    """Whether the page is served over TLS: directly (``https``) or behind a TLS proxy
+    (``X-Forwarded-Proto: https`` or ``Forwarded: proto=https``)."""
+    if request.url.scheme == "https":
+        return True
+    if request.headers.get("x-forwarded-proto", "").split(",")[0].strip().lower() == "https":
+        return True
+    return "proto=https" in request.headers.get("forwarded", "").lower()
+
+
 @router.post("/logout")
-async def logout() -> Response:
+async def logout(request: Request) -> Response:
+    token = request.cookies.get(COOKIE)
+    st = getattr(request.app.state, "snapwarn", None)
+    if token and st is not None:
+        await to_thread.run_sync(st.store.end_session, token)
     resp = RedirectResponse("/login", status_code=303)
     resp.delete_cookie(COOKIE, path="/")
     return resp

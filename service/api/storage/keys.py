@@ -10,9 +10,9 @@ import hashlib
 import hmac
 import secrets
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 
-from sqlalchemy import Boolean, DateTime, String, select, update
+from sqlalchemy import Boolean, DateTime, String, delete, select, update
 from sqlalchemy.orm import Mapped, mapped_column
 
 from service.api.storage.models import Base, utcnow
@@ -30,6 +30,19 @@ class ApiKeyRow(Base):
     note: Mapped[str | None] = mapped_column(String(500))
     created_at: Mapped[datetime] = mapped_column(DateTime)
     revoked_at: Mapped[datetime | None] = mapped_column(DateTime)
+
+
+class PageSessionRow(Base):
+    """A page session: the SHA-256 of the login cookie's random token and who it stands for."""
+
+    __tablename__ = "page_sessions"
+
+    token_hash: Mapped[str] = mapped_column(String(64), primary_key=True)
+    owner: Mapped[str] = mapped_column(String(200))
+    admin: Mapped[bool] = mapped_column(Boolean)
+    key_id: Mapped[str | None] = mapped_column(String(32), nullable=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime)
+    expires_at: Mapped[datetime] = mapped_column(DateTime)
 
 
 @dataclass(frozen=True)
@@ -117,3 +130,34 @@ class KeysMixin:
         if info is None or not ok or info.revoked_at is not None:
             return None
         return info
+
+    def create_session(self, owner: str, admin: bool, key_id: str | None, ttl_s: float) -> str:
+        """A new page session for this caller: its random token (given once; only its digest
+        is stored), valid ``ttl_s`` seconds or until its key is revoked."""
+        token = secrets.token_urlsafe(32)
+        now = utcnow()
+        row = PageSessionRow(token_hash=digest(token), owner=owner, admin=bool(admin),
+                             key_id=key_id, created_at=now,
+                             expires_at=now + timedelta(seconds=ttl_s))  # fmt: skip
+        with self.session() as s:  # type: ignore[attr-defined]
+            s.add(row)
+            s.execute(delete(PageSessionRow).where(PageSessionRow.expires_at < now))
+        return token
+
+    def session_caller(self, token: str) -> tuple[str, bool, str | None] | None:
+        """``(owner, admin, key_id)`` of a live page session (None: unknown, expired, or its
+        key revoked)."""
+        with self.session() as s:  # type: ignore[attr-defined]
+            row = s.get(PageSessionRow, digest(token))
+            if row is None or row.expires_at < utcnow():
+                return None
+            if row.key_id is not None:
+                key = s.get(ApiKeyRow, row.key_id)
+                if key is None or key.revoked_at is not None:
+                    return None
+            return row.owner, bool(row.admin), row.key_id
+
+    def end_session(self, token: str) -> None:
+        """Forget a page session (logout)."""
+        with self.session() as s:  # type: ignore[attr-defined]
+            s.execute(delete(PageSessionRow).where(PageSessionRow.token_hash == digest(token)))
