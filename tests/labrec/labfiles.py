@@ -184,10 +184,10 @@ class Campaign:
 
 def _spoil(what: str, modes: Modes, lab: Lab) -> tuple[Modes, Lab]:
     """A record that must not be trusted: ``bad_kick`` (the hammer hit a node of the
-    fundamental: it hardly rings, the higher modes do), ``heavy_clipping`` (a sensor range of
+    fundamental: it does not ring, the higher modes do), ``heavy_clipping`` (a sensor range of
     15 % of the record's largest value), ``no_ringdown`` (the trigger fired, no kick landed)."""
     if what == "bad_kick":
-        return replace(modes, coef=(0.002,) + modes.coef[1:]), lab
+        return replace(modes, coef=(0.0,) + modes.coef[1:]), lab
     if what == "heavy_clipping":
         return modes, replace(lab, clip=0.15)
     if what == "no_ringdown":

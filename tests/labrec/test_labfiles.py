@@ -80,7 +80,8 @@ def test_spurious_records_are_what_their_names_say():
     camp, _ = F.issue_campaigns()["saddle-node"]
     good = camp.record(20.0, 3)
     bad = camp.record(20.0, 3, spurious="bad_kick")
-    assert bad.modes.coef[0] < 0.01 * good.modes.coef[0]
+    assert bad.modes.coef[0] == 0.0 and good.modes.coef[0] == 1.0
+    assert bad.modes.coef[1:] == good.modes.coef[1:]
     none = camp.record(20.0, 4, spurious="no_ringdown")
     assert np.abs(none.parts["response"]).max() < 1e-6 * np.abs(good.parts["response"]).max()
     clip = camp.record(20.0, 4, spurious="heavy_clipping")
@@ -88,3 +89,16 @@ def test_spurious_records_are_what_their_names_say():
     with pytest.raises(ValueError, match="past mu"):
         camp.record(camp.mu_star + 1.0)
     assert math.isfinite(camp.record(41.9).truth.sigma2)
+
+
+def test_a_lab_in_the_loop_records_where_and_how_it_is_told():
+    """``Campaign.record`` at any control, with the advised length and step."""
+    camp, _ = F.issue_campaigns()["saddle-node"]
+    rec = camp.record(37.25, 5, duration=3.0, dt=1 / 2500)
+    assert rec.dt == pytest.approx(1 / 2500) and rec.y.size == 7500
+    assert rec.truth.sigma2 == pytest.approx(camp.modes(37.25).f0_hz[0] ** 2 * -4 * math.pi**2)
+    x = (camp.mu_star - 37.25) / (camp.mu_star - camp.mu0)
+    assert -rec.truth.sigma2 == pytest.approx((2 * math.pi * camp.f1_hz) ** 2 * math.sqrt(x))
+    # the same control and index, the same record; another index, other draws
+    assert np.array_equal(rec.y, camp.record(37.25, 5, duration=3.0, dt=1 / 2500).y)
+    assert not np.array_equal(rec.y, camp.record(37.25, 6, duration=3.0, dt=1 / 2500).y)
