@@ -406,3 +406,21 @@ def H_fd_at(pair: CoupledColumns, th: np.ndarray, P: float) -> np.ndarray:
     hh, E = 1e-5, np.eye(2)
     return np.array([(pair.gradient(th + hh * E[i], P) - pair.gradient(th - hh * E[i], P))
                      / (2 * hh) for i in range(2)])  # fmt: skip
+
+
+@pytest.mark.parametrize("col", STIFF, ids=lambda c: f"{c.spring}{c.beta}")
+def test_least_stiffness_converges_to_its_asymptote(col: LinkColumn) -> None:
+    """Near ``P_c`` the path is ``(1 - p) theta + kappa theta^3 = eps``; along it
+    ``V''/k ~ 2 kappa theta^2 + eps/theta``, least at ``theta^3 = eps/(4 kappa)``:
+    ``K_min = 6 kappa k theta^2`` at ``P_min/P_c = 1 - 3 kappa theta^2``."""
+    kap = col.kappa
+    epss = np.array([1e-9, 1e-8, 1e-7, 1e-6, 1e-5])
+    rk, rp = [], []
+    for e in epss:
+        _, P_m, K_m = _with_eps(col, e).least_stiffness()
+        th2 = (e / (4 * kap)) ** (2 / 3)
+        rk.append(K_m / (6 * kap * col.p_c * col.L * th2))
+        rp.append((1 - P_m / col.p_c) / (3 * kap * th2))
+    for r in (np.array(rk), np.array(rp)):
+        dev = np.abs(r - 1)
+        assert np.all(np.diff(dev) > 0) and dev[0] < 1e-3, r
