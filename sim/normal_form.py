@@ -259,6 +259,10 @@ def impulse_response(scene: Scene) -> Signal:
     n = int(round(duration / dt)) + 1
     if n > 400_000:
         raise BeamError("duration", duration, f"duration/dt gives {n} samples, more than 400000")
+    if n < 2 or not (duration > 0 and dt > 0):
+        field, value = ("dt", dt) if scene.dt is not None else ("duration", duration)
+        raise BeamError(field, value, f"duration={duration:.6g} / dt={dt:.6g} gives {n} "
+                        "sample(s): a record needs at least 2 (a smaller dt or a longer duration)")
     t = np.arange(n) * dt
     if s2 > 0:
         raise SimulationError(

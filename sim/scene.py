@@ -40,6 +40,13 @@ def check_actuation(actuation: str, error: type[ParameterError] = ParameterError
     return actuation
 
 
+#: Largest damping ratio a scene may have (every mode is then far overdamped; beyond, the
+#: integrators' time scales overflow).
+MAX_DAMPING = 1e3
+#: Thinnest strip (h/L) a scene may have: 12/h^2 and its eigenproblems stay well scaled.
+MIN_SLENDERNESS = 1e-8
+
+
 def _check_finite(
     name: str, value: float, *, positive: bool = False, nonneg: bool = False
 ) -> float:
@@ -124,7 +131,9 @@ class Scene:
             raise SceneError("branch", self.branch,
                              f"branch must be one of {BRANCHES}, got {self.branch!r}")
         _check_finite("mu", self.mu)
-        _check_finite("damping", self.damping, nonneg=True)
+        if _check_finite("damping", self.damping, nonneg=True) > MAX_DAMPING:
+            raise SceneError("damping", self.damping, f"damping must be <= {MAX_DAMPING:g} (a "
+                             f"ratio to the bending time scale), got {self.damping!r}")
         _check_finite("kick", self.kick)
         for name in ("kick_position", "probe"):
             v = _check_finite(name, getattr(self, name))
@@ -139,7 +148,11 @@ class Scene:
         if self.snr_db is not None:
             _check_finite("snr_db", self.snr_db)
         _check_finite("end_shortening", self.end_shortening, positive=True)
-        _check_finite("slenderness", self.slenderness, positive=True)
+        if _check_finite("slenderness", self.slenderness, positive=True) < MIN_SLENDERNESS:
+            raise SceneError("slenderness", self.slenderness,
+                             f"slenderness must be >= {MIN_SLENDERNESS:g} (the rod's stretch "
+                             f"stiffness 12/h^2 is then finite in double precision), got "
+                             f"{self.slenderness!r}")  # fmt: skip
         if _check_finite("width", self.width, positive=True) < self.slenderness:
             raise SceneError("width", self.width, f"width must be >= the thickness "
                              f"(slenderness={self.slenderness!r}), got width={self.width!r}")

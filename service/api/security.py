@@ -171,7 +171,94 @@ class SecurityMiddleware:
             resp.headers["connection"] = "close"  # the body was not read
             await resp(scope, receive, with_headers)
             return
+        if scope["method"] in UNSAFE and _is_json(scope):
+            receive, problem = await _small_nul_check(scope, receive)
+            if problem is not None:
+                resp = problem_response(problem, scope.get("path"))
+                await resp(scope, receive, with_headers)
+                return
         await self.app(scope, receive, with_headers)
+
+
+def _is_json(scope: Scope) -> bool:
+    for k, v in scope["headers"]:
+        if k == b"content-type":
+            return b"json" in v.lower()
+    return False
+
+
+_NUL_ESCAPE = re.compile(rb"(\\+)u0000", re.IGNORECASE)
+_KEY_BEFORE = re.compile(rb'"([^"\\]{1,100})"\s*:\s*[\[{"]?[^:]*$')
+
+
+#: JSON bodies up to this size are read whole and checked before the app sees them (the 422
+#: names the field); larger ones are checked as they stream (an error while parsing).
+_WHOLE = 1 << 20
+
+
+async def _small_nul_check(scope: Scope, receive: Receive) -> tuple[Receive, ApiProblem | None]:
+    """A small JSON body read and checked for NUL characters (see :func:`_no_nul`), replayed
+    to the app; a larger one checked as it streams."""
+    length = None
+    for k, v in scope["headers"]:
+        if k == b"content-length":
+            try:
+                length = int(v)
+            except ValueError:
+                length = None
+    if length is None or length > _WHOLE:
+        return _no_nul(receive), None
+    parts, more = [], True
+    while more:
+        msg = await receive()
+        if msg["type"] != "http.request":
+            return _replay([msg]), None
+        parts.append(msg.get("body", b""))
+        more = msg.get("more_body", False)
+    body = b"".join(parts)
+    checked = _no_nul(_replay([{"type": "http.request", "body": body, "more_body": False}]))
+    try:
+        await checked()
+    except ApiProblem as p:
+        return _replay([{"type": "http.request", "body": b"", "more_body": False}]), p
+    return _replay([{"type": "http.request", "body": body, "more_body": False}], receive), None
+
+
+def _replay(msgs: list[dict], then: Receive | None = None) -> Receive:
+    """``receive`` that gives ``msgs`` first, then ``then`` (a disconnect wait)."""
+    queue = list(msgs)
+
+    async def wrapped() -> dict:
+        if queue:
+            return queue.pop(0)
+        if then is not None:
+            return await then()
+        return {"type": "http.disconnect"}
+
+    return wrapped
+
+
+def _no_nul(receive: Receive) -> Receive:
+    """``receive`` that refuses a JSON body holding a NUL character (``\\u0000`` in a string:
+    no database text column can store it; silently dropping it would change a name): a 422
+    naming the nearest key before it."""
+    tail = [b""]
+
+    async def wrapped() -> dict:
+        msg = await receive()
+        chunk = msg.get("body", b"")
+        if chunk and (b"u0000" in chunk or b"U0000" in chunk or tail[0]):
+            text = tail[0] + chunk
+            for m in _NUL_ESCAPE.finditer(text):
+                if len(m.group(1)) % 2 == 1:  # an escape, not an escaped backslash
+                    key = _KEY_BEFORE.search(text[max(0, m.start() - 300) : m.start()])
+                    field = key.group(1).decode("utf-8", "replace") if key else "body"
+                    raise ApiProblem(422, f"{field}: a NUL character (\\u0000) is not allowed "
+                                     "in a text", field=field, value=None)  # fmt: skip
+            tail[0] = text[-16:]
+        return msg
+
+    return wrapped
 
 
 def _cross_site(field: str, value: str) -> ApiProblem:

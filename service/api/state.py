@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, TypeVar
 
 from fastapi import Depends, Request
+from scipy.sparse.linalg import ArpackError
 
 from service.api.executor import LightPool, TimeLimitExceeded, make_analysis_pool, run_in_pool
 from service.api.jobs import JobRunner
@@ -66,7 +67,7 @@ class AppState:
             if not isinstance(self.pool, LightPool):
                 self._replace_pool()
             return await self._run_limited(fn, *args)
-        except ArithmeticError as exc:
+        except (ArithmeticError, ArpackError) as exc:
             cid = uuid.uuid4().hex[:12]
             log.warning("numerics failed on the input [correlation id %s]", cid, exc_info=exc)
             raise ApiProblem(

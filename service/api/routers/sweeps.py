@@ -149,6 +149,11 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
     else:
         kind = "sweep-simulated"
         params = req.simulate.model_dump(exclude_none=True)
+        from sim.scene import MAX_DAMPING
+
+        if params.get("damping") is not None and params["damping"] > MAX_DAMPING:
+            raise invalid("simulate.damping", params["damping"],
+                          f"must be <= {MAX_DAMPING:g} (a ratio to the bending time scale)")
     await to_thread.run_sync(limits.check_queue, state.store, caller.owner, state.settings)
     request = req.model_dump(mode="json", exclude_none=True)
     if req.control is not None:  # what the user named, not the defaults of a live sweep
