@@ -272,7 +272,7 @@ def _reconciled(records: Sequence[SweepRecord]) -> list[SweepRecord]:
     dets = reconcile(
         [r.detection for r in records],
         np.array([r.control for r in records], dtype=float),
-        names=[r.name or f"record {r.seq}" for r in records],
+        names=[r.name or f"#{r.seq}" for r in records],
     )
     out = []
     for r, d in zip(records, dets, strict=True):
@@ -571,7 +571,9 @@ def evaluate(
             f"({nxt.source}) minus the margin {plan.margin:g}",
         ))  # fmt: skip
     converged = False
-    if trusted and interval is not None:
+    # an interval of no width, or one reaching down to the last record, is no convergence: the
+    # data say mu* may lie right there (a record read wrongly, or the lab at the transition)
+    if trusted and interval is not None and interval[1] > interval[0] > last.mu:
         width = plan.target_width
         if width is None:
             width = 1e-6 * max(abs(pred.mu_star), ms[-1].mu - ms[0].mu)

@@ -55,6 +55,11 @@ class LiveOptions(BaseModel):
         description="'converged' once the trusted 95 % interval of mu* is narrower "
         "(default 1e-6 of max(|mu*|, span of the controls)).",
     )  # fmt: skip
+    control_resolution: float | None = Field(
+        default=None, gt=0, allow_inf_nan=False,
+        description="The finest control step the lab can set: 'converged' once the advised "
+        "step is smaller (default: the decimals of the controls, at least 1e-4 of the step).",
+    )  # fmt: skip
     method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = "auto"
 
 

@@ -77,6 +77,7 @@ def _plan(opts: dict[str, Any]) -> numerics.LivePlan:
             step=opts.get("step"),
             margin=float(opts.get("margin") or 0.0),
             target_width=opts.get("target_width"),
+            control_resolution=opts.get("control_resolution"),
             method=opts.get("method") or "auto",
         )
     except ValueError as exc:
@@ -376,7 +377,8 @@ def _update(
     split: dict[str, float] = {}
     t = _clock()
     u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags,
-                        timings=split, time_unit=time_unit)  # fmt: skip
+                        timings=split, time_unit=time_unit,
+                        name=(item or {}).get("name"))  # fmt: skip
     whole = _since(t)
     pred = split.get("predict", (0.0, 0.0))
     timing["classify_predict"] = pred
