@@ -107,8 +107,11 @@ class Alarm:
         object.__setattr__(self, "rank", ALARM_RANK[self.level])  # the level's, always
 
 
-def _num(x: float) -> str:
-    return f"{x:.4g}"
+def _num(x: float, u: float = math.nan) -> str:
+    """A control value for a reason: rounded to ``u`` (the interval's half-width) when given."""
+    from service.numfmt import fmt
+
+    return fmt(x, u if math.isfinite(u) and u > 0 else None, digits=4)
 
 
 def alarm_for(
@@ -172,12 +175,14 @@ def alarm_for(
         return make("insufficient", f"no prediction yet (T/T0 = {t_ratio:.3g}): too little "
                     "evidence to judge")  # fmt: skip
     if math.isfinite(span) and width > span:
-        return make("insufficient", f"the interval [{_num(lo)}, {_num(hi)}] is wider "
+        return make("insufficient", f"the interval [{_num(lo, 0.5 * width)}, "
+                    f"{_num(hi, 0.5 * width)}] is wider "
                     f"({_num(width)}) than the controls travelled ({_num(span)}): too little "
                     "evidence to judge")  # fmt: skip
     n = steps_left if math.isfinite(steps_left) else widths_left
     unit = f"steps of {_num(step)}" if math.isfinite(steps_left) else "interval widths"
-    where = f"the interval's lower end {_num(lo)} is {n:.3g} {unit} above the last control"
+    where = (f"the interval's lower end {_num(lo, 0.5 * width)} is {n:.3g} {unit} above the "
+             f"last control {_num(mu, 0.5 * width)}")  # fmt: skip
     if not n > CRITICAL_STEPS:
         return make("critical", f"{where}: the next step would reach the interval")
     if n <= WARNING_STEPS:

@@ -583,7 +583,11 @@ def evaluate(
     duration, dt, why = _record_advice(last, nxt, pred)
     if pred is not None:
         flags.extend(pred.flags)
-        pred = replace(pred, alarm=alarm, next_safe_mu=nxt.mu if nxt is not None else math.nan)
+        cls = pred.classification
+        if cls is not None:  # one mu* per document: the classification names the prediction's
+            cls = replace(cls, mu_star=pred.mu_star, mu_star_std=pred.mu_star_std)
+        pred = replace(pred, alarm=alarm, next_safe_mu=nxt.mu if nxt is not None else math.nan,
+                       classification=cls)  # fmt: skip
     return PolicyUpdate(
         measurements=tuple(ms), n_records=len(records), n_used=sum(
             1 for r in usable if r.measurement is not None),

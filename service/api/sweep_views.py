@@ -58,8 +58,15 @@ async def sweep_units(state: AppState, scope: str | None, sweep: Any) -> dict[st
     req = sweep.request or {}
     if req.get("mode") == "live":
         control = req.get("control") or {}
+        from service.api.storage import live as store_live
+
+        def first_unit() -> str | None:  # the sweep's time unit: its first record's
+            _, recs = store_live.records_after(state.store, sweep.id, 0, 1)
+            return (recs[0].record or {}).get("time_unit") if recs else None
+
         return {"control_name": control.get("name") or "mu", "control_unit": control.get("unit"),
-                "time_unit": None, "value_unit": None, "mixed": []}  # fmt: skip
+                "time_unit": await to_thread.run_sync(first_unit), "value_unit": None,
+                "mixed": []}  # fmt: skip
     if req.get("simulate") is not None or not req.get("measurements"):
         return {"control_name": "mu", "control_unit": NONDIM, "time_unit": NONDIM,
                 "value_unit": NONDIM, "mixed": []}  # fmt: skip

@@ -263,6 +263,38 @@ def _warn(args: argparse.Namespace) -> int:
     return 0
 
 
+def sweep_text(doc: Any, name: str = "mu", unit: str | None = None) -> str:
+    """The plain summary of a sweep document: the type (or why it is withheld), the transition
+    point with its interval and unit (rounded to the interval), the alarm and the next safe
+    control; full precision stays in ``--json``."""
+    from service.numfmt import fmt, fmt_below, fmt_interval
+
+    u = f" {unit}" if unit else ""
+    p = doc.prediction
+    n, aside = len(doc.measurements), getattr(doc, "n_set_aside", 0)
+    used = f"{n} control(s) in the fit" + (f", {aside} record(s) set aside" if aside else "")
+    if p is None:
+        return f"no prediction ({used})"
+    lo, hi = p.mu_star_interval
+    half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
+    a, b = fmt_interval(lo, hi)
+    kind = p.transition
+    if kind == "undetermined":
+        why = next((f.message for f in p.flags if f.code == "type_withheld"), None)
+        kind += f" ({why})" if why else ""
+    lines = [f"type: {kind}",
+             f"{name}* = {fmt(p.mu_star, half)}{u}, 95 % interval [{a}, {b}]{u} ({used})"]
+    if doc.alarm:
+        al = doc.alarm[-1]
+        lines.append(f"alarm: {al.level} (rank {al.rank}): {al.reason}")
+    nxt = getattr(doc, "next_control", None)
+    if nxt is not None:
+        lines.append(f"next safe {name}: {fmt_below(nxt, half)}{u}")
+    else:
+        lines.append(f"next safe {name}: none (no safe step left)")
+    return "\n".join(lines)
+
+
 def _warn_text(doc: Any) -> str:
     """The people's summary of a sweep document (:class:`~service.schemas.SweepResult`)."""
     p = doc.prediction
@@ -322,7 +354,11 @@ def _sweep(args: argparse.Namespace) -> int:
     records = [(r.w, r.dt * f, c) for (r, c), f in zip(recs, factors)]
     cb = _progress_printer(not args.no_progress)
     try:
-        res = sweep_from_signals(records, names=names, progress=cb)
+        from service.analysis.sweep_policy import SweepPlan
+
+        plan = SweepPlan(step=args.step, margin=args.margin,
+                         control_resolution=args.control_resolution)  # fmt: skip
+        res = sweep_from_signals(records, names=names, progress=cb, plan=plan)
     except ValueError as exc:
         err = error_from(exc, f"MANIFEST {args.manifest!r}")
         raise err or CliError(f"MANIFEST {args.manifest!r}: {exc}", field="MANIFEST") from None
@@ -336,12 +372,8 @@ def _sweep(args: argparse.Namespace) -> int:
         plot_sweep(args.plot, doc, control_name=args.control_name,
                    control_unit=args.control_unit or table.units.get(control_col),
                    time_unit=time_unit)  # fmt: skip
-    p = doc.prediction
-    text = (
-        f"{p.transition}: mu* = {p.mu_star} {list(p.mu_star_interval)}"
-        if p is not None
-        else f"no prediction from {len(doc.measurements)} records"
-    )
+    unit = args.control_unit or table.units.get(control_col)
+    text = sweep_text(doc, args.control_name, unit)
     emit(doc, json_mode=args.json, text=text)
     return 0
 
@@ -533,6 +565,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plot_flag(p, "T(control), the T^(-1/a) collapse with the transition and its interval")
     p.add_argument("--control-name", default="control", help="the control's name on the chart")
     p.add_argument("--control-unit", default=None, help="the control's unit on the chart")
+    p.add_argument("--step", type=finite, default=None,
+                   help="the lab's step (default: its largest step between records)")
+    p.add_argument("--margin", type=finite, default=0.0,
+                   help="distance kept below the safe bound on the transition")
+    p.add_argument("--control-resolution", type=finite, default=None,
+                   help="finest control step the lab can set (default from the controls)")
     p.set_defaults(func=_sweep)
 
     p = sub.add_parser("demo", help="the main job on embedded defaults")

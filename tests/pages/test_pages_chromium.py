@@ -88,12 +88,19 @@ def test_sweep_page_shows_the_apis_warning(browser: Browser, site: Site, shots) 
     tab.screenshot(shots / "sweep.png")
     v = _values(tab)
     one = {k: xs[0] for k, xs in v.items()}
-    # the exact values the API answers, and the rounded numbers the page shows
+    # the exact values the API answers, and the numbers the page shows rounded to the
+    # interval: its half-width with two significant digits, mu* to the same decimal place
+    lo, hi = p["mu_star_interval"]
+    places = 1 - math.floor(math.log10(0.5 * (hi - lo)))
     assert one["mu_star"]["value"] == p["mu_star"]
-    assert _close_to_shown(p["mu_star"], one["mu_star"]["text"], 10)
-    assert one["mu_star_lo"]["value"] == p["mu_star_interval"][0]
-    assert one["mu_star_hi"]["value"] == p["mu_star_interval"][1]
-    assert _close_to_shown(p["mu_star_interval"][1], one["mu_star_hi"]["text"], 10)
+    assert one["mu_star"]["text"] == f"{round(p['mu_star'], places):.{max(places, 0)}f}"
+    assert one["mu_star_lo"]["value"] == lo and one["mu_star_hi"]["value"] == hi
+    shown_lo, shown_hi = float(one["mu_star_lo"]["text"]), float(one["mu_star_hi"]["text"])
+    assert shown_lo <= lo and shown_hi >= hi  # rounded outward, never narrower
+    assert hi - shown_hi > -10.0 ** -places and shown_lo - lo > -10.0 ** -places
+    assert len(one["mu_star_hi"]["text"].split(".")[-1]) == max(places, 0)
+    assert float(one["next_safe_mu"]["text"]) <= p["next_safe_mu"]  # rounded down: still safe
+    assert one["alarm_rank"]["value"] == alarm["rank"]
     assert one["a"]["value"] == p["a"]
     assert one["transition"]["value"] == p["transition"] == one["transition"]["text"]
     assert one["alarm_level"]["value"] == alarm["level"] == one["alarm_level"]["text"]
@@ -111,7 +118,8 @@ def test_sweep_page_shows_the_apis_warning(browser: Browser, site: Site, shots) 
     periods = [2 * math.pi / math.sqrt(-d["fundamental"]["sigma2"]) for d in dets]
     for shown, want in zip(v["period"], periods, strict=True):
         assert math.isclose(shown["value"], want, rel_tol=1e-12)
-        assert _close_to_shown(want, shown["text"], 8)
+        assert _close_to_shown(want, shown["text"].split(" (")[0], 4)
+        assert shown["text"].endswith(" Hz)")  # the frequency in Hz beside the period in ms
     # every thumbnail (fit over the record) loaded; the chart carries the user's names and units
     n_img = tab.evaluate(
         "Array.from(document.querySelectorAll('img.thumb')).filter(i => i.naturalWidth > 0).length"
@@ -267,7 +275,8 @@ def _requested(browser: Browser, tab: Tab, since: int = 0) -> list[str]:
 
 def _add_record(c: Any, sid: str, rec: tuple) -> None:
     theta, dt, w = rec
-    r = c.post(f"/v1/sweeps/{sid}/records", json={"w": w.tolist(), "dt": dt, "control": theta})
+    r = c.post(f"/v1/sweeps/{sid}/records",
+               json={"w": w.tolist(), "dt": dt, "control": theta, "unit": "s"})  # fmt: skip
     assert r.status_code == 201, r.text
 
 
@@ -298,6 +307,12 @@ def test_live_sweep_page_follows_the_records(browser: Browser, site: Site, shots
         assert one["alarm_level"]["value"] == last["alarm"]["level"]
         assert one["next_safe_mu"]["value"] == last["next_control"]
         assert len(_values(tab)["control"]) == 6
+        # the records' time unit on the live page too, and each flag once
+        head = tab.evaluate("document.querySelector('#records thead').textContent")
+        assert "period T [s]" in head, head
+        codes = tab.evaluate("Array.from(document.querySelectorAll('#sweep-flags li'))"
+                             ".map(e => e.textContent)")  # fmt: skip
+        assert len(codes) == len(set(codes)), codes
         # the page follows the stream of the records after the six it shows
         tab.wait_for("document.getElementById('live-script').dataset.following === 'events'")
         streams = [u for u in _requested(browser, tab, start) if "/events" in u]

@@ -19,6 +19,7 @@ from fastapi import APIRouter, Form, Query, Request, Response
 from fastapi.responses import HTMLResponse, JSONResponse, RedirectResponse
 from fastapi.templating import Jinja2Templates
 
+from service import numfmt
 from service.api.auth import Caller, get_caller
 from service.api.live_events import event_stream
 from service.api.pages import _work
@@ -66,6 +67,25 @@ def _val(x: Any) -> str:
 
 
 templates.env.filters["num"] = _num
+# numbers as a scientist writes them (service.numfmt): rounded to their uncertainty
+templates.env.filters["unc"] = lambda x, u=None: numfmt.fmt(x, u)
+templates.env.filters["below"] = lambda x, u=None: numfmt.fmt_below(x, u)
+templates.env.filters["pm"] = lambda x, u=None: numfmt.fmt_pm(x, u)
+templates.env.filters["lo"] = lambda iv: numfmt.fmt_interval(iv[0], iv[1])[0]
+templates.env.filters["hi"] = lambda iv: numfmt.fmt_interval(iv[0], iv[1])[1]
+templates.env.filters["hz"] = lambda omega, unit=None: numfmt.hz(omega, unit) or ""
+templates.env.filters["uniq"] = lambda fl: _unique_flags(fl)
+
+
+def _unique_flags(flags: Any) -> list[Any]:
+    """Flags in order, each (code, message) once: a sweep's flags and its prediction's overlap."""
+    seen, out = set(), []
+    for f in flags or ():
+        key = (getattr(f, "code", None), getattr(f, "message", None))
+        if key not in seen:
+            seen.add(key)
+            out.append(f)
+    return out
 templates.env.filters["val"] = _val
 templates.env.filters["pct"] = lambda x: f"{100 * float(x or 0):.0f} %"
 
@@ -322,6 +342,8 @@ def _records(result: SweepResult | None) -> list[dict[str, Any]]:
                 "sigma2": f.sigma2 if f else None,
                 "sigma2_std": f.sigma2_std if f else None,
                 "period": _work.period(f.sigma2 if f else None),
+                "omega": math.sqrt(-f.sigma2) if f and f.sigma2 is not None and f.sigma2 < 0
+                else None,
                 "regime": f.regime if f else None,
                 "w_static": d.static_level,
                 "flags": d.flags,
@@ -336,6 +358,7 @@ def _records(result: SweepResult | None) -> list[dict[str, Any]]:
             "sigma2": m.sigma2,
             "sigma2_std": m.sigma2_std,
             "period": _work.period(m.sigma2),
+            "omega": m.omega,
             "regime": m.regime,
             "w_static": m.w_static,
             "flags": m.flags,
