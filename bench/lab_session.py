@@ -1,0 +1,149 @@
+"""One lab session that follows the advice: control, interval and alarm against record number.
+
+    python bench/lab_session.py [--kind saddle-node] [--seed 1] [--bad-at 5]
+
+The structure and its records come from the independent generator of tests/labrec (a
+fundamental that softens as a saddle-node or a pitchfork, in degrees and seconds, with a
+hammer's contact, mains hum, higher modes and noise; the same draws as
+tests/live/test_lab_in_the_loop.py). The lab starts at 0 deg with its step of 4 deg, records
+where the live sweep (:mod:`service.analysis.live`, the one sweep policy) advises, with the
+record length it suggests, and stops when the sweep says converged, gives no safe step, or after
+30 records. ``--bad-at K`` replaces record K by a missed hammer (noise alone).
+
+Writes bench/results/lab_session[_<kind>][_bad].csv and docs/figures/lab_session[...].png (the
+figure of docs/lab-guide.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "labrec"))
+
+import labfiles as F  # noqa: E402
+import labgen as L  # noqa: E402
+
+from service.analysis import live  # noqa: E402
+from service.analysis.alarm import ALARM_LEVELS  # noqa: E402
+
+OUT = ROOT / "bench" / "results"
+FIGURES = ROOT / "docs" / "figures"
+STEP, BUDGET = 4.0, 30
+
+
+def campaign(kind: str, seed: int) -> F.Campaign:
+    """The structure and lab of tests/live/test_lab_in_the_loop.py's ``campaign``."""
+    rng = np.random.default_rng([seed, 29])
+    lab = L.Lab(quantity="displacement", fs=2000.0, duration=4.0,
+                pulse_s=float(rng.uniform(5e-3, 15e-3)), hum=float(rng.uniform(0.005, 0.03)),
+                mains_hz=float(rng.choice([50.0, 60.0])), snr_db=float(rng.uniform(28.0, 40.0)),
+                peak_mm=0.3)  # fmt: skip
+    return F.Campaign(kind, float(rng.uniform(25.0, 60.0)), 0.0,
+                      f1_hz=float(rng.uniform(6.0, 15.0)), lab=lab, seed=seed, ramp=0.0,
+                      wobble=0.0, offset=0.0)  # fmt: skip
+
+
+def session(camp: F.Campaign, bad_at: int | None) -> list[dict]:
+    plan = live.LivePlan(step=STEP)
+    recs, rows = [], []
+    mu, duration, dt = 0.0, None, None
+    for k in range(BUDGET):
+        rec = camp.record(mu, k, duration=duration, dt=dt)
+        y = rec.y
+        if k == bad_at:  # the hammer missed: the sensor's level and noise alone
+            rng = np.random.default_rng(k)
+            y = float(np.median(y)) + 0.01 * float(np.std(y)) * rng.standard_normal(y.size)
+        u = live.update(recs, y, dt=rec.dt, control=mu, plan=plan)
+        recs.append(u.record)
+        p = u.prediction
+        lo, hi = p.mu_star_interval if p is not None else (math.nan, math.nan)
+        rows.append({"record": k + 1, "control": mu, "lo": lo, "hi": hi,
+                     "mu_star": p.mu_star if p is not None else math.nan,
+                     "level": u.alarm.level, "rank": u.alarm.rank,
+                     "next": u.next_control, "set_aside": u.n_set_aside,
+                     "converged": u.converged, "duration": rec.t[-1]})  # fmt: skip
+        if u.converged or not math.isfinite(u.next_control):
+            break
+        mu = u.next_control
+        duration, dt = u.record_duration, u.record_dt
+        if not (math.isfinite(duration) and math.isfinite(dt)):
+            duration, dt = None, None
+        else:
+            duration, dt = min(duration, 30.0), max(dt, 1 / 5000)
+    return rows
+
+
+def figure(rows: list[dict], camp: F.Campaign, path: Path, bad_at: int | None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    k = np.array([r["record"] for r in rows])
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True,
+                                  gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
+    lo, hi = np.array([r["lo"] for r in rows]), np.array([r["hi"] for r in rows])
+    ax.fill_between(k, lo, np.minimum(hi, 1.5 * camp.mu_star), step="mid", color="tab:red",
+                    alpha=0.2, label="95 % interval of theta*")  # fmt: skip
+    ax.plot(k, [r["mu_star"] for r in rows], "x", color="tab:red", label="theta* (prediction)")
+    ax.plot(k, [r["control"] for r in rows], "o-", color="tab:blue", label="control recorded")
+    ax.plot(k + 1, [r["next"] for r in rows], ".", color="tab:green",
+            label="next safe control advised")  # fmt: skip
+    ax.axhline(camp.mu_star, color="k", lw=0.8, ls="--", label="true theta* (generator)")
+    if bad_at is not None:
+        ax.axvline(bad_at + 1, color="grey", lw=0.8, ls=":", label="bad record (set aside)")
+    ax.set_ylabel("theta [deg]")
+    ax.set_ylim(0, 1.3 * camp.mu_star)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"{camp.kind}, seed {camp.seed}: a lab following the advice")
+    ax2.step(k, [r["rank"] for r in rows], where="mid", color="tab:red")
+    ax2.set_yticks(range(len(ALARM_LEVELS)), ALARM_LEVELS, fontsize=8)
+    ax2.set_ylabel("alarm")
+    ax2.set_xlabel("record number")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--kind", default="saddle-node",
+                    choices=["saddle-node", "subcritical-pitchfork", "supercritical-pitchfork"])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--bad-at", type=int, default=None)
+    args = ap.parse_args()
+    camp = campaign(args.kind, args.seed)
+    rows = session(camp, args.bad_at)
+    stem = "lab_session" + ("" if args.kind == "saddle-node" else f"_{args.kind}")
+    stem += "_bad" if args.bad_at is not None else ""
+    OUT.mkdir(parents=True, exist_ok=True)
+    with open(OUT / f"{stem}.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    FIGURES.mkdir(parents=True, exist_ok=True)
+    figure(rows, camp, FIGURES / f"{stem}.png", args.bad_at)
+    last = rows[-1]
+    travelled = max(r["control"] for r in rows)
+    print(f"{camp.kind} seed {camp.seed}: true theta* = {camp.mu_star:.4f} deg")
+    for r in rows:
+        print(f"  {r['record']:2d} theta={r['control']:9.4f} [{r['lo']:9.4f}, {r['hi']:9.4f}] "
+              f"{r['level']:12s} next={r['next']:9.4f} set aside={r['set_aside']}")
+    print(f"records {len(rows)}, covered {last['lo'] <= camp.mu_star <= last['hi']}, width "
+          f"{last['hi'] - last['lo']:.3g} deg = {(last['hi'] - last['lo']) / travelled:.2e} of "
+          f"the {travelled:.3f} deg travelled, highest record {travelled:.4f} < "
+          f"{camp.mu_star:.4f}: {travelled < camp.mu_star}")
+    print(f"wrote {OUT / (stem + '.csv')}, {FIGURES / (stem + '.png')}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
