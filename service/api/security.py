@@ -191,9 +191,10 @@ _NUL_ESCAPE = re.compile(rb"(\\+)u0000", re.IGNORECASE)
 _KEY_BEFORE = re.compile(rb'"([^"\\]{1,100})"\s*:\s*[\[{"]?[^:]*$')
 
 
-#: JSON bodies up to this size are read whole and checked before the app sees them (the 422
+#: JSON bodies up to this size (64 KiB: requests other than samples) are read whole and checked
+#: before the app sees them (the 422
 #: names the field); larger ones are checked as they stream (an error while parsing).
-_WHOLE = 1 << 20
+_WHOLE = 1 << 16
 
 
 async def _small_nul_check(scope: Scope, receive: Receive) -> tuple[Receive, ApiProblem | None]:

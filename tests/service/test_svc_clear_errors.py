@@ -38,7 +38,7 @@ async def test_each_is_a_4xx_naming_the_field(asgi, label, path, body, field) ->
 
 
 async def test_a_nul_in_a_large_streamed_body_is_refused(asgi) -> None:  # noqa: ANN001
-    """Past the size read whole (1 MiB), the body is checked as it streams: still a 4xx."""
+    """Past the size read whole (64 KiB), the body is checked as it streams: still a 4xx."""
     _, client = asgi
     body = '{"dt": 0.1, "w": [' + ",".join(["1.5"] * 300_000) + '], "name": "x\\u0000"}'
     r = await client.post("/v1/signals", content=body.encode(),
