@@ -67,3 +67,18 @@ async def test_an_atlas_job_is_under_the_job_time_limit(asgi) -> None:  # noqa: 
     job = app.state.snapwarn.store.get_job(r.json()["id"])
     assert job.time_limit_s <= 120.0, job.time_limit_s
     assert job.params["spec"]["timeout_s"] < 120.0
+
+
+def test_event_streams_are_capped_per_caller() -> None:
+    """The 17th open event stream of one caller is a 429 (another caller is not affected);
+    the streams' database reads are one watcher's per sweep, not one per stream."""
+    from service.api import live_events
+
+    live_events._open["key-a"] = live_events.MAX_STREAMS_PER_CALLER
+    try:
+        with pytest.raises(ApiProblem) as exc:
+            live_events.event_stream(None, None, "s", 0, None, 10.0, "key-a")  # type: ignore[arg-type]
+        assert exc.value.status == 429 and exc.value.headers["Retry-After"]
+        live_events.event_stream(None, None, "s", 0, None, 10.0, "key-b")  # type: ignore[arg-type]
+    finally:
+        live_events._open.pop("key-a", None)

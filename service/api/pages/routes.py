@@ -467,7 +467,8 @@ async def sweep_events(
         if row is None:
             return JSONResponse({"detail": f"no live sweep {sweep_id!r}"}, status_code=404)
         resume = request.headers.get("last-event-id")  # the browser's reconnection
-        return event_stream(request, state, sweep_id, after, resume, EVENTS_TIMEOUT_S)
+        return event_stream(request, state, sweep_id, after, resume, EVENTS_TIMEOUT_S,
+                            caller.key_id or caller.owner)  # fmt: skip
 
     return await _serve(request, handler)
 

@@ -498,4 +498,5 @@ async def events(
     last_event_id: Annotated[str | None, Header(alias="Last-Event-ID")] = None,
 ) -> StreamingResponse:
     await _live_row(state, sweep_id, caller)
-    return event_stream(request, state, sweep_id, after, last_event_id, timeout)
+    return event_stream(request, state, sweep_id, after, last_event_id, timeout,
+                        caller.key_id or caller.owner)  # fmt: skip
