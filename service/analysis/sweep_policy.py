@@ -447,7 +447,7 @@ def _advise(
         if past < math.inf or (lo is not None and nxt >= lo):
             return NextMeasurement(math.nan, min(past, lo or math.inf), "interval", "no_safe_step")
         return NextMeasurement(nxt, math.inf, "none", "max_step")
-    return next_measurement(
+    nxt = next_measurement(
         [m.mu for m in ms],
         [abs(m.sigma2) for m in ms],
         trusted_bound=lo if trusted else None,
@@ -460,6 +460,12 @@ def _advise(
         min_t_ratio=SIGMA4_MIN_T_RATIO if len(ms) >= SIGMA4_MIN_RECORDS else math.inf,
         sigma4_when_trusted=False,
     )
+    last = ms[-1].mu
+    if not math.isfinite(nxt.mu) and nxt.source == "interval" and past == math.inf:
+        # the interval reaches down to the last record: no step up is safe, but the strip was
+        # stable there: repeat the record at that control (more evidence where it is needed)
+        return NextMeasurement(last, nxt.bound, nxt.source, "repeat")
+    return nxt
 
 
 def _record_advice(

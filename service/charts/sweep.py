@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from service import numfmt
 from service.charts._base import NONDIM, figure, fmt_num, label, to_bytes
 from service.schemas.analysis import Prediction, SweepResult
 
@@ -180,12 +181,14 @@ def _band(ax: Any, s: SweepSeries) -> None:
                    lw=0.0, label=f"95 % interval of {s.control_name}*")  # fmt: skip
         for v in (lo, hi):
             ax.axvline(v, color="tab:red", lw=0.6, ls=":")
+    # labels written to the interval's half-width (service.numfmt), not to 9 digits
+    half = 0.5 * (s.interval[1] - s.interval[0]) if s.has_interval else None
     if s.has_prediction:
-        name = f"{s.control_name}* = {fmt_num(s.mu_star, 9)}"
+        name = f"{s.control_name}* = {numfmt.fmt(s.mu_star, half)}"
         ax.axvline(s.mu_star, color="tab:red", lw=1.2, label=name)
     if math.isfinite(s.baseline_mu_star):
         ax.axvline(s.baseline_mu_star, color="0.35", lw=1.0, ls="--",
-                   label=f"paper's rule: {fmt_num(s.baseline_mu_star, 9)}")  # fmt: skip
+                   label=f"paper's rule: {numfmt.fmt(s.baseline_mu_star, half)}")  # fmt: skip
 
 
 def draw_period(ax: Any, s: SweepSeries) -> None:

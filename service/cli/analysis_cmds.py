@@ -302,16 +302,22 @@ def _warn_text(doc: Any) -> str:
     def f9(x: float | None) -> str:
         return "n/a" if x is None else f"{x:.9f}"
 
+    from service.numfmt import fmt, fmt_interval
+
     if p is None:
         return f"{doc.actuation} ({doc.model}): no prediction ({doc.stopped})"
     lo, hi = p.mu_star_interval
+    half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
+    a, b = fmt_interval(lo, hi)
     lines = [
-        f"{doc.actuation} ({doc.model}): {p.transition}, a = {p.a}",
-        f"  mu* = {f9(p.mu_star)}  95%: [{f9(lo)}, {f9(hi)}]  "
+        f"{doc.actuation} ({doc.model}): {p.transition}, a = {fmt(p.a, digits=3)}",
+        f"  mu* = {fmt(p.mu_star, half)}  95%: [{a}, {b}]  "
         f"from {len(doc.measurements)} impulse responses ({doc.stopped})",
     ]
+    if doc.alarm:
+        lines.append(f"  alarm: {doc.alarm[-1].level} (rank {doc.alarm[-1].rank})")
     if p.baseline is not None:
-        lines.append(f"  paper's rule on the same data: mu* = {f9(p.baseline.mu_star)}")
+        lines.append(f"  paper's rule on the same data: mu* = {fmt(p.baseline.mu_star, half)}")
     if doc.truth is not None:
         t = doc.truth
         err = "n/a" if t.error is None else f"{t.error:.2e}"

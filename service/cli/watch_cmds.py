@@ -126,7 +126,10 @@ class Remote:
 
 # ------------------------------------------------------------------------------- printing
 def line(u: Any, name: str) -> str:
-    """One human line: the record, the type, mu* and its interval, the alarm, the next value."""
+    """One human line: the record, the type, mu* and its interval, the alarm, the next value
+    (numbers written to the interval's precision, :mod:`service.numfmt`)."""
+    from service import numfmt
+
     f = u.detection.fundamental
     parts = [f"#{u.seq} {name} control={u.control:.8g}"]
     parts.append(f"sigma2={f.sigma2:.6g}" if f is not None and f.sigma2 is not None else "no mode")
@@ -134,15 +137,21 @@ def line(u: Any, name: str) -> str:
         lo, hi = u.mu_star_interval or (None, None)
         p = u.probabilities.get(u.transition)
         pt = f" p={p:.2f}" if p is not None else ""
-        parts.append(f"{u.transition}{pt} mu*={u.mu_star:.8g} [{_g(lo)}, {_g(hi)}]")
+        a, b = numfmt.fmt_interval(lo, hi)
+        half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
+        parts.append(f"{u.transition}{pt} mu*={numfmt.fmt(u.mu_star, half)} [{a}, {b}]")
     parts.append(f"alarm={u.alarm.level}")
     if u.next_control is not None:
-        parts.append(f"next<={u.next_control:.8g} ({u.next_bound_source})")
+        half = None
+        if u.mu_star_interval and None not in u.mu_star_interval:
+            half = 0.5 * (u.mu_star_interval[1] - u.mu_star_interval[0])
+        nxt = numfmt.fmt_below(u.next_control, half, digits=8)
+        parts.append(f"next<={nxt} ({u.next_bound_source})")
     else:
         parts.append("next: none")
     if u.converged:
         parts.append("converged")
-    codes = [x.code for x in (*u.record_flags, *u.flags)]
+    codes = list(dict.fromkeys(x.code for x in (*u.record_flags, *u.flags)))  # each once
     if codes:
         parts.append("flags=" + ",".join(codes))
     return " | ".join(parts)

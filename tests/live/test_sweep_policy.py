@@ -7,6 +7,7 @@ same records (batch ``sweep_from_signals``, the live ``update``).
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -124,3 +125,50 @@ def test_batch_and_live_give_one_answer() -> None:
     assert b.next_control == u.next_control
     closed = live.finish(recs)
     assert closed.next_control == u.next_control and closed.alarm[-1] == u.alarm
+
+
+def test_the_cli_door_answers_as_the_live_door(tmp_path, capsys) -> None:  # noqa: ANN001
+    """``snapwarn sweep`` on files (plain and --json) and a live sweep fed the same records read
+    back from those files: one mu*, interval, alarm and next safe value; the plain output names
+    the type, mu* with its interval and unit (to the interval's precision), alarm and advice."""
+    from service.cli import main
+    from service.numfmt import fmt, fmt_interval
+    from service.recordings import read_file
+
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72]
+    rng = np.random.default_rng(5)
+    rows = []
+    for k, mu in enumerate(controls):
+        t, w = record(mu)
+        w = w + 1e-4 * rng.standard_normal(w.size)
+        name = f"rec_{k:02d}.csv"
+        body = "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, w, strict=True))
+        (tmp_path / name).write_text("t [s],w\n" + body)
+        rows.append(f"{name},{mu!r}\n")
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("path,control\n" + "".join(rows))
+    args = ["sweep", str(manifest), "--no-progress", "--control-name", "theta",
+            "--control-unit", "deg"]  # fmt: skip
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    recs = []
+    for k, mu in enumerate(controls):
+        r = read_file(tmp_path / f"rec_{k:02d}.csv")
+        u = live.update(recs, r.w, dt=r.dt, control=mu)
+        recs.append(u.record)
+    p = doc["prediction"]
+    assert p["mu_star"] == u.prediction.mu_star
+    assert tuple(p["mu_star_interval"]) == u.prediction.mu_star_interval
+    assert doc["alarm"][-1]["level"] == u.alarm.level and doc["alarm"][-1]["rank"] == u.alarm.rank
+    assert doc["next_control"] == u.next_control and p["next_safe_mu"] == u.next_control
+    assert p["classification"]["mu_star"] == p["mu_star"]  # one mu* per document
+    assert main(args) == 0
+    text = capsys.readouterr().out.splitlines()
+    lo, hi = p["mu_star_interval"]
+    a, b = fmt_interval(lo, hi)
+    assert text[0] == f"type: {p['transition']}" or text[0].startswith("type: undetermined (")
+    assert text[1].startswith(f"theta* = {fmt(p['mu_star'], 0.5 * (hi - lo))} deg, "
+                              f"95 % interval [{a}, {b}] deg")  # fmt: skip
+    assert text[2].startswith(f"alarm: {u.alarm.level} (rank {u.alarm.rank})")
+    assert text[3].startswith("next safe theta: ") and text[3].endswith(" deg")
+    assert float(text[3].split()[-2]) <= u.next_control
