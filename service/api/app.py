@@ -130,7 +130,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     if settings.hot_path:  # innermost of ours: the checks of those below still apply
         app.add_middleware(HotPathMiddleware)
     app.add_middleware(IdempotencyMiddleware)
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes,
+                       read_timeout_s=settings.body_read_timeout_s)  # fmt: skip
     app.add_middleware(SecurityMiddleware, settings=settings)
     if settings.cors_origins:  # CORS is closed unless origins are configured
         from starlette.middleware.cors import CORSMiddleware

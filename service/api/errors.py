@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+import anyio
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
@@ -116,11 +117,14 @@ class BodyTooLarge(HTTPException):
 
 
 class BodyLimitMiddleware:
-    """413 for bodies over ``max_bytes``: from Content-Length at once, else while streaming."""
+    """413 for bodies over ``max_bytes``: from Content-Length at once, else while streaming;
+    408 (the connection closed) for a body whose next bytes take longer than
+    ``read_timeout_s`` (a slow client holds no worker for ever)."""
 
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+    def __init__(self, app: ASGIApp, max_bytes: int, read_timeout_s: float = 30.0) -> None:
         self.app = app
         self.max_bytes = max_bytes
+        self.read_timeout_s = read_timeout_s
 
     def _problem(self, size: Any) -> ApiProblem:
         return ApiProblem(
@@ -147,10 +151,24 @@ class BodyLimitMiddleware:
                     await _drain_and_send(resp, scope, receive, send)
                     return
         seen = 0
+        done = scope["method"] in ("GET", "HEAD", "OPTIONS", "DELETE")
 
         async def limited() -> Message:
-            nonlocal seen
-            msg = await receive()
+            nonlocal seen, done
+            if done:  # the body was read: a wait for the disconnect is not bounded
+                return await receive()
+            try:
+                with anyio.fail_after(self.read_timeout_s):
+                    msg = await receive()
+            except TimeoutError:
+                raise BodyTooLarge(ApiProblem(
+                    408, f"the request body did not arrive: no bytes for "
+                    f"{self.read_timeout_s:g} s (setting SNAPWARN_BODY_READ_TIMEOUT_S)",
+                    title="Request timeout", slug="request-timeout", field="body",
+                    value=seen, headers={"Connection": "close"},
+                )) from None  # fmt: skip
+            if msg["type"] != "http.request" or not msg.get("more_body", False):
+                done = True
             if msg["type"] == "http.request":
                 seen += len(msg.get("body", b""))
                 if seen > self.max_bytes:

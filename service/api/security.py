@@ -36,6 +36,7 @@ import logging
 import re
 from urllib.parse import urlsplit
 
+import anyio
 from starlette.requests import Request
 from starlette.types import ASGIApp, Receive, Scope, Send
 
@@ -172,7 +173,8 @@ class SecurityMiddleware:
             await resp(scope, receive, with_headers)
             return
         if scope["method"] in UNSAFE and _is_json(scope):
-            receive, problem = await _small_nul_check(scope, receive)
+            timeout = float(getattr(self.settings, "body_read_timeout_s", 30.0))
+            receive, problem = await _small_nul_check(scope, receive, timeout)
             if problem is not None:
                 resp = problem_response(problem, scope.get("path"))
                 await resp(scope, receive, with_headers)
@@ -197,9 +199,12 @@ _KEY_BEFORE = re.compile(rb'"([^"\\]{1,100})"\s*:\s*[\[{"]?[^:]*$')
 _WHOLE = 1 << 16
 
 
-async def _small_nul_check(scope: Scope, receive: Receive) -> tuple[Receive, ApiProblem | None]:
+async def _small_nul_check(
+    scope: Scope, receive: Receive, timeout: float = 30.0
+) -> tuple[Receive, ApiProblem | None]:
     """A small JSON body read and checked for NUL characters (see :func:`_no_nul`), replayed
-    to the app; a larger one checked as it streams."""
+    to the app; a larger one checked as it streams. A body whose bytes stop coming for
+    ``timeout`` seconds is a 408."""
     length = None
     for k, v in scope["headers"]:
         if k == b"content-length":
@@ -211,7 +216,15 @@ async def _small_nul_check(scope: Scope, receive: Receive) -> tuple[Receive, Api
         return _no_nul(receive), None
     parts, more = [], True
     while more:
-        msg = await receive()
+        try:
+            with anyio.fail_after(timeout):
+                msg = await receive()
+        except TimeoutError:
+            late = ApiProblem(408, f"the request body did not arrive: no bytes for {timeout:g} s "
+                              "(setting SNAPWARN_BODY_READ_TIMEOUT_S)", title="Request timeout",
+                              slug="request-timeout", field="body", value=None,
+                              headers={"Connection": "close"})  # fmt: skip
+            return _replay([{"type": "http.disconnect"}]), late
         if msg["type"] != "http.request":
             return _replay([msg]), None
         parts.append(msg.get("body", b""))

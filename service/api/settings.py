@@ -129,6 +129,12 @@ class Settings(BaseSettings):
     job_time_limit_s: float = Field(
         default=1800.0, gt=0, description="Time limit of a job (failed with a reason beyond it)."
     )
+    body_read_timeout_s: float = Field(
+        default=30.0,
+        gt=0,
+        description="Longest wait for the next bytes of a request body (408 and the connection "
+        "closed beyond): a slow client holds no worker for ever.",
+    )
     idempotency_lease_s: float = Field(
         default=10.0,
         gt=0,

@@ -82,3 +82,35 @@ def test_event_streams_are_capped_per_caller() -> None:
         live_events.event_stream(None, None, "s", 0, None, 10.0, "key-b")  # type: ignore[arg-type]
     finally:
         live_events._open.pop("key-a", None)
+
+
+@pytest.mark.parametrize("length", [1000, 200_000])  # read whole / streamed to the route
+def test_a_trickling_body_is_dropped_with_408(tmp_path, length) -> None:  # noqa: ANN001
+    """A client that stops sending its body holds its connection no longer than the setting:
+    a 408 and the connection closed (300 such connections stayed open for 90 s)."""
+    import socket
+    import time
+
+    from _svc_helpers import start_server
+
+    server = start_server(f"sqlite:///{tmp_path / 't.db'}", tmp_path,
+                          extra_env={"SNAPWARN_WARM_POOL": "false",
+                                     "SNAPWARN_BODY_READ_TIMEOUT_S": "1"})  # fmt: skip
+    try:
+        host, port = server.url.removeprefix("http://").split(":")
+        with socket.create_connection((host, int(port)), timeout=20) as s:
+            head = (b"POST /v1/signals HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: "
+                    b"application/json\r\nContent-Length: %d\r\n\r\n" % length)  # fmt: skip
+            s.sendall(head + b'{"dt": 0.1, ')
+            t0 = time.monotonic()
+            got = b""
+            while True:
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                got += chunk
+            took = time.monotonic() - t0
+        assert got.startswith(b"HTTP/1.1 408"), got[:200]
+        assert took < 15, took
+    finally:
+        server.stop()
