@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from _records import DT, MU_STAR, record
 
-from service.analysis import live, pipeline, sampling
+from service.analysis import live, sampling, sweep_policy
 from service.analysis.sampling import MAX_SAMPLES, next_record_sampling
 
 
@@ -55,7 +55,8 @@ def test_overdamped_grows_by_the_slow_rate_at_most_four_times() -> None:
 
 
 def test_warn_and_live_share_the_policy() -> None:
-    assert pipeline.next_record_sampling is sampling.next_record_sampling
+    # warn, the batch sweep and the live sweep all advise through the one sweep policy
+    assert sweep_policy.next_record_sampling is sampling.next_record_sampling
     recs = []
     for mu in (0.0, 0.3, 0.6, 0.9, 1.2):
         _, w = record(mu)
