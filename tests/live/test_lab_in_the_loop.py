@@ -91,6 +91,8 @@ def session(client: Client, camp: F.Campaign, bad_at: int | None = None) -> list
 
 
 def check(camp: F.Campaign, updates: list, bad_at: int | None) -> None:
+    """The issue's criteria for one session: covered, narrower than 1 % of the distance
+    travelled, within the budget, the bad record set aside by name."""
     controls = [u.control for u in updates]
     assert max(controls) < camp.mu_star
     last = updates[-1]
@@ -117,17 +119,25 @@ def test_a_lab_following_the_advice(ready) -> None:  # noqa: ANN001
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=(
-    "not met yet (in process, the same draws: saddle-node 5/10 clean, 6/10 with the bad record; "
-    "sub- and supercritical pitchfork 7/10 and 6/10 each; 0 of 60 sessions recorded at or "
-    "past mu*): some "
-    "end uncovered or wider than 1 %: a record the detector reads as growing (flag unstable) "
-    "far below mu* stops the sweep below it, and wrong modes the minimal reconcile keeps "
-    "derail the interval"))
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("bad_at", [None, 6])
 def test_ten_labs_per_type_following_the_advice(ready, kind: str, bad_at) -> None:  # noqa: ANN001
-    sessions(ready, (kind,), range(1, 11), bad_at)
+    """Ten labs per type: none ever records at or past mu* (asserted on every session, inside
+    ``session``); the issue's other criteria (covered, narrower than 1 % of the distance,
+    within 30 records, the bad record named) are counted and must hold in every session.
+    Not met yet on every seed: the failures are listed, not hidden."""
+    misses = []
+    with Client(ready.url, timeout=300.0) as c:
+        for seed in range(1, 11):
+            camp = campaign(kind, seed)
+            updates = session(c, camp, bad_at)  # asserts: never at or past mu*
+            try:
+                check(camp, updates, bad_at)
+            except AssertionError as exc:
+                misses.append((seed, str(exc)[:120]))
+    if misses:
+        pytest.xfail(f"{len(misses)} of 10 sessions miss the issue's criteria "
+                     f"(none recorded at or past mu*): {misses}")
 
 
 @pytest.mark.slow
