@@ -481,7 +481,7 @@ def _finish(
             "description": "'update' events (id = the record's seq, data = a LiveUpdate), "
             "then one 'closed' event. Resume with the Last-Event-ID header (or ?after=).",
         },
-        **problems(401, 404, 422),
+        **problems(401, 404, 422, 429),
     },
 )
 async def events(
