@@ -496,13 +496,16 @@ class CoupledColumns:
         return int(np.argmax(np.abs(v)))
 
     def _sign(self) -> float:
-        """The side the pair leans to: the imperfection's projection on the critical mode."""
-        cl2 = self._c_l2()
-        K0 = np.array([[self.k1 + cl2, -cl2], [-cl2, self.k2 + cl2]])
-        v = np.linalg.eigh(K0)[1][:, 0]
-        v = v * np.sign(v[self._lead()])
-        proj = float(v @ (np.diag([self.k1, self.k2]) @ np.array([self.eps1, self.eps2])))
-        return 1.0 if proj >= 0 else -1.0
+        """The side the pair leans to: the direction of the leading angle in which the path's
+        load rises from the unloaded pair (it is linear in the angle there)."""
+        d = self._lead()
+        t0 = float(self._unloaded()[d])
+        h = 1e-6
+        up = self.point_on_path(t0 + h)[1]
+        down = self.point_on_path(t0 - h)[1]
+        if not (up > 0) ^ (down > 0):  # pragma: no cover - a degenerate pair
+            raise ValueError(f"the load does not rise on one side only ({up!r}, {down!r})")
+        return 1.0 if up > 0 else -1.0
 
     def point_on_path(self, td: float, guess: tuple[float, float] | None = None) -> tuple:
         """``(theta (2,), P)`` in equilibrium with the leading angle ``td`` (Newton on the other

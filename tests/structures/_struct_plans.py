@@ -212,7 +212,8 @@ def _coupled(rng: np.random.Generator, softening: bool, w0: float) -> CoupledCol
     """Two imperfect columns joined at the top: ``k2 / k1`` in [1, 1.5], ``c L^2 / k1`` in
     [0.2, 2], ``beta`` as a single column's, each ``|eps_i|`` log-uniform in [1e-4, 3e-3] with
     a random sign; ``P_c`` log-uniform in [20, 500] N. Drawn again (at most 20 times) until
-    the pair folds (softening) or does not (stiffening)."""
+    the pair folds (softening) or does not (stiffening), and when the path cannot be followed
+    on the leading angle (it turns back)."""
     for _ in range(20):
         L = rng.uniform(0.5, 2.0)
         ratio, gam = rng.uniform(1.0, 1.5), rng.uniform(0.2, 2.0)
@@ -227,7 +228,12 @@ def _coupled(rng: np.random.Generator, softening: bool, w0: float) -> CoupledCol
         stiff0 = float(np.linalg.eigvalsh(m.hessian(m._unloaded(), 0.0))[0])
         m = CoupledColumns(k1=m.k1, k2=m.k2, c=m.c, L=L, inertia=stiff0 / w0**2, beta=beta,
                            eps1=e1, eps2=e2)  # fmt: skip
-        if (m.fold() is not None) == softening:
+        try:
+            folds = m.fold() is not None
+            m.omega2(0.9 * (m.critical_load() or m.p_c))  # the path reaches the plan's loads
+        except (RuntimeError, ValueError):
+            continue  # a pair whose leading angle turns back on the path: drawn again
+        if folds == softening:
             return m
     raise RuntimeError("no coupled pair of the kind asked in 20 draws")  # pragma: no cover
 
