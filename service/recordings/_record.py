@@ -69,6 +69,36 @@ class Recording:
         """The sample times: ``t`` as written, else ``t0 + k dt``."""
         return time_axis(self.n, self.dt, self.t0, self.t)
 
+    @property
+    def quantity(self) -> str | None:
+        """What the samples measure, read from ``value_unit`` (:func:`quantity_of`):
+        ``"displacement"``, ``"velocity"``, ``"acceleration"``, or None (not said)."""
+        return quantity_of(self.value_unit)
+
+
+_LENGTHS = ("m", "mm", "um", "µm", "μm", "nm", "cm", "in", "mil", "ft")
+
+
+def quantity_of(value_unit: str | None) -> str | None:
+    """The quantity a unit measures: a length (``mm``, ``um``, ``in``...) is a displacement,
+    a length per time (``mm/s``, ``in/s``) a velocity, per time squared (``m/s2``, ``m/s^2``,
+    ``m/s²``, ``g``) an acceleration; None for anything else (volts, counts, no unit)."""
+    if not value_unit:
+        return None
+    u = value_unit.strip().replace(" ", "").replace("**", "^")
+    if u.lower() in ("g", "gn", "g0"):
+        return "acceleration"
+    num, _, den = u.partition("/")
+    if num not in _LENGTHS:
+        return None
+    if not den:
+        return "displacement"
+    if den in ("s", "ms", "us", "min"):
+        return "velocity"
+    if den in ("s2", "s^2", "s²", "ms2", "ms^2", "ms²"):
+        return "acceleration"
+    return None
+
 
 @dataclass
 class _Raw:

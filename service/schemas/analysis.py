@@ -21,6 +21,7 @@ Num = float | None
 """A float on the wire: ``null`` when missing or not finite."""
 
 Regime = Literal["underdamped", "overdamped"]
+Quantity = Literal["displacement", "velocity", "acceleration"]
 Transition = Literal[
     "saddle-node",
     "subcritical-pitchfork",
@@ -67,6 +68,13 @@ class Mode(_Result):
         description="When the mode is a combination tone of stronger modes, which one "
         "(e.g. 'omega_2 - omega_1'); it is never the fundamental.",
     )
+    kind: Literal["mode", "line", "drift", "trend", "transient"] = Field(
+        default="mode",
+        description="'mode' (of the structure), or set aside and never the fundamental: "
+        "'line' (a stationary line: mains hum, a line present before the kick or not "
+        "decaying), 'drift' (a slow baseline not kicked from rest), 'trend' (slower than the "
+        "record), 'transient' (the hammer's contact, gone early in the record).",
+    )
 
 
 class Fundamental(Mode):
@@ -94,6 +102,11 @@ class Detection(_Result):
         default=0,
         description="Index of the first sample analysed: 0, or the kick after a quiet "
         "pre-trigger (flag 'pretrigger'); amplitudes and phases are at that sample.",
+    )
+    quantity: Quantity = Field(
+        default="displacement",
+        description="What the record measures; poles come from any, the static level only "
+        "from a displacement (NaN otherwise, flag 'no_static_level').",
     )
     time_unit: str | None = Field(
         default=None,

@@ -36,6 +36,7 @@ class _GrownMode:  # a Mode the numerics extended without telling the wire
     real_amplitudes: tuple[float, float] | None
     snr_db: float
     combination: str | None
+    kind: str
     quality_factor: float
 
 

@@ -42,6 +42,14 @@ Methods (``method=``)
 ``common_damping=True`` imposes the same ``p`` (``= xi = 2 gamma``) on every mode, the beam
 model's damping; it lowers the variance when the model holds.
 
+Lab records (``kind="impulse"``): a record may be a ``quantity`` = displacement, velocity or
+acceleration (the same poles; the static level only from a displacement); the window of free
+response is located first (a pre-trigger, the hammer's contact, a second kick, clipped samples:
+flags below), lines seen before the kick (or given as ``notch``) are fitted as undamped modes,
+and lines, drift and transients are set aside (``Mode.kind``) before the fundamental is chosen.
+The user may give ``start`` (the free response's first sample, as a time) and ``notch``.
+A record with none of these features is analysed exactly as before.
+
 ``kind="ambient"`` analyses the biased autocorrelation of the mean-removed record (lags 1 to
 at most ``N/2``, cut where it sinks into its estimation noise): for a noise-driven linear
 structure it is a sum of damped modes with the same poles. Standard errors then come from the
@@ -80,7 +88,33 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        the strip at rest before the kick or a release): a lead-in of at least
                        2 % of the record below 5 % of the amplitude after it, 4x longer than
                        the rise; the record is analysed from the rise past 20 % of its
-                       largest deviation (``Detection.start``).
+                       largest deviation (``Detection.start``). With hum or drift on the
+                       lead-in (a lab's record), the lead-in is the part whose moving rms stays
+                       below 35 % of the response's, and the analysis starts where the record
+                       leaves the lead-in's band (module ``_lab``).
+``stationary_line``    lines that do not decay (mains hum and its harmonics, any line present
+                       before the kick or given by the user as ``notch``) are fitted and set
+                       aside (``Mode.kind = "line"``); never the fundamental, never ``unstable``.
+``drift``              beside a kicked ringing mode, a slower component that was not kicked
+                       (an overdamped one not starting from rest, less than one oscillation in
+                       the record: an offset that settles, a ramp, a slow wobble) is set aside
+                       (``Mode.kind = "drift"``); never the fundamental. A record whose
+                       slowest mode grows beside a ringing one is refitted with its slope
+                       removed (a ramp of the baseline).
+``forced_part``        the hammer's contact: the first samples after the kick misfit while the
+                       rest fits (cut, ``Detection.start`` moves past them), or a mode that
+                       dies within the record beside a ringing one (``Mode.kind =
+                       "transient"``); never the fundamental.
+``repeated_kick``      later kicks in the record (the envelope jumps again): the first ring-down
+                       is analysed, up to the next kick (``Detection.n_samples``).
+``clipped``            samples held at the record's extreme in several runs (a saturated
+                       sensor): the fit reads the longest stretch of the window without them.
+``negligible_growth``  a growing component that stays below 1 % of the largest amplitude over
+                       the record (a by-product of the fit beside a loud ringing): not read as
+                       ``unstable``.
+``start_given``        the analysis starts at the user's ``start`` (no kick is located).
+``no_static_level``    ``quantity`` is a velocity or an acceleration: the poles are the
+                       structure's, the static level is NaN (only a displacement has one).
 
 Detection limit: the record SNR of a mode is its energy over the noise variance,
 ``10 log10(A^2 N_eff / (2 s^2))`` = the per-sample SNR ``A^2 / (2 s^2)`` in dB plus
@@ -106,7 +140,7 @@ basis recurrences + Gram matrices, strided Hankel covariance, small symmetric ei
 BLAS thread pool is involved in the fit itself.
 """
 
-from service.analysis.detect._core import detect
+from service.analysis.detect._core import QUANTITIES, detect
 from service.analysis.detect._methods import METHOD_TABLE, METHODS
 from service.analysis.detect._results import (
     ALIAS_FRACTION,
@@ -119,6 +153,7 @@ from service.analysis.detect._results import (
     KINDS,
     LOW_SNR_DB,
     MIN_SAMPLES,
+    MODE_KINDS,
     NOISE_FLOOR,
     NONLINEAR_Z,
     Detection,
@@ -130,6 +165,8 @@ __all__ = [
     "METHODS",
     "METHOD_TABLE",
     "KINDS",
+    "MODE_KINDS",
+    "QUANTITIES",
     "FLAG_CODES",
     "MIN_SAMPLES",
     "FEW_PERIODS",

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from service.analysis.common import Flag
+from service.analysis.detect import _lab
 from service.analysis.detect._flags import _record_flags
 from service.analysis.detect._methods import (
     ALIASES,
@@ -17,7 +19,14 @@ from service.analysis.detect._methods import (
     Outcome,
     Record,
 )
-from service.analysis.detect._modes import _as_fundamental, _fundamental, _scaled, _trends
+from service.analysis.detect._modes import (
+    _as_fundamental,
+    _combinations,
+    _fundamental,
+    _scaled,
+    _trends,
+    _waveform,
+)
 from service.analysis.detect._results import KINDS, MIN_SAMPLES, Detection
 from service.analysis.detect._spectral import _spectrum, _welch_peaks
 from service.analysis.errors import ParameterError
@@ -128,11 +137,15 @@ def _cut_pretrigger(arr: np.ndarray, dt: float, kind: str) -> tuple[np.ndarray, 
     start = _pretrigger(arr) if kind == "impulse" else 0
     if not start:
         return arr, 0, None
-    return arr[start:], start, Flag(
-        "pretrigger",
-        f"the record is quiet for its first {start} samples (to t = {start * dt:.6g} from its "
-        "first sample) before the response: a pre-trigger, or the strip at rest before the "
-        "kick; analysed from there (amplitudes and phases at that sample)",
+    return (
+        arr[start:],
+        start,
+        Flag(
+            "pretrigger",
+            f"the record is quiet for its first {start} samples (to t = {start * dt:.6g} from its "
+            "first sample) before the response: a pre-trigger, or the strip at rest before the "
+            "kick; analysed from there (amplitudes and phases at that sample)",
+        ),
     )
 
 
@@ -193,6 +206,77 @@ def _prepare(arr: np.ndarray, kind: str, max_modes: int) -> Record | None:
     return Record(x, y, scale, mean, unit, kind, max_modes, _spectrum(y), acf0, static_std, flags)
 
 
+QUANTITIES = ("displacement", "velocity", "acceleration")
+
+
+def _validate_lab(
+    quantity: Any, start: Any, notch: Any, n: int, dt: float
+) -> tuple[str | None, float | None, np.ndarray]:
+    """Check the lab options of :func:`detect`; notch frequencies as rad per sample."""
+    if quantity is not None and quantity not in QUANTITIES:
+        raise ParameterError(
+            "quantity", quantity,
+            f"quantity={quantity!r}: unknown, expected one of {', '.join(QUANTITIES)} or None",
+        )  # fmt: skip
+    if start is not None:
+        ok = not isinstance(start, bool) and isinstance(start, (int, float, np.integer,
+                                                                np.floating))  # fmt: skip
+        if not ok or not (math.isfinite(float(start)) and 0 <= float(start)):
+            raise ParameterError("start", start, f"start={start!r}: expected a time >= 0")
+        if float(start) / dt > n - 4 * MIN_SAMPLES:
+            raise ParameterError(
+                "start", start, f"start={float(start)!r}: leaves fewer than {4 * MIN_SAMPLES} "
+                f"samples of the record (duration {(n - 1) * dt:.6g})"
+            )  # fmt: skip
+        start = float(start)
+    if notch is None:
+        return quantity, start, np.zeros(0)
+    try:
+        f = np.atleast_1d(np.asarray(notch, dtype=float))
+    except (TypeError, ValueError):
+        raise ParameterError("notch", notch, f"notch={notch!r}: expected frequencies") from None
+    nyq = 0.5 / dt
+    if f.ndim != 1 or f.size > 16 or not np.all(np.isfinite(f) & (f > 0) & (f < nyq)):
+        raise ParameterError(
+            "notch", notch, f"notch={notch!r}: expected up to 16 frequencies in (0, {nyq:.6g}) "
+            "(cycles per time unit of dt, below Nyquist)"
+        )  # fmt: skip
+    return quantity, start, 2 * math.pi * f * dt
+
+
+def _window(
+    arr: np.ndarray, dt: float, kind: str, start: float | None
+) -> tuple[_lab.Window | None, int, Flag | None]:
+    """The lab window of an impulse record (None: the record is read as before, from the
+    pre-trigger cut :func:`_pretrigger`, which is returned with its flag)."""
+    if kind != "impulse":
+        return None, 0, None
+    old = _pretrigger(arr) if start is None else 0
+    win = _lab.locate(arr, dt, start=start)
+    if old:
+        win.start = win.lead = old
+        win.quiet = True
+        if win.stop <= old + 4 * MIN_SAMPLES:
+            win.stop = arr.size
+    if not (win.lead or win.kicks or win.n_clipped or win.user_start):
+        return None, 0, None
+    if win.lead and not win.user_start:
+        win.flags.insert(
+            0,
+            Flag(
+                "pretrigger",
+                f"the record is quiet for its first {win.lead} samples (to t = "
+                f"{win.lead * dt:.6g} from its first sample) before the response: a "
+                "pre-trigger, or the strip at rest before the kick; analysed from "
+                f"sample {win.start} (amplitudes and phases at that sample)",
+            ),
+        )
+    if win.user_start:
+        win.flags.insert(0, Flag("start_given", f"analysed from t = {win.start * dt:.6g} "
+                                                "(the start given by the user)"))  # fmt: skip
+    return win, win.start, None
+
+
 def detect(
     w: Any,
     *,
@@ -203,15 +287,18 @@ def detect(
     common_damping: bool = False,
     check_linearity: bool = True,
     max_iter: int = 50,
+    quantity: str | None = None,
+    start: float | None = None,
+    notch: Any = None,
 ) -> Detection:
     """Detect the modes (poles) of a uniformly sampled record.
 
     Parameters
     ----------
     w : array_like, shape (N,)
-        The record: absolute position, including the static offset. ``N >= 16``; any finite
-        magnitude (the record is normalised inside, so the result is equivariant under
-        ``w -> k w``).
+        The record: absolute position, including the static offset (or a velocity or an
+        acceleration, see ``quantity``). ``N >= 16``; any finite magnitude (the record is
+        normalised inside, so the result is equivariant under ``w -> k w``).
     dt : float
         Sample step (> 0), in the record's own time unit; every output rate is per that unit
         (equivariant under ``t -> c t``: rates scale as ``1/c``).
@@ -220,7 +307,8 @@ def detect(
     kind : {"impulse", "ambient"}
         Free decay after a kick, or a noise-driven record (its autocorrelation is analysed).
     max_modes : int or None
-        Largest number of modes (pole pairs) kept, 1 to 20 (default 6).
+        Largest number of modes (pole pairs) kept, 1 to 20 (default 6); stationary lines seen
+        before the kick or given in ``notch`` come on top.
     common_damping : bool
         Impose one decay rate ``gamma = xi/2`` on every mode (the beam model); parametric
         methods only.
@@ -228,6 +316,16 @@ def detect(
         Refit the two halves of the record and flag a drift of the fundamental (varpro only).
     max_iter : int
         Levenberg-Marquardt iteration cap (>= 0).
+    quantity : {"displacement", "velocity", "acceleration"} or None
+        What the sensor measures. Poles (frequencies, damping) come from any; the static level
+        only from a displacement: for a velocity or an acceleration it is NaN (flag
+        ``no_static_level``). None: a displacement, as before.
+    start : float or None
+        Time (from the first sample, time unit of ``dt``) where the free response starts,
+        overriding the located kick (flag ``start_given``).
+    notch : sequence of float or None
+        Frequencies (cycles per time unit of ``dt``) of stationary lines (mains hum and its
+        harmonics): fitted as lines (flag ``stationary_line``), never the fundamental.
 
     Returns
     -------
@@ -242,12 +340,74 @@ def detect(
     arr, dt, method, kind, max_modes = _validate(
         w, dt, method, kind, max_modes, common_damping, max_iter
     )
+    quantity, start, notch_w = _validate_lab(quantity, start, notch, arr.size, dt)
     resolved = ALIASES.get(method, method)
-    arr, start, lead = _cut_pretrigger(arr, dt, kind)
-    rec = _prepare(arr, kind, max_modes)
-    if lead is not None:
-        rec.flags.append(lead)
-    opts = Options(max_modes, bool(common_damping), int(max_iter), bool(check_linearity))
+    win, first, _ = _window(arr, dt, kind, start)
+    if win is None:
+        arr, first, lead = _cut_pretrigger(arr, dt, kind)
+        pre = [] if lead is None else [lead]
+        seeds_w = notch_w
+    else:
+        seeds_w = np.concatenate((notch_w, _lab.lead_lines(arr, win.lead)))
+        arr = arr[win.start : win.stop]
+        pre = win.flags
+    n_seeds = seeds_w.size if kind == "impulse" else 0
+    seeds = (np.zeros(n_seeds), seeds_w[:n_seeds] ** 2) if n_seeds else None
+    mm = min(20, max_modes + n_seeds)
+    opts = Options(mm, bool(common_damping), int(max_iter), bool(check_linearity), seeds)
+    # a lab's record (a lead-in with hum or drift on it, a second kick, clipping) is read with
+    # its slope removed (the drift's ramp); a quiet lead-in alone is not
+    detrend = win is not None and kind == "impulse" and not win.quiet
+    rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
+    if not detrend and kind == "impulse" and _suspect(out.modes, arr.size * dt):
+        # a growing or slow fundamental that is not kicked beside a ringing mode: refit with
+        # the record's slope (a drift of the baseline) taken out, and use that fit
+        detrend = True
+        rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
+    if win is not None and resolved == "varpro" and rec.scale > 0 and out.modes:
+        skip = _lab.forced_head(_residual(rec, out, dt), out.noise_std)
+        if skip and arr.size - skip >= max(4 * MIN_SAMPLES, arr.size // 2):
+            arr = arr[skip:]
+            first += skip
+            rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
+            pre = [*pre, Flag(
+                "forced_part",
+                f"the first {skip} samples after the kick are a forced response (the "
+                "hammer's contact: the free-decay model misfits them, the rest fits); "
+                f"analysed from sample {first}",
+            )]  # fmt: skip
+    rec.flags[:0] = pre
+    return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt)
+
+
+def _suspect(modes: list, T: float) -> bool:
+    """Whether the slowest mode of a fit may be a drift rather than the fundamental: it grows
+    (``sigma^2 >= 0`` or a growing envelope) beside a faster ringing mode
+    (:func:`_lab._rings`)."""
+    if len(modes) < 2:
+        return False
+    m0 = modes[0]
+    if not (m0.sigma2 >= 0 or m0.damping < 0):
+        return False
+    if m0.regime == "overdamped" and _lab._from_rest(m0, T):
+        return False  # a kicked growing mode (past the transition): the physics
+    return any(_lab._rings(m, T) and abs(m.sigma2) > abs(m0.sigma2) for m in modes[1:])
+
+
+def _detrended(arr: np.ndarray) -> np.ndarray:
+    """The record with its least-squares slope removed (its mean kept): a drift's ramp."""
+    n = arr.size
+    u = np.arange(n, dtype=float) - 0.5 * (n - 1)
+    slope = float(u @ (arr - arr.mean())) / float(u @ u)
+    return arr - slope * u
+
+
+def _fit(
+    arr: np.ndarray, dt: float, kind: str, max_modes: int, resolved: str, opts: Options,
+    detrend: bool = False,
+) -> tuple[Record, Outcome]:  # fmt: skip
+    """Prepare the record (``detrend``: its slope removed first) and run the method."""
+    rec = _prepare(_detrended(arr) if detrend else arr, kind, max_modes)
     if rec.scale == 0.0:
         rec.flags.append(
             Flag(
@@ -260,16 +420,48 @@ def detect(
         out = METHOD_TABLE[resolved](rec, dt, opts)
     if rec.static_std is not None:
         out.static, out.static_std = rec.mean, rec.static_std
+    return rec, out
+
+
+def _residual(rec: Record, out: Outcome, dt: float) -> np.ndarray:
+    """The record minus its fitted model (units of ``rec.x`` plus its mean)."""
+    n = rec.x.size
+    r = rec.x + rec.mean - out.static
+    for m in out.modes:
+        r = r - _waveform(m, n, dt)
+    return r
+
+
+def _result(
+    rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
+    quantity: str | None, seeds: np.ndarray,
+) -> Detection:  # fmt: skip
+    """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags."""
     trend = frozenset()
+    lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
-        trend = _trends(out.modes, n=arr.size, dt=dt, noise_std=out.noise_std)
-    modes, order = _fundamental(out.modes, n=arr.size, dt=dt, trend=trend)
+        trend = _trends(out.modes, n=n, dt=dt, noise_std=out.noise_std)
+        combos = frozenset(_combinations(out.modes))
+        lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds, trend | combos)
+        tiny = _lab.negligible_growth(out.modes, n * dt)
+    modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient)
     growth = None if out.growth is None else [out.growth[k] for k in order]
-    trend_at = frozenset(i for i, k in enumerate(order) if k in trend)
-    found = bool(modes) and 0 not in trend_at  # every mode a trend: no fundamental
+    at = {k: i for i, k in enumerate(order)}
+    trend_at = frozenset(at[k] for k in trend)
+    lines_at = frozenset(at[k] for k in lines)
+    drift_at = frozenset(at[k] for k in drift)
+    tiny_at = frozenset(at[k] for k in tiny)
+    trans_at = frozenset(at[k] for k in transient)
+    aside = trend_at | lines_at | drift_at | trans_at
+    found = bool(modes) and 0 not in aside  # every mode set aside: no fundamental
     snr_db = _snr_db(modes if found else [], out, kind)
     f = rec.unit * rec.unit if kind == "ambient" else rec.unit
     modes = [_scaled(m, f) for m in modes]
+    modes = [replace(m, kind="line") if i in lines_at else
+             replace(m, kind="drift") if i in drift_at else
+             replace(m, kind="transient") if i in trans_at else
+             replace(m, kind="trend") if i in trend_at else m
+             for i, m in enumerate(modes)]  # fmt: skip
     fund = _as_fundamental(modes) if found else None
     flags = rec.flags + out.flags
     u = rec.unit
@@ -279,28 +471,43 @@ def detect(
             Flag(
                 "no_mode",
                 f"no mode rises above the noise (noise std {noise_std:.3g}, "
-                f"{arr.size} samples): the record looks like noise"
-                + (" plus a slow trend (see the flag 'trend')" if trend_at else ""),
+                f"{n} samples): the record looks like noise"
+                + (" plus a slow trend (see the flag 'trend')" if trend_at else "")
+                + (" plus stationary lines" if lines_at else "")
+                + (" plus a drift" if drift_at else ""),
             )
         )
     flags += _record_flags(
-        modes, n=arr.size, dt=dt, spec=rec.spec, static=out.static, static_std=out.static_std,
-        growth=growth, trend=trend_at,
+        modes, n=n, dt=dt, spec=rec.spec, static=out.static, static_std=out.static_std,
+        growth=growth, trend=trend_at, aside=aside | tiny_at,
     )  # fmt: skip
+    flags += _lab.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
+    static, static_std = out.static * u, out.static_std * u
+    if quantity in ("velocity", "acceleration"):
+        static = static_std = math.nan
+        flags.append(
+            Flag(
+                "no_static_level",
+                f"the record is a {quantity}: its poles are the structure's, but it has no "
+                "static level (the equilibrium deflection is read from a displacement "
+                "only); static_level is NaN",
+            )
+        )
     return Detection(
         modes=tuple(modes),
         fundamental=fund,
-        static_level=out.static * u,
-        static_level_std=out.static_std * u,
+        static_level=static,
+        static_level_std=static_std,
         flags=tuple(flags),
         method=resolved,
         noise_std=noise_std,
         snr_db=snr_db,
-        n_samples=arr.size,
+        n_samples=n,
         dt=dt,
         kind=kind,
         iterations=out.iterations,
         start=start,
+        quantity=quantity or "displacement",
     )
 
 

@@ -132,19 +132,23 @@ def _record_flags(
     static_std: float,
     growth: list[tuple[float, float]] | None = None,
     trend: frozenset[int] = frozenset(),
+    aside: frozenset[int] | None = None,
 ) -> list[Flag]:
     """The flags that read the final modes: few_periods, low_snr, unstable, overdamped,
     combination_tone, trend, aliasing and numerical.
 
-    ``modes[0]`` is the fundamental unless it is a trend (``0 in trend``: every mode is one);
-    ``growth`` holds each mode's envelope growth rate and its standard error (or None), and
-    ``trend`` the indices of the modes set aside as a slow trend.
+    ``modes[0]`` is the fundamental unless it is set aside (``0 in aside``: every mode is);
+    ``growth`` holds each mode's envelope growth rate and its standard error (or None),
+    ``trend`` the indices of the modes set aside as a slow trend, ``aside`` those that the
+    unstable and overdamped flags do not read (trends, stationary lines, drift, negligible
+    growth; default: the trends).
     """
-    flags = _fundamental_flags(modes[0], n * dt) if modes and 0 not in trend else []
-    relax = _relaxation_flag(modes, n * dt) if modes and 0 not in trend else None
+    aside = trend if aside is None else aside
+    flags = _fundamental_flags(modes[0], n * dt) if modes and 0 not in aside else []
+    relax = _relaxation_flag(modes, n * dt) if modes and 0 not in aside else None
     if relax is not None:
         flags.append(relax)
-    flags += _mode_flags(modes, n * dt, growth=growth, trend=trend)
+    flags += _mode_flags(modes, n * dt, growth=growth, trend=aside)
     tr = _trend_flag(modes, trend, n * dt)
     if tr is not None:
         flags.append(tr)

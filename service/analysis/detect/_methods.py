@@ -49,6 +49,9 @@ class Options:
     common: bool
     max_iter: int
     check_linearity: bool
+    #: extra initial poles ``(p, q)`` in sample units (stationary lines seen before the kick
+    #: or given by the user), added to the candidates of the parametric methods
+    seeds: tuple[np.ndarray, np.ndarray] | None = None
 
 
 @dataclass
@@ -102,7 +105,7 @@ def _parametric(rec: Record, dt: float, opts: Options, *, refine: bool) -> Outco
     y, scale, N0 = rec.y, rec.scale, rec.x.size
     fit, energy = _fit_parametric(
         y, rec.spec, max_modes=rec.max_modes, common=opts.common, refine=refine,
-        max_iter=opts.max_iter,
+        max_iter=opts.max_iter, seeds=opts.seeds,
     )  # fmt: skip
     if fit is None:
         noise_std = math.sqrt(float(np.mean(y * y))) * scale
@@ -147,10 +150,19 @@ def _fit_parametric(
     common: bool,
     refine: bool,
     max_iter: int,
+    seeds: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[_Fit | None, np.ndarray]:
     """ESPRIT initialisation, MDL pruning, varpro fit; then up to two rounds of residual
     ESPRIT (multi-scale: a slow residual gets a long strided window) to add missed modes."""
     p, q = _initial_candidates(y, spec, max_modes)
+    if seeds is not None and seeds[0].size:
+        # a seed that a candidate already holds (within a bin) would be fitted twice
+        om = np.sqrt(np.maximum(q - 0.25 * p * p, 0.0))
+        bin_ = 2 * np.pi / y.shape[0]
+        new = [k for k in range(seeds[0].size)
+               if not np.any(np.abs(om - math.sqrt(seeds[1][k])) < bin_)]  # fmt: skip
+        p = np.concatenate((p, seeds[0][new]))
+        q = np.concatenate((q, seeds[1][new]))
     fit: _Fit | None = None
     energy = np.zeros(0)
     for round_ in range(3):

@@ -23,7 +23,17 @@ FLAG_CODES = (
     "trend",
     "pretrigger",
     "relaxation",
+    "stationary_line",
+    "drift",
+    "negligible_growth",
+    "forced_part",
+    "repeated_kick",
+    "clipped",
+    "start_given",
+    "no_static_level",
 )
+#: ``Mode.kind``: a mode of the structure, or a component set aside (never the fundamental).
+MODE_KINDS = ("mode", "line", "drift", "trend", "transient")
 MIN_SAMPLES = 16
 
 #: Thresholds of the flags (documented in the messages).
@@ -108,6 +118,12 @@ class Mode:
         difference of theirs, or twice one of them, within the tolerance of
         :data:`COMBINATION_Z`), e.g. ``"omega[2] - omega[1]"`` with indices into
         ``Detection.modes``. Such a mode is never the fundamental.
+    kind : str
+        ``"mode"`` (of the structure), or set aside and never the fundamental: ``"line"``
+        (a stationary line: mains hum, a line present before the kick or with zero decay),
+        ``"drift"`` (a slow baseline not kicked from rest beside a ringing mode) or
+        ``"trend"`` (slower than the record, flag ``trend``) or ``"transient"`` (dies early
+        in the record beside a ringing mode: the hammer's contact, flag ``forced_part``).
     """
 
     omega: float
@@ -125,6 +141,7 @@ class Mode:
     real_amplitudes: tuple[float, float] | None = None
     snr_db: float = math.nan
     combination: str | None = None
+    kind: str = "mode"
 
 
 @dataclass(frozen=True)
@@ -211,14 +228,20 @@ class Detection:
         Per-sample SNR of the fundamental at the first sample, ``10 log10(A^2 / (2 s^2))``
         (``A`` its amplitude, ``s`` the noise std); NaN (flag ``"no_mode"``) without modes.
     n_samples : int
-        Samples analysed (from ``start`` to the end of the record).
+        Samples analysed (from ``start`` to the end of the record, or to a later kick).
     dt : float
     kind : str
     iterations : int
         Levenberg-Marquardt iterations of the final fit (0 for the non-iterative methods).
     start : int
         Index of the first sample analysed: 0, or the kick after a quiet pre-trigger (flag
-        ``"pretrigger"``); amplitudes and phases are at that sample (time ``start * dt``).
+        ``"pretrigger"``), after a hammer's contact (``"forced_part"``), a clipped run
+        (``"clipped"``) or at the user's start (``"start_given"``); amplitudes and phases are
+        at that sample (time ``start * dt``).
+    quantity : str
+        ``"displacement"`` (default), ``"velocity"`` or ``"acceleration"``: what the record
+        measures; only a displacement has a static level (else NaN, flag
+        ``no_static_level``).
     """
 
     modes: tuple[Mode, ...]
@@ -234,6 +257,7 @@ class Detection:
     kind: str = "impulse"
     iterations: int = 0
     start: int = 0
+    quantity: str = "displacement"
 
     @property
     def flag_codes(self) -> tuple[str, ...]:

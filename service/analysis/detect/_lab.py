@@ -1,0 +1,499 @@
+"""Records as labs make them: the kick, repeated kicks, clipped samples, stationary lines.
+
+A lab's impulse record is rarely a free decay from its first sample: a scope records a
+pre-trigger (the structure at rest, with the mains hum and the sensor's drift on it), the
+hammer's contact forces the structure for a few ms, a second hit may follow, the sensor may
+saturate. This module finds the part of the record that is a free response (the window the
+fit reads) and the lines that are there before the kick; :mod:`._core` fits the window and
+:mod:`._modes` tells lines and drift from the modes.
+
+Everything here is a no-op on a record that starts with its free response and holds no quiet
+lead-in, no clipped run and no second kick: such records are analysed as before.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import minimum_filter1d
+
+from service.analysis.common import Flag
+from service.analysis.detect._results import FEW_PERIODS, LOW_SNR_DB, MIN_SAMPLES, Mode
+
+#: A quiet lead-in: its envelope (moving rms, lines and noise included) stays below this
+#: fraction of the response's largest envelope ...
+LEAD_QUIET = 0.35
+#: ... for at least this fraction of the record (and MIN_SAMPLES samples).
+LEAD_MIN = 0.02
+#: A later kick: the envelope jumps to at least this many times its value just before.
+KICK_JUMP = 1.6
+#: Clipping: the record's extreme held in at least this many separate runs (the rule of the
+#: recordings' ``clipped`` flag).
+CLIP_RUNS = 3
+#: A window shorter than this fraction of the record is not used (the whole is fitted).
+WINDOW_MIN = 0.2
+
+
+@dataclass
+class Window:
+    """The part of a record read as free response: ``[start, stop)``; ``lead`` the end of a
+    quiet lead-in (0: none); ``kicks`` the indices of later kicks; the flags that say so;
+    ``user_start`` whether the start is the user's; ``quiet`` whether the lead-in is quiet
+    (below 5 % of the response: no hum, no drift on it)."""
+
+    start: int = 0
+    stop: int = 0
+    lead: int = 0
+    kicks: list[int] = field(default_factory=list)
+    n_clipped: int = 0
+    flags: list[Flag] = field(default_factory=list)
+    user_start: bool = False
+    quiet: bool = False  # the lead-in is quiet (below 5 % of the response: no hum, no drift)
+
+
+def _movmean(x: np.ndarray, L: int) -> np.ndarray:
+    """Centred moving mean over ``L`` samples (shorter at the ends)."""
+    n = x.size
+    if L <= 1 or n < 2:
+        return x.copy()
+    L = min(L, n)
+    c = np.empty(n + 1)
+    c[0] = 0.0
+    np.cumsum(x, out=c[1:])
+    h = L // 2
+    i = np.arange(n)
+    lo = i - h
+    lo[: h] = 0
+    hi = i - h + L
+    hi[n - (L - h) + 1 :] = n
+    return (c[hi] - c[lo]) / (hi - lo)
+
+
+def clipped_mask(arr: np.ndarray) -> np.ndarray | None:
+    """Samples held at the record's largest or smallest value (a saturated sensor): that
+    value held in at least :data:`CLIP_RUNS` separate runs of two samples on average (a
+    decaying response reaches its extreme once); None when there are none."""
+    if arr.size < 3 * CLIP_RUNS or float(arr.max()) == float(arr.min()):
+        return None
+    mask = np.zeros(arr.size, dtype=bool)
+    for level in (float(arr.max()), float(arr.min())):
+        at = arr == level
+        runs = int(np.count_nonzero(at[1:] & ~at[:-1])) + int(at[0])
+        if runs >= CLIP_RUNS and int(at.sum()) >= 2 * runs:
+            mask |= at
+    return mask if mask.any() else None
+
+
+def _envelope(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]:
+    """The record with its slow baseline removed (``hp``: a moving mean over a tenth of the
+    record subtracted), its moving rms over a short window ``e`` (``n / 400``) and over a long
+    one ``E`` (two periods of the slowest strong line of ``hp``'s spectrum, which smooths the
+    beats of the modes), and the short window ``L``."""
+    n = arr.size
+    peak = float(np.max(np.abs(arr)))
+    x = arr / peak if peak > 0 and math.isfinite(peak) else arr  # any magnitude (scale-free)
+    x = x - float(np.mean(x))
+    hp = x - _movmean(x, max(8, n // 10))
+    L = max(8, n // 400)
+    sq = hp * hp
+    e = np.sqrt(np.maximum(_movmean(sq, L), 0.0))
+    P = np.abs(np.fft.rfft(hp)) ** 2
+    P[:4] = 0.0
+    strong = np.flatnonzero(P >= 0.05 * float(P.max())) if P.max() > 0 else np.zeros(0, int)
+    period = n / max(int(strong[0]), 4) if strong.size else n / 4
+    LL = int(min(max(2 * period, L), n // 20))
+    E = np.sqrt(np.maximum(_movmean(sq, LL), 0.0))
+    return hp, e, E, L, LL, period
+
+
+def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
+    """``(lead, i_half)``: the end of a quiet lead-in before the first kick (0: none) and the
+    first sample where the envelope passes half its largest value. The lead-in lasts at least
+    :data:`LEAD_MIN` of the record and half the dominant ``period`` (or 5 % of the record):
+    the short envelope also dips near the zero crossings of a ringing record."""
+    n = e.size
+    emax = float(e.max())
+    if not emax > 0:
+        return 0, 0
+    i_half = int(np.argmax(e > 0.5 * emax))
+    m = max(MIN_SAMPLES, int(LEAD_MIN * n), int(min(0.5 * period, 0.05 * n)))
+    end = i_half - 2 * L
+    if end < m:
+        return 0, i_half
+    level = float(np.max(e[:end]))
+    if not level < LEAD_QUIET * emax:
+        return 0, i_half
+    # the rise: from the lead's level to half the peak, much shorter than the lead (a kick;
+    # a growing or smoothly starting record rises as long as it has been quiet)
+    above = np.flatnonzero(e[:i_half] <= level)
+    rise_from = int(above[-1]) if above.size else 0
+    if not (i_half - rise_from) * 4 <= rise_from:
+        return 0, i_half
+    return rise_from, i_half
+
+
+def _onset(hp: np.ndarray, lead: int, i_half: int) -> int:
+    """The first sample after the lead-in where the record leaves the lead's band (its largest
+    deviation, hum and noise included, times 1.5)."""
+    band = 1.5 * float(np.max(np.abs(hp[:lead]))) if lead else 0.0
+    seg = np.abs(hp[lead : i_half + 1])
+    out = np.flatnonzero(seg > band)
+    return lead + int(out[0]) if out.size else lead
+
+
+def _later_kicks(E: np.ndarray, first: int, LL: int) -> list[int]:
+    """Later kicks: the long-window envelope ``E`` (window ``LL``) rises by :data:`KICK_JUMP`
+    from a local minimum after the first kick's peak within ``2 LL`` samples (a ring-down only
+    decays, a growing record grows slowly; the long window smooths the beats of the modes).
+    Returns the local minima (the foot of each rise)."""
+    n = E.size
+    out: list[int] = []
+    if first >= n - 2:
+        return out
+    j0 = first + int(np.argmax(E[first : min(n, first + n // 10)]))
+    top = float(E[j0])
+    # the lowest value over the 2 LL samples up to each sample (a trailing running minimum)
+    cm = minimum_filter1d(E, size=2 * LL + 1, mode="nearest")
+    trail = np.empty(n)
+    trail[LL:] = cm[: n - LL]
+    trail[:LL] = cm[0]
+    hit = (E > KICK_JUMP * trail) & (E > 0.1 * top)
+    hit[: min(n, j0 + 2 * LL + 1)] = False
+    hit[n - n // 20 :] = False  # the baseline's moving mean is one-sided there
+    j = 0
+    while len(out) < 8:
+        k = np.flatnonzero(hit[j:])
+        if not k.size:
+            break
+        j1 = j + int(k[0])
+        w0 = max(j0, j1 - 2 * LL)
+        out.append(w0 + int(np.argmin(E[w0 : j1 + 1])))
+        j = j1 + 2 * LL + 1
+    return out
+
+
+def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
+    """The window of free response of an impulse record (see the module docstring).
+
+    ``start`` (record time from the first sample, the user's) overrides the located kick.
+    """
+    n = arr.size
+    win = Window(0, n)
+    clip = clipped_mask(arr)
+    hp, e, E, L, LL, period = _envelope(arr)
+    lead, i_half = _lead(e, L, period)
+    if start is not None:
+        win.start = int(min(max(round(start / dt), 0), n - MIN_SAMPLES))
+        win.user_start = True
+        win.lead = win.start
+    elif lead:
+        win.lead = lead
+        win.start = _onset(hp, lead, i_half)
+    kicks = _later_kicks(E, max(win.start, i_half), LL)
+    if kicks:
+        stop = kicks[0]
+        if stop - win.start >= max(WINDOW_MIN * n, 4 * MIN_SAMPLES):
+            win.stop = stop
+            win.kicks = kicks
+            win.flags.append(
+                Flag(
+                    "repeated_kick",
+                    f"{len(kicks)} later kick(s) in the record (first at t = "
+                    f"{kicks[0] * dt:.6g} from its first sample): the first ring-down is "
+                    f"analysed (samples {win.start} to {win.stop}), the later ones are not",
+                )
+            )
+    if clip is not None:
+        win.n_clipped = int(clip.sum())
+        inside = np.flatnonzero(clip[win.start : win.stop])
+        if inside.size:
+            a, b = _unclipped(win.start + inside, win.start, win.stop, LL)
+            if b - a >= max(WINDOW_MIN * (win.stop - win.start), 4 * MIN_SAMPLES):
+                win.start, win.stop = a, b
+        win.flags.append(
+            Flag(
+                "clipped",
+                f"{win.n_clipped} sample(s) held at the record's extreme (a saturated sensor); "
+                f"left out: the fit reads samples {win.start} to {win.stop}",
+            )
+        )
+    return win
+
+
+def _unclipped(idx: np.ndarray, start: int, stop: int, LL: int) -> tuple[int, int]:
+    """The stretch of the window ``[start, stop)`` read past its clipped samples ``idx``: from
+    the end of the first cluster of clipped peaks (the kick's, gaps below ``LL``) to the next
+    clipped sample (a ring-down clips again only when kicked again); the part before the first
+    clipped sample when that comes late (a later kick clipped); else the longest stretch."""
+    gaps = np.diff(idx)
+    if idx[0] - start > 2 * LL:
+        a, b = start, int(idx[0])
+    else:
+        far = np.flatnonzero(gaps > LL)
+        end = int(idx[far[0]]) if far.size else int(idx[-1])
+        later = idx[idx > end]
+        a, b = end + 1, int(later[0]) if later.size else stop
+    if b - a >= WINDOW_MIN * (stop - start):
+        return a, b
+    edges = np.concatenate(([start - 1], idx, [stop]))
+    g = int(np.argmax(np.diff(edges) - 1))
+    return int(edges[g] + 1), int(edges[g + 1])
+
+
+def lead_lines(arr: np.ndarray, lead: int) -> np.ndarray:
+    """Angular frequencies (rad per sample) of the lines present in a quiet lead-in (mains hum
+    and its harmonics, any stationary line): the significant peaks of its Hann periodogram
+    (false-alarm 1e-3), sub-bin by a parabola on the log magnitude. Empty without a lead-in of
+    at least 64 samples."""
+    if lead < 64:
+        return np.zeros(0)
+    x = arr[:lead] - np.polyval(np.polyfit(np.arange(lead), arr[:lead], 1), np.arange(lead))
+    nfft = 1 << int(math.ceil(math.log2(4 * lead)))
+    P = np.abs(np.fft.rfft(x * np.hanning(lead), nfft)) ** 2
+    noise = float(np.median(P)) / math.log(2.0)  # chi^2_2 median -> mean
+    thr = noise * math.log(nfft / 2 / 1e-3)
+    k = np.flatnonzero((P[1:-1] > thr) & (P[1:-1] >= P[:-2]) & (P[1:-1] >= P[2:])) + 1
+    out = []
+    for i in k:
+        a, b, c = np.log(P[i - 1 : i + 2] + 1e-300)
+        den = a - 2 * b + c
+        d = 0.5 * (a - c) / den if den < 0 else 0.0
+        out.append(2 * math.pi * (i + d) / nfft)
+    # one per resolved line (the Hann main lobe is 4 bins of the unpadded lead)
+    out.sort()
+    res = 4 * math.pi * 2 / lead
+    merged: list[float] = []
+    for w in out:
+        if not merged or w - merged[-1] > res:
+            merged.append(w)
+    return np.asarray(merged[:8])
+
+
+#: A stationary line: its decay over the window ``gamma T`` below this (and not significant),
+#: while a kicked mode beside it decays by at least LINE_RING_DECAY.
+LINE_DECAY, LINE_RING_DECAY = 0.05, 0.3
+#: A line seen before the kick (or given by the user) matches a mode within this many
+#: frequency bins of the window (``2 pi / T``) or 4 standard errors.
+LINE_BINS = 1.5
+#: A slow component not kicked from rest: its value at the window's first sample above this
+#: fraction of its largest (a kicked overdamped mode starts from rest).
+DRIFT_REST = 0.25
+#: A kicked ringing mode decays by at least this many e-folds over the window.
+RING_DECAY = 0.1
+#: A transient (the hammer's contact absorbed by the fit): a mode whose envelope decays by
+#: more than this many e-folds over the window (its slow pole), slower than a ringing mode.
+TRANSIENT_DECAY = 8.0
+#: A slow oscillation of fewer than FEW_PERIODS cycles, or a slow real pole, that decays by
+#: less than this many e-folds over the window beside a ringing mode is the baseline's drift.
+DRIFT_DECAY = 0.5
+#: ... at less than this fraction of the ringing modes' decay rate (a structure's modes share
+#: their damping's order; a drift does not decay); or an oscillation that grows but stays
+#: below this fraction of the ringing mode's amplitude (past a transition the soft mode grows
+#: as a real pole, not as an oscillation).
+DRIFT_SMALL, DRIFT_RELATIVE = 0.1, 0.2
+#: A growing mode whose largest amplitude over the window stays below this fraction of the
+#: largest mode's is not evidence of instability (a fit's by-product beside a loud ringing).
+GROWTH_NEGLIGIBLE = 1e-2
+
+
+def _cycles(m: Mode, T: float) -> float:
+    return m.omega * T / (2 * math.pi)
+
+
+def _rings(m: Mode, T: float) -> bool:
+    """A kicked ringing mode: underdamped, at least FEW_PERIODS oscillations in the window,
+    above the low-SNR level, and decaying (by RING_DECAY e-folds over the window at least,
+    beyond 3 standard errors: a kicked mode decays, a line or a drift does not)."""
+    return (
+        m.regime == "underdamped"
+        and _cycles(m, T) >= FEW_PERIODS
+        and (not math.isfinite(m.snr_db) or m.snr_db >= LOW_SNR_DB)
+        and m.damping * T >= RING_DECAY
+        and m.damping > 3.0 * m.damping_std
+    )
+
+
+def _from_rest(m: Mode, T: float) -> bool:
+    """An overdamped mode whose two terms cancel at the first sample (kicked from rest)."""
+    ra, rp = m.real_amplitudes, m.real_poles
+    if ra is None or rp is None:
+        return True
+    t = np.linspace(0.0, T, 257)
+    size = float(np.max(np.abs(ra[0] * np.exp(rp[0] * t) + ra[1] * np.exp(rp[1] * t))))
+    return not size > 0 or abs(ra[0] + ra[1]) < DRIFT_REST * size
+
+
+def lines_and_drift(
+    modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int]
+) -> tuple[frozenset[int], frozenset[int], frozenset[int]]:
+    """Indices of the stationary lines, of the slow drift and of the transients among
+    ``modes`` (a window of
+    length ``T``; ``seeds`` the angular frequencies of lines seen before the kick or given
+    by the user, rad per time unit; ``exclude`` the trends already set aside).
+
+    * line: an underdamped mode at a seed's frequency (within :data:`LINE_BINS` bins or 4
+      standard errors) that does not decay appreciably (``gamma T < 10 LINE_DECAY``); or one
+      whose decay is not significant (``gamma T <`` :data:`LINE_DECAY` and within 3 standard
+      errors of 0) beside a kicked mode that decays (``gamma T >=`` :data:`LINE_RING_DECAY`):
+      a stationary line decays neither before nor after the kick;
+    * drift: beside a kicked ringing mode (:func:`_rings`) a slower component that was not
+      kicked: an overdamped one that does not start from rest (a step, a ramp or a settling
+      of the baseline) or whose slow pole decays by less than :data:`DRIFT_DECAY` e-folds
+      over the window (a step: a fundamental that slow is not resolved by the record), an
+      oscillation of less than one cycle in the window, one of less than FEW_PERIODS that
+      decays by less than :data:`DRIFT_DECAY` e-folds at a rate below :data:`DRIFT_RELATIVE`
+      of the ringing modes', or one that grows while staying below :data:`DRIFT_SMALL` of
+      the ringing (a slow wobble);
+    * transient: beside a kicked ringing mode a slower one that dies within the window
+      (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed.
+    """
+    lines: set[int] = set()
+    for k, m in enumerate(modes):
+        if k in exclude or m.regime != "underdamped" or m.omega <= 0:
+            continue
+        gT = m.damping * T
+        tol = max(LINE_BINS * 2 * math.pi / T, 4.0 * m.omega_std)
+        if seeds.size and np.min(np.abs(seeds - m.omega)) <= tol and abs(gT) < 10 * LINE_DECAY:
+            lines.add(k)
+            continue
+        still = abs(gT) < LINE_DECAY and abs(m.damping) <= 3.0 * m.damping_std
+        if still and _cycles(m, T) >= 1.0:
+            ring = any(
+                j != k and j not in exclude and mj.regime == "underdamped"
+                and mj.damping * T >= LINE_RING_DECAY and mj.damping > 5.0 * mj.damping_std
+                and mj.amplitude > m.amplitude
+                for j, mj in enumerate(modes)
+            )  # fmt: skip
+            if ring:
+                lines.add(k)
+    drift: set[int] = set()
+    rings = [
+        j for j, m in enumerate(modes)
+        if j not in exclude and j not in lines and _rings(m, T)
+    ]  # fmt: skip
+    transient: set[int] = set()
+    if rings:
+        fastest_ring = min(abs(modes[j].sigma2) for j in rings)
+        ring_decay = max(0.0, min(modes[j].damping for j in rings))
+        for k, m in enumerate(modes):
+            if k in exclude or k in lines or abs(m.sigma2) >= fastest_ring:
+                continue
+            slow = -max(m.real_poles) if m.regime == "overdamped" and m.real_poles else m.damping
+            if slow * T > TRANSIENT_DECAY:
+                transient.add(k)
+            elif m.regime == "overdamped":
+                if not _from_rest(m, T) or (
+                    0 <= slow * T < DRIFT_DECAY and slow < DRIFT_RELATIVE * ring_decay
+                ):
+                    drift.add(k)
+            elif (
+                _cycles(m, T) < 1.0
+                or (_cycles(m, T) < FEW_PERIODS and abs(m.damping) * T < DRIFT_DECAY
+                    and abs(m.damping) < DRIFT_RELATIVE * ring_decay)
+                or (m.damping < 0 and m.amplitude * math.exp(min(-m.damping * T, 700.0))
+                    < DRIFT_SMALL * max(modes[j].amplitude for j in rings))
+            ):  # fmt: skip
+                drift.add(k)
+    return frozenset(lines), frozenset(drift), frozenset(transient)
+
+
+def negligible_growth(modes: list[Mode], T: float) -> frozenset[int]:
+    """Modes that grow but stay below :data:`GROWTH_NEGLIGIBLE` of the largest amplitude over
+    the window: a by-product of the fit beside a loud ringing, not an instability."""
+    if len(modes) < 2:
+        return frozenset()
+    big = max(m.amplitude for m in modes)
+    out = set()
+    for k, m in enumerate(modes):
+        rate = -m.damping
+        if m.regime == "overdamped" and m.real_poles is not None:
+            rate = max(m.real_poles)
+        if not rate > 0:
+            continue
+        peak = m.amplitude * math.exp(min(rate * T, 700.0))
+        if peak < GROWTH_NEGLIGIBLE * big:
+            out.add(k)
+    return frozenset(out)
+
+
+#: The forced part: residual blocks whose mean square exceeds this many noise variances ...
+FORCED_LEVEL = 9.0
+#: ... confined to this head fraction of the window, the next FORCED_AFTER of it quiet.
+FORCED_HEAD, FORCED_AFTER = 0.1, 0.2
+
+
+def forced_head(residual: np.ndarray, noise_std: float) -> int:
+    """Samples to skip at the head of a window whose fit leaves a misfit confined to its
+    first samples (the hammer's contact: a forced response, not a free one); 0 when the
+    residual's head is like the rest.
+
+    The residual is cut in blocks of ``B = max(8, N / 200)`` samples; a block misfits when
+    its mean square exceeds :data:`FORCED_LEVEL` noise variances (an rms 3x the noise: for
+    white residuals a ``chi^2_B / B`` that large has a probability below 1e-9). The skip is the
+    end of the last misfitting block within the first :data:`FORCED_HEAD` of the window, when
+    the following :data:`FORCED_AFTER` of it fits (mean square below 2.5 variances): a misfit
+    spread over the record (an amplitude-dependent frequency) is not a contact."""
+    n = residual.size
+    if not (noise_std > 0 and math.isfinite(noise_std)) or n < 64:
+        return 0
+    B = max(8, n // 200)
+    nb = n // B
+    ms = np.mean((residual[: nb * B] / noise_std).reshape(nb, B) ** 2, axis=1)
+    head = max(1, int(FORCED_HEAD * nb))
+    bad = np.flatnonzero(ms[:head] > FORCED_LEVEL)
+    if not bad.size:
+        return 0
+    end = int(bad[-1]) + 1
+    after = ms[end : end + max(1, int(FORCED_AFTER * nb))]
+    if after.size == 0 or float(np.mean(after)) > 2.5:
+        return 0
+    return end * B
+
+
+def aside_flags(
+    modes: list[Mode], lines: frozenset[int], drift: frozenset[int], tiny: frozenset[int],
+    transient: frozenset[int] = frozenset(),
+) -> list[Flag]:  # fmt: skip
+    """The flags stationary_line, drift, forced_part (a transient) and negligible_growth
+    (indices into ``modes``)."""
+    out = []
+    if transient:
+        txt = ", ".join(f"modes[{k}] (sigma^2 = {modes[k].sigma2:.4g}, decay rate "
+                        f"{modes[k].damping:.4g})" for k in sorted(transient))  # fmt: skip
+        out.append(Flag(
+            "forced_part",
+            f"{len(transient)} transient(s) that die early in the record set aside: {txt}; "
+            "slower than a ringing mode but gone within the record (the hammer's contact, a "
+            "forced response the free-decay model absorbed); never the fundamental",
+        ))  # fmt: skip
+    if lines:
+        txt = ", ".join(f"modes[{k}] ({modes[k].frequency:.6g} cycles/time, amplitude "
+                        f"{modes[k].amplitude:.3g})" for k in sorted(lines))  # fmt: skip
+        out.append(Flag(
+            "stationary_line",
+            f"{len(lines)} stationary line(s) fitted and set aside: {txt}; present before the "
+            "kick, given as notch frequencies, or not decaying while the kicked modes do "
+            "(mains hum and its harmonics look like this); never the fundamental",
+        ))  # fmt: skip
+    if drift:
+        txt = ", ".join(f"modes[{k}] (sigma^2 = {modes[k].sigma2:.4g})" for k in sorted(drift))
+        out.append(Flag(
+            "drift",
+            f"{len(drift)} slow component(s) set aside as a drift of the baseline: {txt}; "
+            "slower than a kicked ringing mode and not kicked from rest (an offset that "
+            "settles, a ramp, a slow wobble of the sensor or of the equilibrium); never the "
+            "fundamental",
+        ))  # fmt: skip
+    if tiny:
+        txt = ", ".join(f"modes[{k}] (amplitude {modes[k].amplitude:.3g}, growth rate "
+                        f"{-modes[k].damping:.3g})" for k in sorted(tiny))  # fmt: skip
+        big = max(m.amplitude for m in modes)
+        out.append(Flag(
+            "negligible_growth",
+            f"{len(tiny)} growing component(s) stay below {GROWTH_NEGLIGIBLE:g} of the "
+            f"largest amplitude ({big:.3g}) over the record: {txt}; a by-product of the fit, "
+            "not read as an instability",
+        ))  # fmt: skip
+    return out
