@@ -12,7 +12,16 @@ Set aside:
   ``sigma^2 >= 0`` (no stable mode to follow: the strip grows, is driven, or the detector
   read a drift);
 * (with ``band``) a record whose fundamental lies outside the user's band ``[lo, hi]`` of
-  ``sqrt|sigma^2|`` (rad per time unit of the record) when no other mode of it lies inside.
+  ``sqrt|sigma^2|`` (rad per time unit of the record) when no other mode of it lies inside;
+* a record off the sweep's branch (:func:`_off_branch`) with no other mode on it.
+
+The branch: the records sorted by control, the fundamental's ``r = sqrt|sigma^2|`` of a record
+between two others lies (within :data:`BRANCH_TOL`) between theirs, or is no further from the
+line through them (in ``log r`` against the control) than :data:`BRANCH_TOL`; an end record does
+not go against the sweep's trend by more than that (the record nearest the transition may
+drop: the slowdown). The worst record off the branch is treated first: another mode of it on
+the branch becomes its fundamental (flag ``fundamental_reconciled``), else it is set aside;
+then the next, until every record is on the branch or :data:`MAX_OFF` of them were treated.
 """
 
 from __future__ import annotations
@@ -24,13 +33,17 @@ from dataclasses import replace
 import numpy as np
 
 from service.analysis.common import Flag
-from service.analysis.detect import Detection, Fundamental
+from service.analysis.detect import Detection, Fundamental, Mode
 from service.analysis.errors import ParameterError
 
 __all__ = ["SET_ASIDE", "reconcile", "set_aside"]
 
 #: The flag code of a record left out of a sweep (its message gives the reason and the name).
 SET_ASIDE = "record_set_aside"
+#: Relative tolerance of the branch test on ``r = sqrt|sigma^2|`` (plus 4 standard errors).
+BRANCH_TOL = 0.3
+#: At most this fraction of the records is changed or set aside by the branch test.
+MAX_OFF = 0.34
 
 
 def set_aside(det: Detection, name: str, reason: str) -> Detection:
@@ -97,11 +110,7 @@ def _in_band(sigma2: float, band: tuple[float, float]) -> bool:
 def _choose_in_band(det: Detection, band: tuple[float, float]) -> Detection | None:
     """``det`` with its fundamental moved to the slowest stable mode inside ``band`` (None when
     no mode is there). Combination tones are never chosen."""
-    idx = [
-        k for k, m in enumerate(det.modes)
-        if m.combination is None and math.isfinite(m.sigma2) and m.sigma2 < 0
-        and _in_band(m.sigma2, band)
-    ]  # fmt: skip
+    idx = [k for k, m in enumerate(det.modes) if _candidate(m) and _in_band(m.sigma2, band)]
     if not idx:
         return None
     k = min(idx, key=lambda j: abs(det.modes[j].sigma2))
@@ -151,7 +160,7 @@ def reconcile(
     ParameterError
         ``controls`` or ``names`` of the wrong length, a non-finite control, a bad ``band``.
     """
-    _, band = _validate(detections, controls, names, band)
+    c, band = _validate(detections, controls, names, band)
     out: list[Detection] = []
     for det, name in zip(detections, names, strict=True):
         if band is not None and det.fundamental is not None:
@@ -164,4 +173,118 @@ def reconcile(
             det = moved
         why = _stable(det)
         out.append(det if why is None else set_aside(det, name, why))
-    return tuple(out)
+    return tuple(_branch(out, c, names))
+
+
+def _usable(det: Detection) -> bool:
+    return not any(f.code == SET_ASIDE for f in det.flags) and det.fundamental is not None
+
+
+def _r(m: Mode) -> float:
+    return math.sqrt(abs(m.sigma2))
+
+
+def _tol(m: Mode) -> float:
+    """The branch tolerance of a mode, in ``log r``."""
+    rel = 0.5 * m.sigma2_std / abs(m.sigma2) if m.sigma2 != 0 and math.isfinite(m.sigma2_std) else 0
+    return math.log1p(BRANCH_TOL) + 4.0 * rel
+
+
+def _expected(i: int, idx: list[int], c: np.ndarray, logr: dict[int, float], trend: float
+              ) -> tuple[float, float] | None:  # fmt: skip
+    """The range of ``log r`` the branch allows at record ``idx[i]`` from its active neighbours
+    (None: an end record whose trend allows anything on its side)."""
+    k = idx[i]
+    left = [j for j in idx[:i] if c[j] < c[k]]
+    right = [j for j in idx[i + 1 :] if c[j] > c[k]]
+    if left and right:
+        a, b = left[-1], right[0]
+        t = (c[k] - c[a]) / (c[b] - c[a])
+        line = logr[a] + t * (logr[b] - logr[a])
+        lo = min(logr[a], logr[b], line)
+        hi = max(logr[a], logr[b], line)
+        return lo, hi
+    if left:  # the last record: it may drop along the trend, not go against it
+        a = left[-1]
+        return (-math.inf, logr[a]) if trend < 0 else (logr[a], math.inf)
+    if right:  # the first record
+        b = right[0]
+        return (logr[b], math.inf) if trend < 0 else (-math.inf, logr[b])
+    return None
+
+
+def _branch(dets: list[Detection], c: np.ndarray, names: Sequence[str]) -> list[Detection]:
+    """The branch test (module docstring) on the usable records of ``dets``."""
+    out = list(dets)
+    idx = [k for k in np.argsort(c, kind="stable") if _usable(out[k])]
+    budget = int(MAX_OFF * len(idx))
+    while len(idx) >= 3 and budget > 0:
+        logr = {k: math.log(_r(out[k].fundamental.mode)) for k in idx}
+        trend = _trend(idx, c, logr)
+        worst, wi, rng = 0.0, -1, (0.0, 0.0)
+        for i, k in enumerate(idx):
+            e = _expected(i, idx, c, logr, trend)
+            if e is None:
+                continue
+            tol = _tol(out[k].fundamental.mode)
+            off = max(e[0] - tol - logr[k], logr[k] - e[1] - tol, 0.0)
+            if off > worst:
+                worst, wi, rng = off, i, e
+        if wi < 0:
+            break
+        k = idx[wi]
+        out[k] = _rechoose(out[k], names[k], rng)
+        if not _usable(out[k]):
+            idx.pop(wi)
+        budget -= 1
+    return out
+
+
+def _trend(idx: list[int], c: np.ndarray, logr: dict[int, float]) -> float:
+    """The sweep's trend: the Theil-Sen slope (median of the pairwise slopes, robust to a
+    third of outliers) of ``log r`` against the control; -1 when the controls are equal."""
+    slopes = [(logr[b] - logr[a]) / (c[b] - c[a])
+              for i, a in enumerate(idx) for b in idx[i + 1 :] if c[b] != c[a]]  # fmt: skip
+    return float(np.median(slopes)) if slopes else -1.0
+
+
+def _rechoose(det: Detection, name: str, rng: tuple[float, float]) -> Detection:
+    """``det`` with its fundamental moved to another mode on the branch (``log r`` in
+    ``rng`` within the tolerance), or set aside when none is."""
+    old = det.fundamental
+    best, bk = math.inf, -1
+    mid = 0.5 * (rng[0] + rng[1]) if all(map(math.isfinite, rng)) else None
+    for k, m in enumerate(det.modes):
+        if k == old.index or not _candidate(m):
+            continue
+        lr = math.log(_r(m))
+        tol = _tol(m)
+        if rng[0] - tol <= lr <= rng[1] + tol:
+            d = abs(lr - mid) if mid is not None else abs(lr - math.log(_r(old.mode)))
+            if d < best:
+                best, bk = d, k
+    lo, hi = (math.exp(v) if math.isfinite(v) else v for v in rng)
+    if bk < 0:
+        return set_aside(
+            det, name,
+            f"its fundamental (sqrt|sigma^2| = {_r(old.mode):.6g}) is off the branch that its "
+            f"neighbours in the sweep follow (expected {lo:.6g} to {hi:.6g}) and no other mode "
+            "of it is on it",
+        )  # fmt: skip
+    m = det.modes[bk]
+    flag = Flag(
+        "fundamental_reconciled",
+        f"the fundamental is modes[{bk}] (sqrt|sigma^2| = {_r(m):.6g}), on the branch its "
+        f"neighbours in the sweep follow (expected {lo:.6g} to {hi:.6g}), not the record's "
+        f"own choice (sqrt|sigma^2| = {_r(old.mode):.6g})",
+    )
+    return replace(det, fundamental=Fundamental(m, bk), flags=(*det.flags, flag))
+
+
+def _candidate(m: Mode) -> bool:
+    """A mode that may be a fundamental: stable, finite, neither a combination tone nor set
+    aside by the detector (a line, a drift, a trend, a transient)."""
+    return (
+        m.combination is None and getattr(m, "kind", "mode") == "mode"
+        and math.isfinite(m.sigma2) and m.sigma2 < 0
+    )  # fmt: skip

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -89,3 +90,83 @@ def test_real_detections_constant_record_set_aside():
     assert out[0] == dets[0]
     (f,) = _aside(out[1])
     assert "flat.csv" in f.message
+
+
+def _sweep(mu_star: float = 1.0, n: int = 10, law: float = 0.5) -> tuple[np.ndarray, list[float]]:
+    """Controls and the soft mode's sqrt|sigma2| of a sweep: |sigma2| ~ (mu* - mu)^law."""
+    mu = np.linspace(0.0, 0.9 * mu_star, n)
+    return mu, [50.0 * (mu_star - m) ** (law / 2) for m in mu]
+
+
+@pytest.mark.parametrize("law", [0.5, 1.0])
+def test_clean_sweeps_on_their_branch_are_unchanged(law: float):
+    """A saddle-node (|sigma2| ~ sqrt) or pitchfork (~ linear) branch, a higher mode in every
+    record: nothing is moved or set aside, however steep the last steps."""
+    mu, roots = _sweep(law=law)
+    dets = [_det(r, 4.0 * 50.0) for r in roots]
+    out = reconcile(dets, mu, names=[f"r{i}" for i in range(mu.size)])
+    assert out == tuple(dets)
+
+
+def test_a_drift_read_as_the_fundamental_is_replaced_by_the_branch_mode():
+    mu, roots = _sweep()
+    dets = [_det(r, 200.0) for r in roots]
+    dets[4] = _det(0.7, roots[4], 200.0)  # a slow spurious mode first
+    out = reconcile(dets, mu, names=[f"r{i}.csv" for i in range(mu.size)])
+    f = out[4].fundamental
+    assert f.index == 1 and math.isclose(math.sqrt(-f.sigma2), roots[4])
+    assert "fundamental_reconciled" in out[4].flag_codes and not _aside(out[4])
+    assert all(out[k] == dets[k] for k in range(mu.size) if k != 4)
+
+
+def test_an_outlier_with_no_mode_on_the_branch_is_set_aside_by_name():
+    mu, roots = _sweep()
+    dets = [_det(r, 200.0) for r in roots]
+    dets[6] = _det(3.0 * roots[6])  # only a wrong mode in it
+    names = [f"rec_{i:02d}.npz" for i in range(mu.size)]
+    out = reconcile(dets, mu, names=names)
+    (f,) = _aside(out[6])
+    assert "rec_06.npz" in f.message and "branch" in f.message
+    assert sum(bool(_aside(d)) for d in out) == 1
+
+
+def test_the_last_record_may_drop_but_not_jump_to_a_higher_mode():
+    mu, roots = _sweep()
+    dets = [_det(r, 200.0) for r in roots]
+    drop = [*dets[:-1], _det(0.2 * roots[-2], 200.0)]  # a steep slowdown at the end: kept
+    assert reconcile(drop, mu, names=[str(i) for i in range(mu.size)]) == tuple(drop)
+    jump = [*dets[:-1], _det(200.0)]  # the soft mode missed, a higher mode taken: set aside
+    out = reconcile(jump, mu, names=[str(i) for i in range(mu.size)])
+    assert _aside(out[-1]) and not any(_aside(d) for d in out[:-1])
+
+
+def test_one_outlier_does_not_move_the_prediction():
+    """The issue's rule: a single outlier record must not move the answer outside the interval
+    it has without it. Saddle-node sweep with noise; the outlier is set aside, and the
+    prediction from the kept records equals the one without the outlier."""
+    from service.analysis.predict import predict
+
+    rng = np.random.default_rng(7)
+    mu = np.linspace(0.0, 0.85, 12)
+    s2 = -2500.0 * np.sqrt(1.0 - mu) * (1 + 0.002 * rng.standard_normal(mu.size))
+    std = 0.002 * np.abs(s2)
+
+    def det(s: float, sd: float) -> Detection:
+        m = replace(_mode(math.sqrt(-s)), sigma2=s, sigma2_std=sd)
+        return Detection((m,), Fundamental(m, 0), 0.0, 1e-3, (), "varpro", 1e-3, 40.0)
+
+    dets = [det(s, sd) for s, sd in zip(s2, std, strict=True)]
+    bad = dets.copy()
+    bad[7] = det(-0.25 * 2500.0, 1.0)  # a slow spurious fundamental, nothing else
+    out = reconcile(bad, mu, names=[f"r{i}" for i in range(mu.size)])
+    keep = [k for k, d in enumerate(out) if not _aside(d)]
+    assert keep == [k for k in range(mu.size) if k != 7]
+    ref = predict(np.delete(mu, 7), np.delete(s2, 7), sigma2_std=np.delete(std, 7))
+    got = predict(mu[keep], np.array([out[k].fundamental.sigma2 for k in keep]),
+                  sigma2_std=np.array([out[k].fundamental.sigma2_std for k in keep]))  # fmt: skip
+    lo, hi = ref.mu_star_interval
+    assert lo <= got.mu_star <= hi and abs(ref.mu_star - 1.0) < 0.05
+    # without the branch test the outlier moves the answer (the test can fail)
+    raw = predict(mu, np.array([d.fundamental.sigma2 for d in bad]),
+                  sigma2_std=np.array([d.fundamental.sigma2_std for d in bad]))  # fmt: skip
+    assert not lo <= raw.mu_star <= hi
