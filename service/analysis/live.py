@@ -19,7 +19,7 @@ updates and the HTTP door live in ``service.api``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +33,7 @@ from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement
 from service.analysis.pipeline import WarnResult
 from service.analysis.predict import Prediction
+from service.analysis.reconcile import set_aside
 from service.analysis.sweep_policy import (
     SIGMA4_MIN_T_RATIO,
     PolicyUpdate,
@@ -134,8 +135,9 @@ class LiveUpdate:
 
 # ----------------------------------------------------------------------------------- steps
 def measure(
-    w: Any, *, dt: float, control: float, method: str = "auto"
-) -> tuple[Detection, Measurement | None, tuple[Flag, ...]]:
+    w: Any, *, dt: float, control: float, method: str = "auto",
+    options: Mapping[str, Any] | None = None, name: str | None = None,
+) -> tuple[Detection, Measurement | None, tuple[Flag, ...]]:  # fmt: skip
     """Detect one record and reduce it to the sweep's measurement
     (:func:`service.analysis.sweep_policy.reduce_detection`).
 
@@ -149,6 +151,11 @@ def measure(
         Control value of the record (user unit), finite.
     method : str
         Detector method.
+    options : mapping, optional
+        The detector's lab options (``quantity``, ``start``, ``notch``) and ``exclude``
+        (True: the user leaves the record out; it is set aside with that reason).
+    name : str, optional
+        The record's name (in the set-aside reason).
 
     Returns
     -------
@@ -160,7 +167,11 @@ def measure(
     if not math.isfinite(c):
         raise ParameterError("control", control, f"control must be finite, got {control!r}")
     arr = np.asarray(w, dtype=float)
-    det = detect(arr, dt=float(dt), method=method)
+    opts = dict(options or {})
+    exclude = bool(opts.pop("exclude", False))
+    det = detect(arr, dt=float(dt), method=method, **opts)
+    if exclude:
+        det = set_aside(det, name or f"at control {c:.6g}", "excluded by the user")
     m, flags = sweep_policy.reduce_detection(det, c, (arr.size - 1) * float(dt), float(dt))
     return det, m, flags
 

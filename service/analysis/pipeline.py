@@ -19,8 +19,9 @@ same analysis for records a lab uploads (any time unit, any control unit).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, paper_rule
+from service.analysis.reconcile import set_aside
 from service.analysis.sampling import PERIODS
 from service.analysis.sweep_policy import (
     PolicyUpdate,
@@ -259,6 +261,7 @@ def sweep_from_signals(
     method: str = "auto",
     progress: Progress | None = None,
     plan: SweepPlan | None = None,
+    options: Sequence[Mapping[str, Any] | None] | None = None,
 ) -> WarnResult:
     """Detect every recorded signal, then classify and predict (the lab-data path).
 
@@ -274,8 +277,18 @@ def sweep_from_signals(
     method : str
         Detector method.
     plan : SweepPlan, optional
-        The sweep policy's options (the lab's step, margin, control resolution).
+        The sweep policy's options (the lab's step, margin, control resolution, the
+        fundamental's band).
+    options : sequence of mapping, optional
+        Per record (the order of ``records``), the detector's lab options (``quantity``,
+        ``start``, ``notch``) and ``exclude`` (True: the user leaves the record out; it is
+        listed as set aside with that reason).
     """
+    if options is not None and len(options) != len(records):
+        raise ParameterError(
+            "options", len(options), f"options must hold one entry per record ({len(records)}), "
+            f"got {len(options)}"
+        )  # fmt: skip
     if len(records) < 3:
         raise ParameterError(
             "records", len(records), f"records must hold at least 3 signals, got {len(records)}"
@@ -288,11 +301,15 @@ def sweep_from_signals(
         w, dt, control = records[j]
         w = np.asarray(w, dtype=float)
         name = names[j] if names is not None else None
+        opts = dict((options[j] or {}) if options is not None else {})
+        exclude = bool(opts.pop("exclude", False))
         try:
-            det = detect(w, dt=float(dt), method=method)
+            det = detect(w, dt=float(dt), method=method, **opts)
         except ParameterError as exc:  # say which record
             label = f"{name} (control {control!r})" if name else f"at control {control!r}"
             raise ParameterError(exc.parameter, exc.value, f"record {label}: {exc}") from None
+        if exclude:
+            det = set_aside(det, name or f"at control {control!r}", "excluded by the user")
         dets.append((det, float(control), name))
         m, rflags = reduce_detection(det, float(control), (w.size - 1) * float(dt), float(dt))
         policy.append(record_of(control, det, m, rflags, name=name))

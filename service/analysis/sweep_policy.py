@@ -100,6 +100,10 @@ class SweepPlan:
         Detector method.
     level : float
         Confidence level of the interval.
+    band : (lo, hi) or None
+        The user's band for the fundamental's ``sqrt|sigma^2|`` (rad per time unit of the
+        records): each record's fundamental is its slowest mode inside
+        (:func:`service.analysis.reconcile.reconcile`).
     """
 
     step: float | None = None
@@ -110,8 +114,14 @@ class SweepPlan:
     max_step_growth: float | None = None
     method: str = "auto"
     level: float = 0.95
+    band: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        if self.band is not None:
+            lo, hi = (float(v) for v in self.band)
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+                msg = f"band must be finite 0 <= lo < hi, got {self.band!r}"
+                raise ParameterError("band", list(self.band), msg)
         for name in ("step", "target_width", "control_resolution"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
@@ -259,7 +269,9 @@ def _label(r: SweepRecord) -> str:
     return f"{r.name} ({at})" if r.name else f"the record at {at}"
 
 
-def _reconciled(records: Sequence[SweepRecord]) -> list[SweepRecord]:
+def _reconciled(
+    records: Sequence[SweepRecord], band: tuple[float, float] | None = None
+) -> list[SweepRecord]:
     """The records with each fundamental chosen across the sweep
     (:func:`service.analysis.reconcile.reconcile`), when it exists and every record kept its
     detection; else the records as they are."""
@@ -273,6 +285,7 @@ def _reconciled(records: Sequence[SweepRecord]) -> list[SweepRecord]:
         [r.detection for r in records],
         np.array([r.control for r in records], dtype=float),
         names=[r.name or f"#{r.seq}" for r in records],
+        band=band,
     )
     out = []
     for r, d in zip(records, dets, strict=True):
@@ -367,13 +380,16 @@ def _predict(
     col = {k: np.array([getattr(m, k) for m in ms])
            for k in ("mu", "sigma2", "sigma2_std", "w_static", "w_static_std")}  # fmt: skip
     s2_std = col["sigma2_std"]
+    # records of a velocity or an acceleration have no static level (NaN): the prediction
+    # then reads the frequencies alone
+    static = bool(np.all(np.isfinite(col["w_static"])))
     try:
         pred = predict(
             col["mu"],
             col["sigma2"],
             sigma2_std=s2_std if np.all(np.isfinite(s2_std) & (s2_std > 0)) else None,
-            w_static=col["w_static"],
-            w_static_std=np.maximum(col["w_static_std"], 1e-15),
+            w_static=col["w_static"] if static else None,
+            w_static_std=np.maximum(col["w_static_std"], 1e-15) if static else None,
             level=level,
         )
     except ParameterError:
@@ -516,7 +532,7 @@ def evaluate(
         instead of flagging ``predictor_failed`` (a live sweep goes on).
     """
     plan = plan or SweepPlan()
-    recs = _reconciled(records)
+    recs = _reconciled(records, plan.band)
     usable, aside, past, beyond = _sort_out(recs)
     ms = fit_points(usable)
     t0, c0 = time.perf_counter(), time.process_time()

@@ -145,7 +145,8 @@ def _detect(args: argparse.Namespace) -> int:
 
     rec = read_record(args.file, dt=args.dt, resample=args.resample, reader=_reader_options(args))
     try:
-        det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind)
+        det = detect(rec.w, dt=rec.dt, method=args.method, kind=args.kind,
+                     **_lab_options(args, rec.quantity))  # fmt: skip
     except ValueError as exc:
         err = error_from(exc, f"FILE {args.file!r}")
         if err is None:
@@ -325,9 +326,50 @@ def _warn_text(doc: Any) -> str:
     return "\n".join(lines)
 
 
+_TRUE = ("1", "true", "yes", "y", "x")
+
+
+def _manifest_options(
+    table: Any, args: argparse.Namespace, recs: list, names: list[str], factors: Any
+) -> list[dict[str, Any]]:
+    """Per record the detector's options: the command line's (``--quantity``, ``--notch``,
+    ``--exclude``) and the manifest's optional columns ``quantity``, ``start`` (time from the
+    record's first sample, its own unit), ``notch`` (frequencies separated by spaces or ``;``)
+    and ``exclude`` (1/true/yes: leave the record out, listed as set aside)."""
+    cols = {k: table.find(k) for k in ("quantity", "start", "notch", "exclude")}
+    unknown = set(args.exclude or ()) - set(names)
+    if unknown:
+        some = ", ".join(names[:5]) + ("..." if len(names) > 5 else "")
+        raise bad("--exclude", sorted(unknown)[0],
+                  f"names no record of the manifest (its records: {some})")  # fmt: skip
+    out = []
+    for k, rec in enumerate(recs):
+        cell = {c: table.cells[col][k].strip() for c, col in cols.items() if col}
+        q = cell.get("quantity") or args.quantity or rec.quantity
+        if q and q not in ("displacement", "velocity", "acceleration"):
+            raise bad("MANIFEST", args.manifest, f"quantity {q!r} of {names[k]}: expected "
+                      "displacement, velocity or acceleration")  # fmt: skip
+        opts: dict[str, Any] = {"quantity": q} if q else {}
+        try:
+            if cell.get("start"):
+                opts["start"] = float(cell["start"]) * float(factors[k])
+            notch = cell.get("notch")
+            if notch:
+                opts["notch"] = _freqs(notch.replace(";", " "))
+            elif args.notch:
+                opts["notch"] = args.notch
+        except (ValueError, argparse.ArgumentTypeError) as exc:
+            raise bad("MANIFEST", args.manifest, f"{names[k]}: {exc}") from None
+        if cell.get("exclude", "").lower() in _TRUE or names[k] in (args.exclude or ()):
+            opts["exclude"] = True
+        out.append(opts)
+    return out
+
+
 def _sweep(args: argparse.Namespace) -> int:
     from service import convert
     from service.analysis.pipeline import sweep_from_signals
+    from service.analysis.sweep_policy import SweepPlan
     from service.recordings import RecordingError, common_time_base, manifest_columns
 
     table = _read_table(args.manifest, "MANIFEST")
@@ -358,13 +400,13 @@ def _sweep(args: argparse.Namespace) -> int:
         assert err is not None
         raise err from None
     records = [(r.w, r.dt * f, c) for (r, c), f in zip(recs, factors)]
+    # a start in a record's own time unit is brought to the common one with its samples
+    options = _manifest_options(table, args, [r for r, _ in recs], names, factors)
     cb = _progress_printer(not args.no_progress)
     try:
-        from service.analysis.sweep_policy import SweepPlan
-
-        plan = SweepPlan(step=args.step, margin=args.margin,
+        plan = SweepPlan(step=args.step, margin=args.margin, band=args.band,
                          control_resolution=args.control_resolution)  # fmt: skip
-        res = sweep_from_signals(records, names=names, progress=cb, plan=plan)
+        res = sweep_from_signals(records, names=names, progress=cb, plan=plan, options=options)
     except ValueError as exc:
         err = error_from(exc, f"MANIFEST {args.manifest!r}")
         raise err or CliError(f"MANIFEST {args.manifest!r}: {exc}", field="MANIFEST") from None
@@ -487,6 +529,50 @@ def _reader_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--channel", type=int, default=None, help="WAV channel (default 0)")
 
 
+def _freqs(text: str) -> list[float]:
+    """``--notch 50,150,250``: frequencies (comma- or space-separated)."""
+    try:
+        out = [float(x) for x in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected numbers like 50,150") from None
+    if not out or not all(math.isfinite(f) and f > 0 for f in out):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected positive frequencies")
+    return out
+
+
+def _band(text: str) -> tuple[float, float]:
+    """``--band LO,HI``: the fundamental's band of sqrt|sigma2| (rad per time unit)."""
+    f = _freqs(text)
+    if len(f) != 2 or not f[0] < f[1]:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected LO,HI with 0 < LO < HI")
+    return f[0], f[1]
+
+
+def _lab_options(args: argparse.Namespace, quantity: str | None = None) -> dict[str, Any]:
+    """The detector's lab options from the command line: ``--quantity`` (default: the
+    record's value unit says), ``--start``, ``--notch``."""
+    opts = {"quantity": args.quantity or quantity,
+            "start": getattr(args, "start", None), "notch": args.notch}  # fmt: skip
+    return {k: v for k, v in opts.items() if v is not None}
+
+
+def _lab_flags(p: argparse.ArgumentParser, *, start: bool = True) -> None:
+    p.add_argument("--quantity", default=None,
+                   choices=("displacement", "velocity", "acceleration"),
+                   help="what the record measures (default: its value unit says: mm, mm/s, "
+                   "m/s2, g; else a displacement); the static level only from a "
+                   "displacement")  # fmt: skip
+    if start:
+        p.add_argument("--start", type=finite, default=None, metavar="T",
+                       help="time (from the first sample, the record's time unit) where the "
+                       "free response starts (default: the kick is located)")  # fmt: skip
+    p.add_argument("--notch", type=_freqs, default=None, metavar="F[,F...]",
+                   help="frequencies of stationary lines (cycles per time unit, e.g. "
+                   "50,150 Hz of mains hum): fitted as lines, never the fundamental "
+                   "(default: lines present before the kick or not decaying are "
+                   "found)")  # fmt: skip
+
+
 def _resample_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resample", action="store_true",
                    help="interpolate non-uniform sample times onto a uniform grid (else an "
@@ -505,6 +591,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "error for a file that has them")  # fmt: skip
     _resample_flag(p)
     _reader_flags(p)
+    _lab_flags(p)
     add_json_flag(p)
     add_plot_flag(p, "the record, the detector's fit over it and the residual")
     p.set_defaults(func=_detect)
@@ -556,8 +643,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plot_flag(p, "T(mu), the T^(-1/a) collapse with mu* and its interval")
     p.set_defaults(func=_warn)
 
-    p = sub.add_parser("sweep", help="detect recorded files then predict "
-                       "(header path,control[,dt])")  # fmt: skip
+    p = sub.add_parser("sweep", help="detect recorded files then predict (header path,control"
+                       "[,dt][,quantity][,start][,notch][,exclude])")  # fmt: skip
     p.add_argument("manifest", metavar="MANIFEST")
     p.add_argument("--control-column", default=None, metavar="NAME",
                    help="the manifest's control column when it is not named control")  # fmt: skip
@@ -566,6 +653,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "overrides)")  # fmt: skip
     _resample_flag(p)
     _reader_flags(p)
+    _lab_flags(p, start=False)
+    p.add_argument("--band", type=_band, default=None, metavar="LO,HI",
+                   help="the fundamental's band of sqrt|sigma2| (rad per time unit): each "
+                   "record's fundamental is its slowest mode inside, a record with none is "
+                   "set aside (default: the mode that softens continuously across the "
+                   "sweep)")  # fmt: skip
+    p.add_argument("--exclude", action="append", default=None, metavar="NAME",
+                   help="leave this record (its manifest path) out; listed as set aside "
+                   "(repeatable; or a manifest column 'exclude')")  # fmt: skip
     p.add_argument("--no-progress", action="store_true")
     add_json_flag(p)
     add_plot_flag(p, "T(control), the T^(-1/a) collapse with the transition and its interval")

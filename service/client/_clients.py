@@ -172,12 +172,20 @@ class Api(AtlasOperations):
         t: Any = None,
         dt: float | None = None,
         method: str = "auto",
+        quantity: str | None = None,
+        start: float | None = None,
+        notch: Any = None,
     ) -> Flow[Detection]:
         """``POST /v1/detections``: a stored signal's id, or ``w`` with ``t`` or ``dt``.
 
-        Returns the typed document: ``det.fundamental.sigma2``, ``det.modes[0].omega``...
+        ``quantity`` ("displacement", "velocity", "acceleration"; default: the stored
+        signal's unit says, else a displacement), ``start`` (time where the free response
+        starts; default: located) and ``notch`` (frequencies of stationary lines, e.g. mains
+        hum; default: found) are the lab options. Returns the typed document:
+        ``det.fundamental.sigma2``, ``det.modes[0].omega``...
         """
-        return (yield core.detect(signal_id, w=w, t=t, dt=dt, method=method))
+        return (yield core.detect(signal_id, w=w, t=t, dt=dt, method=method, quantity=quantity,
+                                  start=start, notch=notch))  # fmt: skip
 
     @operation
     def predict(
@@ -222,15 +230,22 @@ class Api(AtlasOperations):
         name: str | None = None,
         control: str | None = None,
         unit: str | None = None,
+        band: tuple[float, float] | None = None,
+        notch: Any = None,
+        exclude: Iterable[str] = (),
     ) -> Flow[Sweep]:
         """``POST /v1/sweeps``: ``[(signal_id, control_value), ...]`` or ``simulate={...}``;
         ``control``/``unit``: the name and unit of the control the signals were recorded along
-        (recorded sweeps only)."""
+        (recorded sweeps only). Detector options (recorded sweeps): ``band`` (the
+        fundamental's sqrt|sigma2| range), ``notch`` (line frequencies), ``exclude`` (signal
+        ids left out, listed as set aside); per record, a measurement may be a mapping with
+        ``quantity``, ``start``, ``notch``, ``exclude``."""
         return (
             yield core.create_sweep(
-                measurements, simulate=simulate, name=name, control=control, unit=unit
+                measurements, simulate=simulate, name=name, control=control, unit=unit,
+                band=band, notch=notch, exclude=exclude,
             )
-        )
+        )  # fmt: skip
 
     @operation
     def get_sweep(self, sweep_id: str) -> Flow[Sweep]:

@@ -304,11 +304,16 @@ def detect(
     t: Any = None,
     dt: float | None = None,
     method: str = "auto",
+    quantity: str | None = None,
+    start: float | None = None,
+    notch: Any = None,
 ) -> Call:
     doc: dict[str, Any] = {"method": method}
     if signal_id is not None:
         doc["signal_id"] = signal_id
-    for k, v in (("w", as_list(w, "w")), ("t", as_list(t, "t")), ("dt", dt)):
+    lab = (("quantity", quantity), ("start", start),
+           ("notch", _column_or_list(notch, "notch")))  # fmt: skip
+    for k, v in (("w", as_list(w, "w")), ("t", as_list(t, "t")), ("dt", dt), *lab):
         if v is not None:
             doc[k] = v
     return Call(
@@ -318,6 +323,13 @@ def detect(
         headers=dict(JSON_HEADERS),
         parse=_model(Detection),
     )
+
+
+def _column_or_list(values: Any, name: str) -> list[float] | None:
+    """A column as a list; a single number as a list of one (``notch=50``)."""
+    if isinstance(values, (int, float)) or getattr(values, "ndim", None) == 0:
+        return [float(values)]
+    return as_list(values, name)
 
 
 def _column_or_number(values: Any, name: str) -> Any:
@@ -389,10 +401,21 @@ def create_sweep(
     name: str | None = None,
     control: str | None = None,
     unit: str | None = None,
+    band: tuple[float, float] | None = None,
+    notch: Any = None,
+    exclude: Iterable[str] = (),
 ) -> Call:
     doc: dict[str, Any] = {}
     if measurements is not None:
         doc["measurements"] = [_measurement(m) for m in measurements]
+        out = set(exclude)
+        for m in doc["measurements"]:
+            if m["signal_id"] in out:
+                m["exclude"] = True
+    if band is not None:
+        doc["band"] = [float(band[0]), float(band[1])]
+    if notch is not None:
+        doc["notch"] = _column_or_list(notch, "notch")
     if simulate is not None:
         doc["simulate"] = {k: v for k, v in simulate.items() if v is not None}
     if name is not None:

@@ -80,6 +80,24 @@ class LiveRecordIn(BaseModel):
     t0: float | None = None
     unit: str | None = Field(default=None, max_length=100)
     name: str | None = Field(default=None, max_length=500)
+    quantity: Literal["displacement", "velocity", "acceleration"] | None = Field(
+        default=None, description="What the record measures (default: the stored signal's "
+        "value unit says, else a displacement).")  # fmt: skip
+    start: StrictFloat | None = Field(
+        default=None, ge=0, description="Time from the record's first sample where its free "
+        "response starts (default: the kick is located).")  # fmt: skip
+    notch: list[StrictFloat] | None = Field(
+        default=None, max_length=16, description="Frequencies of stationary lines (cycles per "
+        "time unit; default: found).")  # fmt: skip
+    exclude: bool = Field(
+        default=False, description="Leave this record out of the sweep (listed as set aside, "
+        "'excluded by the user').")  # fmt: skip
+
+    def detect_options(self) -> dict[str, Any]:
+        """The detector's options of this record (None ones left out)."""
+        opts = {"quantity": self.quantity, "start": self.start, "notch": self.notch,
+                "exclude": self.exclude or None}  # fmt: skip
+        return {k: v for k, v in opts.items() if v is not None}
 
 
 class LiveUpdate(BaseModel):

@@ -7,7 +7,14 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from service.schemas.analysis import Alarm, Classification, Measurement, Prediction, SweepResult
+from service.schemas.analysis import (
+    Alarm,
+    Classification,
+    Measurement,
+    Prediction,
+    Quantity,
+    SweepResult,
+)
 from service.schemas.jobs import Job
 from service.schemas.live import LiveControl, LiveOptions
 from service.schemas.simulations import Actuation, Model
@@ -20,6 +27,24 @@ class SweepMeasurement(BaseModel):
 
     signal_id: str
     control_value: float | None = None
+    quantity: Quantity | None = Field(
+        default=None, description="What the record measures (default: its value unit says, "
+        "else a displacement); the static level only from a displacement.")  # fmt: skip
+    start: float | None = Field(
+        default=None, ge=0, description="Time from the record's first sample where its free "
+        "response starts (default: the kick is located).")  # fmt: skip
+    notch: list[float] | None = Field(
+        default=None, max_length=16, description="Frequencies of stationary lines in this record "
+        "(cycles per time unit; default: the sweep's notch, else found).")  # fmt: skip
+    exclude: bool = Field(
+        default=False, description="Leave this record out (listed as set aside, 'excluded by "
+        "the user').")  # fmt: skip
+
+    def detect_options(self, notch: list[float] | None = None) -> dict[str, Any]:
+        """The detector's options of this record (``notch``: the sweep's, when it has none)."""
+        opts = {"quantity": self.quantity, "start": self.start, "notch": self.notch or notch,
+                "exclude": self.exclude or None}  # fmt: skip
+        return {k: v for k, v in opts.items() if v is not None}
 
 
 class SimulatedSweep(BaseModel):
@@ -57,6 +82,18 @@ class SweepRequest(BaseModel):
     live: LiveOptions | None = Field(
         default=None, description="Live sweeps only (refused in batch mode): margin, step, budget."
     )
+    band: tuple[float, float] | None = Field(
+        default=None,
+        description="The fundamental's band of sqrt|sigma2| (rad per time unit of the records): "
+        "each record's fundamental is its slowest mode inside; a record with none is set "
+        "aside. Default: the mode that softens continuously across the sweep.",
+    )
+    notch: list[float] | None = Field(
+        default=None, max_length=16,
+        description="Frequencies of stationary lines (cycles per time unit, e.g. 50 Hz mains "
+        "and its harmonics) in every record: fitted as lines, never the fundamental. Default: "
+        "lines present before the kick or not decaying are found.",
+    )  # fmt: skip
 
 
 class Sweep(BaseModel):

@@ -64,8 +64,12 @@ async def record_from_json(request: Request, state: AppState, caller: Caller) ->
         value = doc.control if doc.control is not None else sig.row.control_value
         if value is None:
             raise invalid("control", None, "is required: the signal has no control value")
+        opts = doc.detect_options()
+        q = recordings.quantity_of(sig.row.value_unit)
+        if q is not None:
+            opts.setdefault("quantity", q)
         return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
-                "signal_id": sig.row.id, "unit": sig.row.unit,
+                "signal_id": sig.row.id, "unit": sig.row.unit, "options": opts,
                 "control_unit": sig.row.control_unit if doc.control is None else None}  # fmt: skip
     if doc.w is None:
         raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
@@ -82,7 +86,8 @@ async def record_from_json(request: Request, state: AppState, caller: Caller) ->
         rec = await to_thread.run_sync(read)
     except recordings.RecordingError as exc:
         raise _recording_problem(exc) from None
-    return {"recording": rec, "control": control, "name": doc.name}
+    return {"recording": rec, "control": control, "name": doc.name,
+            "options": doc.detect_options()}  # fmt: skip
 
 
 def _form_text(form: Any, name: str, limit: int = 200) -> str | None:

@@ -73,7 +73,8 @@ async def create_detection(request: Request, state: StateDep, caller: CallerDep)
         rec = await to_thread.run_sync(_clean, req, s.max_samples, s.uniform_rtol)
         w, dt, notes = rec.w, rec.dt, [convert.plain(f) for f in rec.flags]
         units = (None, None)
-    return await state.run(detection_doc, w, dt, req.method, notes, *units)
+    return await state.run(detection_doc, w, dt, req.method, notes, *units,
+                           req.detect_options())  # fmt: skip
 
 
 def _clean(req: DetectionRequest, max_samples: int, uniform_rtol: float) -> recordings.Recording:
@@ -105,7 +106,7 @@ def inline_detection(body: bytes, max_samples: int, uniform_rtol: float) -> tupl
         return "request", req
     rec = _clean(req, max_samples, uniform_rtol)
     with as_problems("w"):
-        det = detect(rec.w, dt=float(rec.dt), method=req.method)
+        det = detect(rec.w, dt=float(rec.dt), method=req.method, **req.detect_options())
     doc = convert.detection(det, extra_flags=[convert.plain(f) for f in rec.flags])
     return "json", doc.model_dump_json().encode()
 
@@ -117,12 +118,17 @@ def detection_doc(
     notes: list[dict[str, str]] | None = None,
     time_unit: str | None = None,
     value_unit: str | None = None,
+    options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """``detect(w, dt=dt, method=method)`` as the wire document (runs in the analysis pool);
-    ``notes``: the reader's flags about the record (rounded timestamps...), listed first;
-    ``time_unit``, ``value_unit``: the stored signal's units (the document says them)."""
+    """``detect(w, dt=dt, method=method, **options)`` as the wire document (runs in the
+    analysis pool); ``notes``: the reader's flags about the record (rounded timestamps...),
+    listed first; ``time_unit``, ``value_unit``: the stored signal's units (the document says
+    them; the quantity defaults to the one ``value_unit`` names); ``options``: the lab options
+    (quantity, start, notch)."""
+    opts = dict(options or {})
+    opts.setdefault("quantity", recordings.quantity_of(value_unit))
     with as_problems("w"):
-        det = detect(np.asarray(w, dtype=np.float64), dt=float(dt), method=method)
+        det = detect(np.asarray(w, dtype=np.float64), dt=float(dt), method=method, **opts)
     return convert.detection(
         det, extra_flags=notes or (), time_unit=time_unit, value_unit=value_unit
     ).model_dump(mode="json")

@@ -371,7 +371,8 @@ def _update(
     if measured is None:
         t = _clock()
         measured = numerics.measure(item["w"], dt=item["dt"], control=control,
-                                    method=plan.method)  # fmt: skip
+                                    method=plan.method, options=item.get("options"),
+                                    name=item.get("name") or item.get("signal_id"))  # fmt: skip
         timing["detect"] = _since(t)
     det, meas, dflags = measured
     split: dict[str, float] = {}

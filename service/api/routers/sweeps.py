@@ -11,6 +11,7 @@ from fastapi.responses import JSONResponse
 
 from service import convert, recordings
 from service.analysis.pipeline import sweep_from_signals, warn
+from service.analysis.sweep_policy import SweepPlan
 from service.api import limits, plots
 from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
@@ -33,6 +34,10 @@ def _check_batch_fields(req: SweepRequest) -> None:
         raise invalid("live", req.live.model_dump(mode="json", exclude_unset=True),
                       "are the options of a live sweep: send \"mode\": \"live\" for an open "
                       "sweep fed record by record, or leave 'live' out")  # fmt: skip
+    for name in ("band", "notch"):
+        if getattr(req, name) is not None and req.simulate is not None:
+            raise invalid(name, getattr(req, name), "is a detector option of recorded signals: "
+                          "a simulated sweep has none, leave it out")  # fmt: skip
     if req.control is not None and req.simulate is not None:
         raise invalid("control", req.control.model_dump(mode="json", exclude_unset=True),
                       "names a recorded control: a simulated sweep steps the simulator's "
@@ -104,7 +109,8 @@ async def _resolve_measurements(
             )
         if not math.isfinite(value):
             raise invalid(f"measurements[{k}].control_value", value, "must be finite")
-        out.append({"signal_id": m.signal_id, "control_value": float(value)})
+        out.append({"signal_id": m.signal_id, "control_value": float(value),
+                    "options": m.detect_options(req.notch)})  # fmt: skip
     _check_units(req, rows)
     # records sharing a control value are averaged by the predictor: they count once
     distinct = len({m["control_value"] for m in out})
@@ -146,6 +152,11 @@ async def create_sweep(req: SweepRequest, state: StateDep, caller: CallerDep) ->
         kind = "sweep-signals"
         resolved = await _resolve_measurements(req, state, caller.scope)
         params: dict[str, Any] = {"measurements": resolved}
+        if req.band is not None:
+            lo, hi = req.band
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
+                raise invalid("band", list(req.band), "must be two finite numbers 0 <= lo < hi")
+            params["band"] = [lo, hi]
     else:
         kind = "sweep-simulated"
         params = req.simulate.model_dump(exclude_none=True)
@@ -282,6 +293,7 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     """A sweep of stored recordings: detect each, then classify and predict."""
     params, progress, store = ctx.params, ctx.progress, ctx.store
     items, notes, units = [], {}, []
+    quantities: list[str | None] = []
     for k, m in enumerate(params["measurements"]):
         sig = store.get_signal(m["signal_id"])
         if sig is None:
@@ -293,6 +305,7 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
             )
         items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
         units.append(sig.row.unit)
+        quantities.append(recordings.quantity_of(sig.row.value_unit))
         notes[m["signal_id"]] = (sig.row.meta or {}).get("recording_flags") or []
         progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
     progress(0.1, f"analysing {len(items)} signals")
@@ -303,10 +316,21 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     except recordings.RecordingError as exc:
         raise ApiProblem(422, str(exc), field="measurements", value=exc.value) from None
     items = [(w, dt * f, c) for (w, dt, c), f in zip(items, factors)]
+    # the lab options; a start in a signal's own time unit follows it to the common one
+    options = []
+    for m, f, q in zip(params["measurements"], factors, quantities, strict=True):
+        opts = dict(m.get("options") or {})
+        if "start" in opts:
+            opts["start"] = float(opts["start"]) * f
+        if q is not None:
+            opts.setdefault("quantity", q)
+        options.append(opts)
+    band = params.get("band")
     with as_problems("measurements"):
         res = sweep_from_signals(
-            items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg)
-        )
+            items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg),
+            options=options, plan=SweepPlan(band=tuple(band) if band else None),
+        )  # fmt: skip
     return convert.sweep_result(res, record_flags=notes, time_unit=time_unit).model_dump(
         mode="json"
     )
