@@ -359,7 +359,8 @@ def detect(
     # its slope removed (the drift's ramp); a quiet lead-in alone is not
     detrend = win is not None and kind == "impulse" and not win.quiet
     rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
-    if not detrend and kind == "impulse" and _suspect(out.modes, arr.size * dt):
+    lab = kind == "impulse" and (win is not None or resolved == "varpro")
+    if not detrend and lab and _suspect(out.modes, arr.size * dt):
         # a growing or slow fundamental that is not kicked beside a ringing mode: refit with
         # the record's slope (a drift of the baseline) taken out, and use that fit
         detrend = True
@@ -377,7 +378,7 @@ def detect(
                 f"analysed from sample {first}",
             )]  # fmt: skip
     rec.flags[:0] = pre
-    return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt)
+    return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab)
 
 
 def _suspect(modes: list, T: float) -> bool:
@@ -434,16 +435,20 @@ def _residual(rec: Record, out: Outcome, dt: float) -> np.ndarray:
 
 def _result(
     rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
-    quantity: str | None, seeds: np.ndarray,
+    quantity: str | None, seeds: np.ndarray, lab: bool = True,
 ) -> Detection:  # fmt: skip
-    """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags."""
+    """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags.
+    ``lab``: tell lines, drift, transients and negligible growth (varpro, or a lab window:
+    the initialisation-only and FFT methods on a plain record read as before)."""
     trend = frozenset()
     lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
         trend = _trends(out.modes, n=n, dt=dt, noise_std=out.noise_std)
         combos = frozenset(_combinations(out.modes))
-        lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds, trend | combos)
-        tiny = _lab.negligible_growth(out.modes, n * dt)
+        if lab:
+            lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
+                                                           trend | combos)  # fmt: skip
+            tiny = _lab.negligible_growth(out.modes, n * dt)
     modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient)
     growth = None if out.growth is None else [out.growth[k] for k in order]
     at = {k: i for i, k in enumerate(order)}
