@@ -184,10 +184,10 @@ def test_a_fast_sample_of_lab_records_with_every_impairment() -> None:
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="issue 27's target not met yet: measured 78.7 % right and 5.3 % silently wrong "
-    "(n = 300, seed 2702, every impairment on; before this detector: 9.3 % right); the misses "
-    "are mostly 1-6 % biases on clipped or twice-kicked records and a second kick the "
-    "envelope does not see",
+    reason="issue 27's target not met yet: bench/results/lab_records_after_all300.md measures "
+    "80.3 % right and 3.7 % wrong with descriptive flags only (n = 300, every impairment on; "
+    "before this detector: 9.3 % right); the misses are mostly biases on clipped or twice-"
+    "kicked records and a second kick the envelope does not see",
 )
 def test_300_lab_records_fundamental_right_in_95_percent_silent_wrong_below_1_percent() -> None:
     n = 300
