@@ -3,6 +3,7 @@ against the paper's two-point rule on the same data.
 
     python bench/calibration.py [--plans N (300)] [--seed S] [--workers W] [--quick] [--from-csv]
                                 [--input sigma2|sigma2-no-std|omega|omega-no-std]
+                                [--source beam|structures]
 
 A lab plan is what an experimenter does without knowing mu*: a fixed grid of control values
 ``mu_k = mu_last - k h`` (step ``h`` uniform in [0.02, 0.1], every point >= 0) that stops at
@@ -29,6 +30,16 @@ standard error (``mu_star_std``), with how many of those carry a flag.
 ``--input``: what the lab hands over: sigma^2 with its std (the default), sigma^2 alone (the
 noise then estimated), or the rates omega = sqrt|sigma^2| with or without their std and no
 damping (which must then not be invented).
+
+``--source structures``: instead of the beam and the normal form, the independent structures of
+``tests/structures`` (``_struct_plans.random_plan``: link columns perfect and imperfect,
+softening and stiffening, von Mises trusses; coarse and fine grids, stops 1e-3 to 1e-1 before
+the load a lab must not cross, noise 1e-5 to 1e-3, static data in half), ``N`` plans per kind.
+Their truth: the fold of an imperfect softening column (a snap: ``saddle-node``, a
+``subcritical-pitchfork`` counts as right), ``P_c`` of a perfect one, the truss's snap load;
+an imperfect stiffening column never loses stability (``none``; its coverage is that of its
+least stiffness's load). Errors are relative to the truth (loads in N). Tables
+``calibration_structures[_<input>][_seed<S>].*``.
 
 ``--seed``: the plans are drawn from it; seed 2026 are the calibration's plans, on which the
 engine's one free factor (the truncation spread's, ``service.analysis.predictor.interval``)
@@ -215,6 +226,58 @@ def run_plan(plan: Plan, given: str = "sigma2") -> dict:
     }
 
 
+def run_struct_plan(plan: tuple[int, int, str, int], given: str = "sigma2") -> dict:
+    """Ours and the paper's rule on one plan of ``tests/structures`` (``plan``: index, kind's
+    number, kind, seed), errors relative to the truth."""
+    sys.path.insert(0, str(ROOT / "tests" / "structures"))
+    from _struct_plans import TRANSITION, random_plan
+
+    index, _, kind, seed = plan
+    p = random_plan(np.random.default_rng(seed), kind, index=index, input=given)
+    t0 = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pr = predict(p.mu, **p.predict_kwargs())
+    cpu = time.process_time() - t0
+    truth_kind = TRANSITION[kind]
+    ref = p.critical if p.critical is not None else p.least_stiffness_load
+    s2 = -p.omega2_true
+    rule = paper_rule(p.mu, s2, 0.25 if truth_kind == "saddle-node" else 0.5)
+    lo, hi = pr.mu_star_interval
+    named = pr.transition
+    snaps = ("saddle-node", "subcritical-pitchfork")
+    right = named == truth_kind or (
+        named == "pitchfork" and "pitchfork" in truth_kind
+    ) or (kind == "imperfect-softening" and named in snaps)
+    confident_wrong = named != "undetermined" and not right
+    err = (pr.mu_star - ref) / ref
+    rerr = (rule.mu_star - ref) / ref if truth_kind != "none" else math.nan
+    flags = [f.code for f in pr.flags]
+    std = pr.mu_star_std / ref
+    worse = bool(not (abs(err) <= abs(rerr))) if math.isfinite(rerr) else False
+    return {
+        "index": index, "source": "structures", "actuation": kind, "step": math.nan,
+        "stop": p.stop, "rel": p.rel, "with_w": p.w_static is not None, "seed": seed,
+        "n_points": int(p.mu.size), "kind": truth_kind, "transition": named,
+        "p_true": float(pr.probabilities.get(truth_kind, 0.0)),
+        "error": err, "lo": (lo - ref) / ref, "hi": (hi - ref) / ref,
+        "covered": bool(lo <= ref <= hi), "rule_error": rerr, "std": std, "worse": worse,
+        "worse_beyond_std": worse and bool(abs(err) - abs(rerr) > std),
+        "flagged": bool(set(flags) - _INFO), "right": bool(right),
+        "confident_wrong": bool(confident_wrong), "flags": " ".join(flags), "cpu_s": cpu,
+    }  # fmt: skip
+
+
+def struct_plans(n_per: int, seed: int) -> list[tuple[int, int, str, int]]:
+    """``n_per`` plans per kind of ``tests/structures``: (index, kind's number, kind, seed)."""
+    sys.path.insert(0, str(ROOT / "tests" / "structures"))
+    from _struct_plans import KINDS
+
+    rng = np.random.default_rng(seed)
+    return [(len(KINDS) * j + k, k, kind, int(rng.integers(2**31)))
+            for j in range(n_per) for k, kind in enumerate(KINDS)]  # fmt: skip
+
+
 def binomial_range(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     """Clopper-Pearson ``level`` range of a proportion from ``k`` successes in ``n`` trials."""
     a = (1 - level) / 2
@@ -233,8 +296,12 @@ def error_over_half_width(r: dict) -> float:
 
 def summarise(rows: list[dict]) -> list[dict]:
     out = []
-    groups = sorted({(r["source"], r["actuation"]) for r in rows}, key=lambda g: (
-        SOURCES.index(g[0]), ACTS.index(g[1])))  # fmt: skip
+    def order(g: tuple[str, str]) -> tuple:
+        src, act = g
+        return (SOURCES.index(src) if src in SOURCES else len(SOURCES),
+                ACTS.index(act) if act in ACTS else len(ACTS), act)  # fmt: skip
+
+    groups = sorted({(r["source"], r["actuation"]) for r in rows}, key=order)
     for src, act in groups:
         g = [r for r in rows if r["source"] == src and r["actuation"] == act]
         n = len(g)
@@ -304,17 +371,20 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--quick", action="store_true", help="10 plans per (source, actuation)")
     ap.add_argument("--input", choices=INPUTS, default="sigma2",
                     help="what the plans hand over (results in calibration_<input>.*)")
+    ap.add_argument("--source", choices=("beam", "structures"), default="beam",
+                    help="beam (Euler beam and normal form) or the structures of tests/structures")
     ap.add_argument("--from-csv", action="store_true",
                     help="rebuild the table from bench/results/calibration.csv")  # fmt: skip
     args = ap.parse_args(argv)
     if args.from_csv:
         return _from_csv()
     n_per = 10 if args.quick else args.plans
-    plans = random_plans(n_per, args.seed)
+    structures = args.source == "structures"
+    plans = struct_plans(n_per, args.seed) if structures else random_plans(n_per, args.seed)
     t0 = time.perf_counter()
     rows: list[dict] = []
     with mp.get_context("fork").Pool(args.workers) as pool:
-        run = functools.partial(run_plan, given=args.input)
+        run = functools.partial(run_struct_plan if structures else run_plan, given=args.input)
         for k, r in enumerate(pool.imap_unordered(run, plans, chunksize=2)):
             rows.append(r)
             if (k + 1) % 10 == 0 or k + 1 == len(plans):
@@ -322,17 +392,20 @@ def main(argv: list[str] | None = None) -> list[dict]:
     rows.sort(key=lambda r: r["index"])
     summary = summarise(rows)
     meta = (
-        f"{len(rows)} plans ({n_per} per source and actuation), seed {args.seed}; "
+        f"{len(rows)} plans ({n_per} per {'kind' if structures else 'source and actuation'}), "
+        f"seed {args.seed}; "
         "`python bench/calibration.py"
         + (" --quick" if args.quick else f" --plans {n_per}")
         + ("" if args.input == "sigma2" else f" --input {args.input}")
         + ("" if args.seed == SEED else f" --seed {args.seed}")
+        + (" --source structures" if structures else "")
         + f"` ({time.perf_counter() - t0:.0f} s wall on {args.workers} workers)."
     )
     md = table_md(summary, meta)
     print(md)
     OUT.mkdir(parents=True, exist_ok=True)
-    stem = "calibration" if args.input == "sigma2" else f"calibration_{args.input}"
+    stem = "calibration" + ("_structures" if structures else "")
+    stem += "" if args.input == "sigma2" else f"_{args.input}"
     if args.seed != SEED:  # held-out plans: their own tables beside the calibration's
         stem += f"_seed{args.seed}"
     with open(OUT / f"{stem}.csv", "w", newline="") as fh:

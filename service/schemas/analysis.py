@@ -29,6 +29,7 @@ Transition = Literal[
     "pitchfork",
     "undetermined",
     "custom",  # a prediction with the caller's own exponent a (neither 1/4 nor 1/2)
+    "none",  # no loss of stability (an imperfect stiffening pitchfork): never a snap
 ]
 AlarmLevel = Literal["insufficient", "clear", "watch", "warning", "critical"]
 
@@ -218,6 +219,14 @@ class Prediction(_Result):
     n_terms: int = 0
     baseline: PaperRule | None = None
     classification: Classification | None = None
+    least_sigma2: Num = Field(
+        default=None,
+        description="Transition 'none' (no loss of stability): the least |sigma2| (1/time^2).",
+    )
+    least_sigma2_mu: Num = Field(
+        default=None,
+        description="Transition 'none': the control where |sigma2| is least (also mu_star).",
+    )
 
 
 class Truth(_Result):

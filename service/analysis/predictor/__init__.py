@@ -7,7 +7,10 @@ the failure it fixes, the test that pins it and the calibration it rests on (the
 
 Pipeline, top to bottom (each module imports only from the ones below it)::
 
-    prediction       predict(): sweep -> fits -> interval -> type rules -> alarm -> Prediction
+    prediction       predict(): sweep -> fits -> interval -> imperfect laws -> type rules ->
+                     alarm -> Prediction (one mu*, inside its interval, that every flag refers to)
+    imperfect        the unfolded (imperfect) pitchforks against the perfect one: a softening
+                     one snaps at a fold before mu*, a stiffening one never loses stability
     interval         fit_sweep(): the law given or the classified candidates refitted on their
                      own windows; interval(): profile or mixture interval, fewer-terms rivals,
                      truncation spread
@@ -26,6 +29,7 @@ Pipeline, top to bottom (each module imports only from the ones below it)::
     _kernels.fold    compiled secondary-fold (conformal) parameter profile
     _kernels.profile compiled searches over mu*
     _kernels.brent   Brent's bookkeeping shared by the three searches
+    _kernels.cusp    compiled cusp law: amplitude, stiffness, misfit, profile over G
 
 Adding a law: a row of :data:`laws.LAWS` (and, for a new family, the module that fits it).
 Adding a reason to withhold a type: a row of :data:`rules.RULES`.

@@ -59,6 +59,12 @@ LAWS: tuple[Law, ...] = (
         "the pitchfork where the branch loses stability (snap)"),
     Law("supercritical-pitchfork", 0.5, 0.5, 1.0, "power",
         "the pitchfork where the structure buckles smoothly onto a side branch"),
+    Law("imperfect-softening", 0.5, None, 1.0, "cusp",
+        "the fold mu_f < mu* where an imperfect softening pitchfork snaps (named a saddle-node; "
+        "a = 1/2 far from it, 1/4 near)"),
+    Law("imperfect-stiffening", 0.5, None, 1.0, "cusp",
+        "no loss of stability (named none): the control of least stiffness",
+        loses_stability=False),
 )  # fmt: skip
 
 #: The perfect (power) laws the profile-likelihood engine compares: name -> (a, b, h)

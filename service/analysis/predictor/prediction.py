@@ -29,7 +29,8 @@ from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
 from service.analysis.predictor.classification import Classification
-from service.analysis.predictor.interval import fit_sweep, interval
+from service.analysis.predictor.imperfect import Verdict, assess, decide
+from service.analysis.predictor.interval import Fits, fit_sweep, interval
 from service.analysis.predictor.likelihood import profile_memo
 from service.analysis.predictor.paper_rule import PaperRule, check_exponent, paper_rule
 from service.analysis.predictor.rules import Evidence, withhold
@@ -40,6 +41,7 @@ from service.analysis.predictor.sweep import (
     positive_1d,
     prepare_sweep,
 )
+from service.analysis.predictor.windows import _estimate_noise, _with_damping
 
 __all__ = ["PaperRule", "Prediction", "bounded_by", "paper_rule", "predict"]
 
@@ -86,7 +88,8 @@ class Prediction:
         ``no_safe_step`` when that bound is not beyond the last point.
     flags : tuple of Flag
     transition : str
-        Transition assumed or classified.
+        Transition assumed or classified; ``"none"`` when the records are those of an imperfect
+        stiffening structure that never loses stability (never a snap).
     probabilities : dict of str to float
         Candidate probabilities of the classification (one entry when the law was given);
         candidates above 1e-3 enter the average.
@@ -95,9 +98,20 @@ class Prediction:
     n_terms : int
         Terms of the fitted law (leading + corrections) of the most probable candidate.
     baseline : PaperRule or None
-        The paper's rule on the same measurements (``sigma2`` data only).
+        The paper's rule on the same measurements (``sigma2``, or the ``omega`` read as
+        ``|sigma^2|``); None only when it cannot be computed (flag ``no_baseline`` says why).
     classification : Classification or None
         The classification used when the law was not given.
+    least_sigma2, least_sigma2_mu : float
+        Transition ``"none"`` (an imperfect stiffening pitchfork: no loss of stability): the
+        least ``|sigma^2|`` the fitted law gives (1/time^2) and the control where it occurs
+        (then also ``mu_star``, with its interval); NaN otherwise.
+
+    Notes
+    -----
+    ``mu_star`` always lies inside ``mu_star_interval``, and every flag refers to them: a
+    softening imperfect pitchfork's answer is its fold (transition ``"saddle-node"``), a
+    stiffening one's the control of least stiffness (``"none"``).
     """
 
     mu_star: float
@@ -114,6 +128,8 @@ class Prediction:
     n_terms: int = 0
     baseline: PaperRule | None = None
     classification: Classification | None = field(default=None, repr=False, compare=False)
+    least_sigma2: float = math.nan
+    least_sigma2_mu: float = math.nan
 
 
 @profile_memo()
@@ -214,10 +230,20 @@ def predict(
     fit = fit_sweep(sw0, transition, a, level)
     flags = list(fit.flags) + ([repeats] if repeats is not None else [])
     m, std, lo, hi = interval(sw0, fit, level, flags)
+    verdict = _imperfect(sw0, fit, (m, std, lo, hi), level) if past is None else None
+    if verdict is not None:
+        m, std, lo, hi = verdict.mu_star, verdict.std, verdict.lo, verdict.hi
+        flags.extend(verdict.flags)
     last = float(sw0.mu[-1])
+    m = min(max(m, lo), hi)  # the headline inside its interval (see _imperfect, interval)
     # T/T0 as sqrt(y0) / sqrt(y): the same float as the pipeline's omega0 / omega
     t_ratio = float(math.sqrt(sw0.y[0]) / math.sqrt(sw0.y[-1]))
     alarm = alarm_for(last, t_ratio, m, (lo, hi))
+    if verdict is not None and verdict.transition == "none":
+        alarm = Alarm(
+            "none", f"no loss of stability: the least |sigma2| {verdict.least_sigma2:.6g} is "
+            f"reached at mu={verdict.least_mu:.6g}", last, t_ratio, m, (lo, hi), alarm.distance,
+        )  # fmt: skip
     if past is not None:  # stepped past the transition: it lies below that row
         m, lo, hi = min(m, past), min(lo, past), min(hi, past)
         alarm = _past_alarm(past, t_ratio, m, lo, hi, flags)
@@ -247,15 +273,22 @@ def predict(
         )
     a_used = float(np.sum(np.array(fit.probs) * np.array([f.a for f in fit.fits])) /
                    np.sum(fit.probs))  # fmt: skip
-    baseline = paper_rule(sw0.mu, -sw0.y, a_used) if sw0.kind == "sigma2" else None
+    if verdict is not None and verdict.a is not None:
+        a_used = verdict.a
+    baseline = _baseline(sw0, a_used, flags)
     if not math.isfinite(m):
         flags.append(Flag("no_estimate", "no finite mu* could be estimated"))
     cls = fit.classification
     transition = fit.name
     probs = dict(cls.probabilities) if cls is not None else {}
-    if cls is not None:  # a transition the caller gave is never withheld
+    if cls is not None and not (verdict is not None and verdict.decided):
+        # a transition the caller gave is never withheld
         ev = Evidence(sw0, sw0, cls.fits, probabilities=probs)
         transition = withhold(transition, ev, "prediction", flags)
+    if verdict is not None and verdict.transition is not None:
+        transition = verdict.transition
+    shown = verdict.probabilities if verdict is not None else None
+    flags = _consistent(flags, m, lo, hi, last)
     return Prediction(
         mu_star=float(m),
         mu_star_interval=(float(lo), float(hi)),
@@ -267,7 +300,9 @@ def predict(
         flags=tuple(unique_flags(flags)),
         transition=transition,
         probabilities=(
-            dict(cls.probabilities)
+            dict(shown)
+            if shown is not None
+            else dict(cls.probabilities)
             if cls is not None
             else {f.name: float(p) for f, p in zip(fit.fits, fit.probs, strict=True)}
         ),
@@ -275,7 +310,65 @@ def predict(
         n_terms=int(fit.fits[int(np.argmax(fit.probs))].K + 1),
         baseline=baseline,
         classification=cls,
+        least_sigma2=verdict.least_sigma2 if verdict is not None else math.nan,
+        least_sigma2_mu=verdict.least_mu if verdict is not None else math.nan,
     )
+
+
+def _imperfect(sw0: Sweep, fit: Fits, answer: tuple[float, ...], level: float) -> Verdict | None:
+    """The imperfect pitchforks weighed against the perfect answer
+    (:func:`service.analysis.predictor.imperfect.decide`) whenever the law was classified (a
+    perfect fold law named on an imperfect column's records can be late: its far records are
+    a pitchfork's); None otherwise."""
+    cls = fit.classification
+    if cls is None:
+        return None
+    probs = cls.probabilities
+    # the records' own noise when given (a rescaled noise hides the misfit that tells an
+    # imperfection), else estimated; rates read with the damping given, never one inferred
+    # (an imperfect fold's slow rates can pass for an over-damped layer)
+    sw = sw0
+    if sw.kind == "omega" and sw.damping is not None:
+        sw = _with_damping(sw, sw.damping)
+    if not sw.noise_given:
+        sw = _estimate_noise(sw)
+    imp = assess(sw, level)
+    if imp is None:
+        return None
+    return decide(imp, fit.name, dict(probs), answer, level)
+
+
+def _baseline(sw0: Sweep, a: float, flags: list[Flag]) -> PaperRule | None:
+    """The paper's rule on the sweep (its ``|sigma^2|``, from ``omega`` too); None with the
+    flag ``no_baseline`` naming why when it cannot be computed."""
+    try:
+        return paper_rule(sw0.mu, -sw0.y, a)
+    except ParameterError as exc:
+        flags.append(Flag("no_baseline", f"the paper's rule cannot be computed: {exc}"))
+        return None
+
+
+def _consistent(flags: list[Flag], m: float, lo: float, hi: float, last: float) -> list[Flag]:
+    """The flags that still hold of the final ``mu*`` and interval: a candidate's
+    ``mu_star_at_last_point`` or ``interval_reaches_last_point`` is dropped when the answer's
+    mu* (or interval) lies clear of the last measured control; ``interval_huge`` quotes the
+    final interval (or goes when it no longer holds)."""
+    tol = 1e-9 * max(abs(last), 1.0)
+    out = []
+    for f in flags:
+        if f.code == "mu_star_at_last_point" and m - last > tol:
+            continue
+        if f.code == "interval_reaches_last_point" and lo - last > tol:
+            continue
+        if f.code == "interval_huge":
+            half = 0.5 * (hi - lo)
+            if not (half > 0.5 * max(m - last, 0) or any(
+                    g.code == "interval_unbounded" for g in flags)):  # fmt: skip
+                continue
+            f = Flag(f.code, f"the {f.message.split('%')[0].split()[-1]}% interval [{lo:.6g}, "
+                     f"{hi:.6g}] is wider than the distance to mu* ({m - last:.3g})")  # fmt: skip
+        out.append(f)
+    return out
 
 
 def bounded_by(pred: Prediction, past: float) -> Prediction:

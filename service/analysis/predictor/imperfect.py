@@ -1,0 +1,429 @@
+"""The imperfect pitchfork (the cusp family): no real structure is perfect.
+
+A pitchfork's symmetry is always broken a little (a stress-free angle, a load's offset): its
+equilibrium is ``eps + (mu* - mu) x -+ c x^3 = 0`` (softening ``-``, stiffening ``+``) and the
+fundamental's stiffness along the measured branch ``k = (mu* - mu) -+ 3 c x^2``
+(:mod:`._kernels.cusp`). Far from mu* (``lambda = mu* - mu >> G``, ``G = c^(1/3) eps^(2/3)``)
+``k ~ lambda``: it looks like a perfect pitchfork (``a = 1/2``). Near mu*:
+
+* softening: the branch ends at a fold ``mu_f = mu* - 3 2^(-2/3) G`` before mu*, where
+  ``k ~ (mu_f - mu)^(1/2)`` (``a = 1/4``): the structure snaps there, the load a lab must not
+  cross;
+* stiffening: the branch never ends and the stiffness is least, ``K_MIN G``, at
+  ``mu_m = mu* - R_MIN G``: no loss of stability.
+
+``G = 0`` is the perfect pitchfork, so the perfect law is nested in both. :func:`assess` fits
+the three (perfect, softening, stiffening; eigenvalue law ``|sigma^2| = k sum_j alpha_j
+(lambda/scale)^j``, the corrections chosen on the perfect law by AICc) on the nearest points
+and returns their ``-2 log L``, BIC weights and the profile-likelihood interval of the point
+each imperfect law predicts (the fold, or the least stiffness).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, special, stats
+
+from service.analysis.common import Flag
+from service.analysis.predictor._kernels.cusp import (
+    R_FOLD,
+    R_MIN,
+    amplitude,
+    profile_g,
+    profile_scan,
+)
+from service.analysis.predictor.sweep import Sweep
+
+__all__ = ["CuspFit", "Imperfection", "Verdict", "assess", "decide"]
+
+N_MAX = 40  # nearest points the cusp laws are fitted on
+K_MAX = 2  # most corrections of the cusp laws
+SHIFT_STIFF = 3.0  # a stiffening law's least stiffness may lie this many G before the last point
+_TS = np.linspace(math.log(1e-7), math.log(3.0), 40)  # log((mu_p - mu_last) / scale)
+_GS = np.linspace(math.log(1e-7), math.log(1.0), 26)  # log(G / scale)
+_TS_C = np.linspace(math.log(1e-7), math.log(3.0), 22)  # the window choice's coarser grids
+_GS_C = np.linspace(math.log(1e-6), math.log(1.0), 12)
+_ALPHA = 0.01  # goodness-of-fit level of a window
+#: -2 log L gain of an imperfect law over the perfect one that establishes the imperfection (a
+#: likelihood ratio of 1e3); below it the perfect answer stands
+ESTABLISHED = 2 * math.log(1e3)
+#: ... and by which one imperfect law must beat the other for its kind (softening: a snap at a
+#: fold; stiffening: no loss of stability) to be told (a likelihood ratio of 100)
+TOLD = 2 * math.log(100.0)
+#: -2 log L gain (chi-square 95 % of one parameter) from which a softening imperfection the
+#: perfect answer ignores is said: the interval then reaches down to the earliest fold allowed
+LEANS = float(stats.chi2.ppf(0.95, 1))
+
+
+@dataclass(frozen=True)
+class CuspFit:
+    """One imperfect law fitted.
+
+    Attributes
+    ----------
+    law : str
+        ``"imperfect-softening"`` or ``"imperfect-stiffening"``.
+    mu_p, lo, hi : float
+        The point it predicts (the fold, softening; the least stiffness, stiffening) and its
+        profile-likelihood interval (control units).
+    mu_star : float
+        The perfect pitchfork's point ``mu*`` of the same fit (the cusp's centre).
+    G : float
+        The imperfection's load scale ``c^(1/3) eps^(2/3)`` (control units; 0: perfect).
+    nll : float
+        ``-2 log L`` of the eigenvalues.
+    least_sigma2 : float
+        ``|sigma^2|`` the law gives at ``mu_p`` (0 at a fold), 1/time^2.
+    """
+
+    law: str
+    mu_p: float
+    lo: float
+    hi: float
+    mu_star: float
+    G: float
+    nll: float
+    least_sigma2: float
+
+
+@dataclass(frozen=True)
+class Imperfection:
+    """The perfect and imperfect pitchforks compared on the nearest ``window`` points with
+    ``K`` corrections: ``-2 log L`` of the perfect law, the two imperfect fits and the BIC
+    weights of the three (``"perfect"``, ``"imperfect-softening"``, ``"imperfect-stiffening"``);
+    ``last`` the last control, ``rises`` whether the records' last ``|sigma^2|`` lies above
+    their least by more than twice their noise (the records show a least stiffness)."""
+
+    window: int
+    K: int
+    nll_perfect: float
+    mu_star_perfect: float
+    soft: CuspFit
+    stiff: CuspFit
+    weights: dict[str, float]
+    dispersion: float = 1.0
+    last: float = math.nan
+    rises: bool = False
+
+    @property
+    def evidence_soft(self) -> float:
+        """How much better the softening law explains the records (``-2 log L`` gain, over
+        the best law's reduced chi-square when the records scatter more than their noise)."""
+        return max(self.nll_perfect - self.soft.nll, 0.0) / self.dispersion
+
+    @property
+    def evidence_stiff(self) -> float:
+        """How much better the stiffening law explains the records (the same)."""
+        return max(self.nll_perfect - self.stiff.nll, 0.0) / self.dispersion
+
+
+def _perfect(mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, K: int
+             ) -> tuple[float, float]:
+    """``(-2 log L, t)`` of the perfect pitchfork law with ``K`` corrections, mu* profiled."""
+    empty = np.empty(0)
+    f, _ = profile_scan(mu, y, wt, scale, _TS, empty, True, K, 0.0, False)
+    i = int(np.argmin(f))
+    if not math.isfinite(f[i]):
+        return math.inf, math.nan
+    lo, hi = _TS[max(i - 1, 0)], _TS[min(i + 1, _TS.size - 1)]
+    r = optimize.minimize_scalar(
+        lambda t: profile_g(mu, y, wt, scale, t, empty, True, K, 0.0)[0], bounds=(lo, hi),
+        method="bounded", options={"xatol": 1e-7},
+    )  # fmt: skip
+    return (float(r.fun), float(r.x)) if r.fun < f[i] else (float(f[i]), float(_TS[i]))
+
+
+def _fit(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, K: int, soft: bool,
+    level: float, with_interval: bool = True,
+) -> CuspFit:
+    """One imperfect law: the profile over ``t`` (the point it predicts), refined, and (with
+    ``with_interval``) its interval where the profile rises by the chi-square quantile of
+    ``level`` (else the point alone)."""
+    shift = 0.0 if soft else SHIFT_STIFF
+    name = "imperfect-softening" if soft else "imperfect-stiffening"
+
+    def prof(t: float) -> float:
+        return profile_g(mu, y, wt, scale, t, _GS, soft, K, shift)[0]
+
+    f, _ = profile_scan(mu, y, wt, scale, _TS, _GS, soft, K, shift, False)
+    i = int(np.argmin(f))
+    if not math.isfinite(f[i]):
+        nan = math.nan
+        return CuspFit(name, nan, nan, nan, nan, nan, math.inf, nan)
+    a, b = _TS[max(i - 1, 0)], _TS[min(i + 1, _TS.size - 1)]
+    r = optimize.minimize_scalar(prof, bounds=(a, b), method="bounded",
+                                 options={"xatol": 1e-5})  # fmt: skip
+    t0, f0 = (float(r.x), float(r.fun)) if r.fun <= f[i] else (float(_TS[i]), float(f[i]))
+    thr = f0 + float(stats.chi2.ppf(level, 1))
+    last = float(mu[-1])
+    _, g0 = profile_g(mu, y, wt, scale, t0, _GS, soft, K, shift)
+    G = scale * math.exp(g0) if g0 > -700 else 0.0
+
+    def point(t: float) -> float:
+        return last + scale * math.exp(t) - shift * G
+
+    if not with_interval:
+        mu_p = point(t0)
+        mu_star = mu_p + (R_FOLD if soft else R_MIN) * G
+        return CuspFit(name, mu_p, mu_p, mu_p, mu_star, G, f0, math.nan)
+    # the interval's ends: the profile's crossings of thr on each side of t0 (the grid's ends
+    # when it never crosses there); the scan's coarse profile only brackets them
+    lo_t = _end(prof, f, t0, i, thr, -1)
+    hi_t = _end(prof, f, t0, i, thr, +1)
+    # the ends move G too (profiled): each end's own shift
+    lo_g = profile_g(mu, y, wt, scale, lo_t, _GS, soft, K, shift)[1]
+    hi_g = profile_g(mu, y, wt, scale, hi_t, _GS, soft, K, shift)[1]
+    lo = last + scale * math.exp(lo_t) - shift * (scale * math.exp(lo_g) if lo_g > -700 else 0)
+    hi = last + scale * math.exp(hi_t) - shift * (scale * math.exp(hi_g) if hi_g > -700 else 0)
+    mu_p = point(t0)
+    mu_star = mu_p + (R_FOLD if soft else R_MIN) * G
+    least = 0.0 if soft else _law_value(mu, y, wt, scale, K, mu_star, G, soft, mu_p)
+    return CuspFit(name, mu_p, min(lo, mu_p), max(hi, mu_p), mu_star, G, f0, least)
+
+
+def _end(prof, f: np.ndarray, t0: float, i: int, thr: float, side: int) -> float:  # noqa: ANN001
+    """The interval's end on ``side`` (-1 below ``t0``, +1 above): the refined profile
+    ``prof`` walked outward along the grid from the scan's best point ``i`` until it exceeds
+    ``thr``, then the crossing by Brent's method; the grid's end when it never does."""
+    inner = t0
+    j = i
+    while 0 <= j + side < _TS.size:
+        j += side
+        tj = float(_TS[j])
+        if (tj - t0) * side <= 0:
+            continue
+        if f[j] <= thr or prof(tj) <= thr:  # the coarse scan lies above the refined profile
+            inner = tj
+            continue
+        a, b = (tj - t0, inner - t0) if side < 0 else (inner - t0, tj - t0)
+        # in the distance from the optimum: relative accuracy, however narrow the interval
+        d = optimize.brentq(lambda u: prof(t0 + u) - thr, a, b, xtol=1e-14, rtol=1e-3)
+        return float(t0 + d)
+    return float(_TS[0] if side < 0 else _TS[-1])
+
+
+def _law_value(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, K: int, mu_star: float,
+    G: float, soft: bool, at: float,
+) -> float:
+    """``|sigma^2|`` of the fitted law at the control ``at`` (its coefficients by weighted
+    least squares at ``mu*`` and ``G``)."""
+    lam = mu_star - mu
+    k = lam + (-3.0 if soft else 3.0) * G * np.array(
+        [amplitude(li / G, soft) ** 2 if G > 0 else 0.0 for li in lam]
+    )  # fmt: skip
+    X = k[:, None] * (lam[:, None] / scale) ** np.arange(K + 1)[None, :]
+    coef, *_ = np.linalg.lstsq(X * wt[:, None], y * wt, rcond=None)
+    la = mu_star - at
+    ka = la + (-3.0 if soft else 3.0) * G * (amplitude(la / G, soft) ** 2 if G > 0 else 0.0)
+    return float(ka * np.sum(coef * (la / scale) ** np.arange(K + 1)))
+
+
+def _window(sw: Sweep, n_max: int) -> tuple[int, bool]:
+    """The largest window of nearest points (from 6, growing geometrically until one fails) on
+    which one of the three laws, with ``K_MAX`` corrections, fits within the noise
+    (chi-square at ``_ALPHA``; coarse grids), and whether any did."""
+    N = min(sw.mu.size, n_max)
+    sizes = sorted({int(round(v)) for v in np.geomspace(6, N, 4)})
+    ok = 6
+    found = False
+    for n in sizes:
+        mu = np.ascontiguousarray(sw.mu[-n:], dtype=float)
+        y = np.ascontiguousarray(sw.y[-n:], dtype=float)
+        wt = np.ascontiguousarray(1.0 / sw.sd[-n:], dtype=float)
+        scale = float(mu[-1] - mu[0])
+        K = min(K_MAX, n - 5)
+        best = math.inf
+        for soft, shift in ((True, 0.0), (False, SHIFT_STIFF)):
+            f, _ = profile_scan(mu, y, wt, scale, _TS_C, _GS_C, soft, K, shift, False)
+            best = min(best, float(np.min(f)))
+        dof = n - K - 3
+        if dof >= 1 and special.chdtrc(dof, best) >= _ALPHA:
+            ok, found = n, True
+        else:  # a larger window fits no better
+            break
+    return ok, found
+
+
+def assess(sw: Sweep, level: float = 0.95) -> Imperfection | None:
+    """Compare the perfect pitchfork with the softening and stiffening imperfect ones on the
+    nearest points of ``sw`` (its ``y = |sigma^2|`` and noise ``sd``) where one of them holds;
+    None with fewer than 6 points."""
+    if sw.mu.size < 6:
+        return None
+    n, _ = _window(sw, N_MAX)
+    mu = np.ascontiguousarray(sw.mu[-n:], dtype=float)
+    y = np.ascontiguousarray(sw.y[-n:], dtype=float)
+    wt = np.ascontiguousarray(1.0 / sw.sd[-n:], dtype=float)
+    scale = float(mu[-1] - mu[0])
+    # corrections: AICc of the perfect law (the nested imperfect laws keep them)
+    best = (math.inf, 0, math.inf, math.nan)
+    for K in range(0, K_MAX + 1):
+        k = K + 2
+        if n - k - 2 < 1:
+            break
+        nll, t = _perfect(mu, y, wt, scale, K)
+        aicc = nll + 2 * k + 2 * k * (k + 1) / (n - k - 1)
+        if aicc < best[0]:
+            best = (aicc, K, nll, t)
+    _, K, nll_p, t_p = best
+    if not math.isfinite(nll_p):
+        return None
+    soft = _fit(mu, y, wt, scale, K, True, level)
+    # the stiffening law's interval matters only where it may be told
+    stiff = _fit(mu, y, wt, scale, K, False, level, with_interval=False)
+    if nll_p - stiff.nll >= ESTABLISHED:  # (before the dispersion: a superset)
+        stiff = _fit(mu, y, wt, scale, K, False, level)
+    phi = 1.0  # the gains are read against the records' noise (see docs/predictor.md)
+    pen = math.log(n)
+    crit = {
+        "perfect": nll_p / phi + (K + 2) * pen,
+        "imperfect-softening": min(soft.nll, nll_p) / phi + (K + 3) * pen,
+        "imperfect-stiffening": min(stiff.nll, nll_p) / phi + (K + 3) * pen,
+    }
+    c0 = min(crit.values())
+    raw = {k: math.exp(-0.5 * (v - c0)) for k, v in crit.items()}
+    tot = sum(raw.values())
+    weights = {k: v / tot for k, v in raw.items()}
+    mu_star_p = float(mu[-1] + scale * math.exp(t_p))
+    i_min = int(np.argmin(y))
+    rises = bool(y[-1] - y[i_min] > 2 * math.hypot(1 / wt[-1], 1 / wt[i_min]))
+    return Imperfection(n, K, nll_p, mu_star_p, soft, stiff, weights, phi, float(mu[-1]), rises)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the imperfect laws change in an answer.
+
+    ``transition`` None: the type is the perfect answer's (possibly withheld by ``flags``);
+    ``probabilities`` None: the perfect answer's. ``least_sigma2``/``least_mu``: the least
+    ``|sigma^2|`` of a stiffening imperfect structure and the control where it occurs."""
+
+    mu_star: float
+    lo: float
+    hi: float
+    std: float
+    transition: str | None
+    probabilities: dict[str, float] | None
+    a: float | None
+    flags: tuple[Flag, ...]
+    least_sigma2: float = math.nan
+    least_mu: float = math.nan
+    decided: bool = False
+
+
+def decide(
+    imp: Imperfection, transition: str, probs: dict[str, float], answer: tuple[float, ...],
+    level: float,
+) -> Verdict:
+    """The answer once the imperfect laws are weighed: ``answer = (mu*, std, lo, hi)`` and
+    ``transition`` / ``probs`` are the perfect laws'.
+
+    * imperfection established (gain >= :data:`ESTABLISHED`) and one kind told (by
+      :data:`TOLD`): softening -> a snap at the fold, ``"saddle-node"``, mu* the fold and its
+      interval; stiffening -> ``"none"`` (no loss of stability), mu* the least stiffness's
+      control and its interval;
+    * established but the kind not told: the type withheld (``imperfection_undecided``), the
+      interval reaching the softening law's fold;
+    * not established: the perfect answer, its interval reaching down to the earliest fold the
+      softening law allows (its profile interval), and a smooth (supercritical) type withheld
+      where that law is favoured at 95 % (gain >= :data:`LEANS`).
+    """
+    m, std, lo, hi = answer
+    z = float(stats.norm.ppf(0.5 + level / 2))
+    es, et = imp.evidence_soft, imp.evidence_stiff
+    s, t = imp.soft, imp.stiff
+    w = imp.weights
+    # per transition: a softening imperfect pitchfork snaps at a fold (a saddle-node), a
+    # stiffening one never loses stability ("none"); the perfect laws share the rest
+    shared = {k: v * w["perfect"] for k, v in probs.items()}
+    shared["saddle-node"] = shared.get("saddle-node", 0.0) + w["imperfect-softening"]
+    shared["none"] = w["imperfect-stiffening"]
+    detail = (f"the imperfect softening law gains {es:.3g} and the stiffening one {et:.3g} in "
+              f"-2 log L over the perfect pitchfork on the nearest {imp.window} points")
+    if et > es and t.mu_p < imp.last and not imp.rises:
+        # a least stiffness before the last record, yet the records never rise from a least
+        # value: the law's corrections, not its stiffness, follow them (never told)
+        et = min(et, es + 0.5 * TOLD)
+    if max(es, et) >= ESTABLISHED and abs(es - et) >= TOLD:
+        if es > et and probs.get("saddle-node", 0.0) >= 0.9:
+            # a fold the perfect laws already name: their answer (the fold's own law) stands,
+            # its interval reaching the cusp law's fold too
+            lo2, hi2 = min(lo, s.lo), max(hi, s.hi)
+            return Verdict(m, lo2, hi2, max(std, 0.5 * (hi2 - lo2) / z), None, None, None, (
+                Flag("imperfect_softening", f"{detail}: a fold, as the perfect laws say; the "
+                     f"interval reaches the imperfect law's fold ({s.lo:.6g} to {s.hi:.6g})"),
+            ))  # fmt: skip
+        f = s if es > et else t
+        if es > et:
+            name, fl = "saddle-node", Flag(
+                "imperfect_softening",
+                f"{detail}: an imperfect softening pitchfork (G = {s.G:.3g}, its perfect "
+                f"mu* {s.mu_star:.6g}) that snaps at the fold mu_f = {s.mu_p:.6g} before mu*; "
+                "the interval is the fold's",
+            )
+        else:
+            name, fl = "none", Flag(
+                "no_loss_of_stability",
+                f"{detail}: an imperfect stiffening pitchfork (G = {t.G:.3g}) that never loses "
+                f"stability; its least stiffness, |sigma2| = {t.least_sigma2:.6g}, at mu = "
+                f"{t.mu_p:.6g} (the interval is that point's)",
+            )
+        p_named = shared[name]
+        flags = [fl]
+        decided = p_named >= 0.9
+        if not decided:
+            flags.append(Flag("imperfection_undecided", f"{detail}: {f.law} has probability "
+                              f"{p_named:.2f} < 0.9, the type is not named"))  # fmt: skip
+        f_lo, f_hi = f.lo, f.hi
+        if es > et and probs.get("saddle-node", 0.0) >= 0.05:
+            # the perfect fold law holds there too (a generic fold is no cusp far from it):
+            # the interval is both laws' (each misses the other's truncation)
+            f_lo, f_hi = min(f_lo, lo), max(f_hi, hi)
+        return Verdict(
+            f.mu_p, f_lo, f_hi, 0.5 * (f_hi - f_lo) / z, name if decided else "undetermined",
+            shared, 0.25 if es > et else 0.5, tuple(flags),
+            least_sigma2=t.least_sigma2 if name == "none" else math.nan,
+            least_mu=t.mu_p if name == "none" else math.nan, decided=True,
+        )  # fmt: skip
+    if max(es, et) >= ESTABLISHED:
+        lo2, hi2 = min(lo, s.lo), max(hi, s.hi)
+        m2 = m if lo2 <= m <= hi2 else s.mu_p
+        return Verdict(
+            m2, lo2, hi2, max(std, 0.5 * (hi2 - lo2) / z), "undetermined", shared, None,
+            (Flag("imperfection_undecided", f"{detail}: the records are not those of a perfect "
+                  "structure, but whether it softens (a snap at a fold before mu*) or stiffens "
+                  "(no loss of stability) is not told; the interval reaches the softening "
+                  f"law's fold ({s.lo:.6g} to {s.hi:.6g})"),),
+            decided=True,
+        )  # fmt: skip
+    fl: list[Flag] = []
+    tr = None
+    if s.lo < lo:
+        fl.append(Flag("imperfection_possible", f"{detail}: a softening imperfection is not "
+                       f"excluded, its fold may come as early as {s.lo:.6g}; the interval "
+                       "reaches it"))  # fmt: skip
+        # a smooth buckling named while the records allow a snap at a fold well before it
+        material = s.lo < lo - (hi - lo)
+        if (transition == "supercritical-pitchfork" and material) or (
+            es >= LEANS and transition in ("supercritical-pitchfork", "pitchfork")
+        ):
+            tr = "undetermined"
+            fl.append(Flag("imperfection_undecided", f"{detail}: the {transition} named would "
+                           "buckle smoothly, an imperfect softening one snaps at a fold: the type "
+                           "is not named"))  # fmt: skip
+    if et >= es + LEANS and transition in ("saddle-node", "subcritical-pitchfork"):
+        # a snap named while a stiffening imperfection (no loss of stability) fits better than
+        # the perfect law and the softening one (a fold's own records favour the softening law)
+        tr = "undetermined"
+        fl.append(Flag("imperfection_undecided", f"{detail}: the {transition} named snaps, an "
+                       "imperfect stiffening structure never loses stability: the type is not "
+                       "named"))  # fmt: skip
+    if fl:
+        lo2 = min(lo, s.lo)
+        return Verdict(m, lo2, hi, max(std, 0.5 * (hi - lo2) / z), tr, None, None, tuple(fl))
+    return Verdict(m, lo, hi, std, None, None, None, ())
