@@ -238,12 +238,9 @@ def predict(
     m = min(max(m, lo), hi)  # the headline inside its interval (see _imperfect, interval)
     # T/T0 as sqrt(y0) / sqrt(y): the same float as the pipeline's omega0 / omega
     t_ratio = float(math.sqrt(sw0.y[0]) / math.sqrt(sw0.y[-1]))
-    alarm = alarm_for(last, t_ratio, m, (lo, hi))
-    if verdict is not None and verdict.transition == "none":
-        alarm = Alarm(
-            "none", f"no loss of stability: the least |sigma2| {verdict.least_sigma2:.6g} is "
-            f"reached at mu={verdict.least_mu:.6g}", last, t_ratio, m, (lo, hi), alarm.distance,
-        )  # fmt: skip
+    # type none (no loss of stability) is never a snap alarm
+    none = verdict is not None and verdict.transition == "none"
+    alarm = alarm_for(last, t_ratio, m, (lo, hi), transition="none" if none else None)
     if past is not None:  # stepped past the transition: it lies below that row
         m, lo, hi = min(m, past), min(lo, past), min(hi, past)
         alarm = _past_alarm(past, t_ratio, m, lo, hi, flags)
@@ -315,6 +312,11 @@ def predict(
     )
 
 
+#: the perfect laws' flags that say they misfit their records: only then can an imperfect law
+#: be told or a type be withheld for it
+_MISFIT = ("law_misfit", "noise_underestimated", "poor_fit", "exponent_off")
+
+
 def _imperfect(sw0: Sweep, fit: Fits, answer: tuple[float, ...], level: float) -> Verdict | None:
     """The imperfect pitchforks weighed against the perfect answer
     (:func:`service.analysis.predictor.imperfect.decide`) whenever the law was classified (a
@@ -335,7 +337,8 @@ def _imperfect(sw0: Sweep, fit: Fits, answer: tuple[float, ...], level: float) -
     imp = assess(sw, level)
     if imp is None:
         return None
-    return decide(imp, fit.name, dict(probs), answer, level)
+    misfit = any(f.code in _MISFIT for f in fit.flags)
+    return decide(imp, fit.name, dict(probs), answer, level, misfit=misfit)
 
 
 def _baseline(sw0: Sweep, a: float, flags: list[Flag]) -> PaperRule | None:
