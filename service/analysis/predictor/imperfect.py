@@ -47,6 +47,7 @@ _GS = np.linspace(math.log(1e-7), math.log(1.0), 26)  # log(G / scale)
 _TS_C = np.linspace(math.log(1e-7), math.log(3.0), 22)  # the window choice's coarser grids
 _GS_C = np.linspace(math.log(1e-6), math.log(1.0), 12)
 _ALPHA = 0.01  # goodness-of-fit level of a window
+REQUIRE_HOLDS = True  # tell a law only where one holds on the window (see the ledger)
 MAX_CORRECTION = 2.0  # largest departure of a told stiffening law's corrections from 1
 #: -2 log L gain of an imperfect law over the perfect one that establishes the imperfection (a
 #: likelihood ratio of 1e3); below it the perfect answer stands
@@ -306,6 +307,7 @@ def assess(sw: Sweep, level: float = 0.95) -> Imperfection | None:
     # coarse grids, whose misfit on precise records is larger than the law's)
     best_nll = min(nll_p, soft.nll, stiff.nll)
     holds = bool(special.chdtrc(max(n - K - 3, 1), best_nll) >= _ALPHA / 10) or found
+    holds = holds or REQUIRE_HOLDS is False
     return Imperfection(n, K, nll_p, mu_star_p, soft, stiff, weights, phi, float(mu[-1]),
                         float(mu[0]), holds)  # fmt: skip
 
@@ -413,6 +415,20 @@ def decide(
         if not decided:
             flags.append(Flag("imperfection_undecided", f"{detail}: {f.law} has probability "
                               f"{p_named:.2f} < 0.9, the type is not named"))  # fmt: skip
+        p_pf = sum(v for k, v in probs.items() if "pitchfork" in k)
+        if p_pf >= 0.9:
+            # the perfect laws name a pitchfork: the records cannot tell a perfect pitchfork
+            # with far corrections from an imperfect one (the beam's antisymmetric plans far
+            # from mu* were read as softening imperfections): the type withheld, the interval
+            # both answers'
+            lo2, hi2 = min(lo, f.lo, s.lo), max(hi, f.hi)
+            return Verdict(m, lo2, hi2, max(std, 0.5 * (hi2 - lo2) / z), "undetermined", None,
+                           None, (fl, Flag("imperfection_undecided", f"{detail}: the perfect "
+                                           f"laws name a {transition or 'pitchfork'} "
+                                           f"(p = {p_pf:.2f}): whether the structure is perfect "
+                                           "is not told, the type is not named; the interval "
+                                           "holds both answers")),
+                           decided=True)  # fmt: skip
         f_lo, f_hi = f.lo, f.hi
         if es > et and probs.get("saddle-node", 0.0) >= 0.05:
             # the perfect fold law holds there too (a generic fold is no cusp far from it):
