@@ -416,7 +416,7 @@ def decide(
             flags.append(Flag("imperfection_undecided", f"{detail}: {f.law} has probability "
                               f"{p_named:.2f} < 0.9, the type is not named"))  # fmt: skip
         p_pf = sum(v for k, v in probs.items() if "pitchfork" in k)
-        if p_pf >= 0.9:
+        if p_pf >= 0.9 and es > et:
             # the perfect laws name a pitchfork: the records cannot tell a perfect pitchfork
             # with far corrections from an imperfect one (the beam's antisymmetric plans far
             # from mu* were read as softening imperfections): the type withheld, the interval
