@@ -241,7 +241,7 @@ def run_struct_plan(plan: tuple[int, int, str, int], given: str = "sigma2") -> d
     cpu = time.process_time() - t0
     truth_kind = TRANSITION[kind]
     ref = p.critical if p.critical is not None else p.least_stiffness_load
-    s2 = -p.omega2_true
+    s2 = p.sigma2 if p.sigma2 is not None else -(p.omega**2)  # what the lab handed over
     rule = paper_rule(p.mu, s2, 0.25 if truth_kind == "saddle-node" else 0.5)
     lo, hi = pr.mu_star_interval
     named = pr.transition
