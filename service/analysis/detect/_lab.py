@@ -86,11 +86,14 @@ def clipped_mask(arr: np.ndarray) -> np.ndarray | None:
     return mask if mask.any() else None
 
 
-def _envelope(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]:
+def _envelope(
+    arr: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, bool]]:
     """The record with its slow baseline removed (``hp``: a moving mean over a tenth of the
     record subtracted), its moving rms over a short window ``e`` (``n / 400``) and over a long
     one ``E`` (two periods of the slowest strong line of ``hp``'s spectrum, which smooths the
-    beats of the modes), and the short window ``L``."""
+    beats of the modes), the long window ``LL``, and ``(period, few)``: that period and whether
+    a strong line rings fewer than 4 cycles in the record."""
     n = arr.size
     peak = float(np.max(np.abs(arr)))
     x = arr / peak if peak > 0 and math.isfinite(peak) else arr  # any magnitude (scale-free)
@@ -100,12 +103,15 @@ def _envelope(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int,
     sq = hp * hp
     e = np.sqrt(np.maximum(_movmean(sq, L), 0.0))
     P = np.abs(np.fft.rfft(hp)) ** 2
+    # a strong line of fewer than 4 cycles in the record: its ringing's moving rms rises and
+    # falls over the record like a later kick would (no later kick is looked for then)
+    few = bool(P.size > 8 and P[1:4].max() >= 0.05 * float(P[4:].max()))
     P[:4] = 0.0
     strong = np.flatnonzero(P >= 0.05 * float(P.max())) if P.max() > 0 else np.zeros(0, int)
     period = n / max(int(strong[0]), 4) if strong.size else n / 4
     LL = int(min(max(2 * period, L), n // 20))
     E = np.sqrt(np.maximum(_movmean(sq, LL), 0.0))
-    return hp, e, E, L, LL, period
+    return hp, e, E, L, LL, (period, few)
 
 
 def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
@@ -182,8 +188,12 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
     n = arr.size
     win = Window(0, n)
     clip = clipped_mask(arr)
-    hp, e, E, L, LL, period = _envelope(arr)
+    hp, e, E, L, LL, (period, few) = _envelope(arr)
+    # a strong line of fewer than 4 cycles dips near its zero crossings for longer than a
+    # lead-in must last: no lead-in is looked for then (give ``start``)
     lead, i_half = _lead(e, L, period)
+    if few:
+        lead = 0
     if start is not None:
         win.start = int(min(max(round(start / dt), 0), n - MIN_SAMPLES))
         win.user_start = True
@@ -191,7 +201,7 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
     elif lead:
         win.lead = lead
         win.start = _onset(hp, lead, i_half)
-    kicks = _later_kicks(E, max(win.start, i_half), LL)
+    kicks = [] if few else _later_kicks(E, max(win.start, i_half), LL)
     if kicks:
         stop = kicks[0]
         if stop - win.start >= max(WINDOW_MIN * n, 4 * MIN_SAMPLES):
