@@ -83,7 +83,8 @@ def test_a_law_without_corrections_has_no_rival() -> None:
 def test_the_rival_widens_the_interval_only_where_the_choice_was_close(monkeypatch) -> None:
     """Over 60 noise seeds of the grid: the 12 that took a correction have their intervals
     moved toward the rival's mu* and 1-9 % wider than the chosen fit's alone (the mixture's
-    quantiles), mu* unchanged; the others are untouched. Covered: 11 of those 12 (10 without
+    quantiles; where the lower end is the earliest fold an imperfection allows, only the upper
+    end moves), mu* unchanged; the others are untouched. Covered: 11 of those 12 (10 without
     the rival), 44 of the other 48."""
     rival = fewer_terms_rival
     with_, without = [], []
@@ -95,8 +96,12 @@ def test_the_rival_widens_the_interval_only_where_the_choice_was_close(monkeypat
         q = predict(mu, y, sigma2_std=sd)
         assert p.mu_star == q.mu_star
         (lo, hi), (lo0, hi0) = p.mu_star_interval, q.mu_star_interval
-        assert hi - lo >= hi0 - lo0
-        assert p.mu_star_std >= q.mu_star_std
+        if "imperfection_possible" not in {f.code for f in p.flags}:
+            assert hi - lo >= hi0 - lo0
+            assert p.mu_star_std >= q.mu_star_std
+        else:  # the lower end is the earliest fold an imperfection allows, in both: the
+            # mixture can move only the upper end (toward the rival's mu*)
+            assert lo == lo0
         if p.n_terms == 1:
             assert (lo, hi) == (lo0, hi0)
         else:
