@@ -13,6 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.schemas.common import Integer, Number
 from service.schemas.jobs import Job
 
 AtlasKind = Literal["bifurcation", "warn", "sweep"]
@@ -24,9 +25,9 @@ class AtlasRange(BaseModel):
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
-    from_: float = Field(alias="from")
-    to: float
-    num: int = Field(ge=1)
+    from_: Number = Field(alias="from")
+    to: Number
+    num: Integer = Field(ge=1)
     scale: Literal["linear", "log"] = "linear"
 
 
@@ -57,8 +58,8 @@ class AtlasSpecDoc(BaseModel):
     grid: dict[str, list[Any] | AtlasRange] | None = None
     cells: list[dict[str, Any]] | None = None
     chart: AtlasChart | None = None
-    retries: int = Field(default=2, ge=0, le=10)
-    timeout_s: float | None = Field(default=None, gt=0, description="Bound on the wall time.")
+    retries: Integer = Field(default=2, ge=0, le=10)
+    timeout_s: Number | None = Field(default=None, gt=0, description="Bound on the wall time.")
 
 
 class AtlasRequest(BaseModel):

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 PROBLEM_MEDIA_TYPE = "application/problem+json"
 PROBLEM_TYPE_PREFIX = "urn:snapwarn:problem:"
+
+Number = Annotated[float, Strict()]
+"""A number of a request: a JSON integer or float. ``true``/``false`` and numbers written as
+strings are refused (422 naming the field and the value), never read as 1/0: pydantic's lax
+mode would accept them. Every numeric field of the request models uses it (or :data:`Integer`);
+its JSON schema is a plain ``number`` with the field's bounds."""
+
+Integer = Annotated[int, Strict()]
+"""An integer of a request (see :data:`Number`): booleans, strings and floats are refused."""
 
 
 class FieldError(BaseModel):
@@ -35,7 +44,7 @@ class Control(BaseModel):
     """The control parameter at which a signal was recorded (any quantity, any unit)."""
 
     name: str = Field(default="mu", max_length=200)
-    value: float | None = None
+    value: Number | None = None
     unit: str | None = Field(default=None, max_length=100)
 
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictFloat
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.analysis import Detection, Flag, Quantity
+from service.schemas.common import Number
 
 
 class DetectionRequest(BaseModel):
@@ -15,9 +16,9 @@ class DetectionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     signal_id: str | None = None
-    w: list[StrictFloat] | None = Field(default=None, min_length=2)
-    t: list[StrictFloat] | None = Field(default=None, min_length=2)
-    dt: StrictFloat | None = Field(default=None, ge=1e-100, le=1e100)
+    w: list[Number] | None = Field(default=None, min_length=2)
+    t: list[Number] | None = Field(default=None, min_length=2)
+    dt: Number | None = Field(default=None, ge=1e-100, le=1e100)
     method: Literal["auto", "varpro", "esprit", "fft", "fft-parabolic"] = Field(
         default="auto", description="Detector method ('auto' resolves to 'varpro')."
     )
@@ -27,13 +28,13 @@ class DetectionRequest(BaseModel):
         "default: read from the stored signal's value unit (mm, mm/s, m/s2, g), else a "
         "displacement. Poles come from any; the static level only from a displacement.",
     )
-    start: StrictFloat | None = Field(
+    start: Number | None = Field(
         default=None, ge=0,
         description="Time (from the first sample, the record's time unit) where the free "
         "response starts; default: the kick is located (after a pre-trigger, the hammer's "
         "contact).",
     )  # fmt: skip
-    notch: list[StrictFloat] | None = Field(
+    notch: list[Number] | None = Field(
         default=None, max_length=16,
         description="Frequencies (cycles per time unit of the record, e.g. 50 Hz and its "
         "harmonics) of stationary lines: fitted as lines, never the fundamental. Default: "

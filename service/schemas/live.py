@@ -10,7 +10,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictFloat
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.schemas.analysis import (
     Alarm,
@@ -22,6 +22,7 @@ from service.schemas.analysis import (
     SetAside,
     Transition,
 )
+from service.schemas.common import Integer, Number
 
 
 class LiveControl(BaseModel):
@@ -38,24 +39,24 @@ class LiveOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    margin: float = Field(
+    margin: Number = Field(
         default=0.0, ge=0, allow_inf_nan=False,
         description="Distance kept below the safe bound on mu* (control units).",
     )  # fmt: skip
-    step: float | None = Field(
+    step: Number | None = Field(
         default=None, gt=0, allow_inf_nan=False,
         description="Largest control step (the first steps, before any bound on mu* exists).",
     )  # fmt: skip
-    budget: int | None = Field(
+    budget: Integer | None = Field(
         default=None, ge=1, le=10_000,
         description="Most records; the sweep finishes when it is spent.",
     )  # fmt: skip
-    target_width: float | None = Field(
+    target_width: Number | None = Field(
         default=None, gt=0, allow_inf_nan=False,
         description="'converged' once the trusted 95 % interval of mu* is narrower "
         "(default 1e-6 of max(|mu*|, span of the controls)).",
     )  # fmt: skip
-    control_resolution: float | None = Field(
+    control_resolution: Number | None = Field(
         default=None, gt=0, allow_inf_nan=False,
         description="The finest control step the lab can set: 'converged' once the advised "
         "step is smaller (default: the decimals of the controls, at least 1e-4 of the step).",
@@ -72,21 +73,21 @@ class LiveRecordIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    control: float | None = Field(default=None, allow_inf_nan=True)
+    control: Number | None = Field(default=None, allow_inf_nan=True)
     signal_id: str | None = Field(default=None, max_length=64)
-    w: list[StrictFloat] | None = None
-    t: list[StrictFloat] | None = None
-    dt: float | None = None
-    t0: float | None = None
+    w: list[Number] | None = None
+    t: list[Number] | None = None
+    dt: Number | None = None
+    t0: Number | None = None
     unit: str | None = Field(default=None, max_length=100)
     name: str | None = Field(default=None, max_length=500)
     quantity: Literal["displacement", "velocity", "acceleration"] | None = Field(
         default=None, description="What the record measures (default: the stored signal's "
         "value unit says, else a displacement).")  # fmt: skip
-    start: StrictFloat | None = Field(
+    start: Number | None = Field(
         default=None, ge=0, description="Time from the record's first sample where its free "
         "response starts (default: the kick is located).")  # fmt: skip
-    notch: list[StrictFloat] | None = Field(
+    notch: list[Number] | None = Field(
         default=None, max_length=16, description="Frequencies of stationary lines (cycles per "
         "time unit; default: found).")  # fmt: skip
     exclude: bool = Field(

@@ -6,12 +6,13 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, StrictFloat, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from service.schemas.analysis import Prediction
+from service.schemas.common import Number
 
 #: A number of a table: finite (``NaN`` and ``Infinity`` are refused naming the item, ``mu[3]``).
-Finite = Annotated[StrictFloat, Field(allow_inf_nan=False)]
+Finite = Annotated[Number, Field(allow_inf_nan=False)]
 
 #: The laws a caller may name (``transition``, the CLI's ``--transition``); a custom exponent
 #: is ``a`` (``--a``), alone or with one of them.

@@ -11,13 +11,12 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
-    StrictFloat,
     Tag,
     ValidationError,
     model_validator,
 )
 
-from service.schemas.common import Control
+from service.schemas.common import Control, Number
 from service.schemas.sim import SimulationMetadata
 
 
@@ -32,18 +31,18 @@ class SignalIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    w: list[StrictFloat] = Field(
+    w: list[Number] = Field(
         min_length=2, description="Samples (absolute position at the probe); at least 2."
     )
-    t: list[StrictFloat] | None = Field(
+    t: list[Number] | None = Field(
         default=None,
         min_length=2,
         description="Sample times (same length as w), within +-1e100.",
     )
-    dt: StrictFloat | None = Field(
+    dt: Number | None = Field(
         default=None, ge=1e-100, le=1e100, description="Sampling step, when t is not given."
     )
-    t0: float | None = Field(
+    t0: Number | None = Field(
         default=None, ge=-1e100, le=1e100, description="Time of the first sample (with dt)."
     )
     unit: str | None = Field(default=None, max_length=100, description="Time unit, e.g. 's'.")

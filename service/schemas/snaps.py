@@ -6,6 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.schemas.common import Number
 from service.schemas.jobs import Job
 from service.schemas.sim import Resolution
 from service.schemas.simulations import (
@@ -33,9 +34,9 @@ class SnapRequest(BaseModel):
 
     model: SnapModel = "euler-beam"
     actuation: Actuation = "asymmetric"
-    dmu: float = Field(gt=0.0, lt=0.5, description="Distance from mu*: to the right "
+    dmu: Number = Field(gt=0.0, lt=0.5, description="Distance from mu*: to the right "
                        "(asymmetric, symmetric, from U_A), to the left (antisymmetric, from S_B).")
-    duration: float | None = Field(default=None, ge=1e-3, le=500.0)
+    duration: Number | None = Field(default=None, ge=1e-3, le=500.0)
     damping: Damping = 2e-4
     end_shortening: EndShortening = 1e-2
     slenderness: Slenderness = 1e-3

@@ -15,6 +15,7 @@ from service.schemas.analysis import (
     Quantity,
     SweepResult,
 )
+from service.schemas.common import Integer, Number
 from service.schemas.jobs import Job
 from service.schemas.live import LiveControl, LiveOptions
 from service.schemas.simulations import Actuation, Model
@@ -26,14 +27,14 @@ class SweepMeasurement(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     signal_id: str
-    control_value: float | None = None
+    control_value: Number | None = None
     quantity: Quantity | None = Field(
         default=None, description="What the record measures (default: its value unit says, "
         "else a displacement); the static level only from a displacement.")  # fmt: skip
-    start: float | None = Field(
+    start: Number | None = Field(
         default=None, ge=0, description="Time from the record's first sample where its free "
         "response starts (default: the kick is located).")  # fmt: skip
-    notch: list[float] | None = Field(
+    notch: list[Number] | None = Field(
         default=None, max_length=16, description="Frequencies of stationary lines in this record "
         "(cycles per time unit; default: the sweep's notch, else found).")  # fmt: skip
     exclude: bool = Field(
@@ -54,10 +55,10 @@ class SimulatedSweep(BaseModel):
 
     actuation: Actuation = "asymmetric"
     model: Model | None = Field(default=None, description="Simulator (pipeline default).")
-    damping: float | None = Field(default=None, ge=0)
-    snr_db: float | None = None
-    seed: int | None = None
-    max_measurements: int | None = Field(default=None, ge=5, le=200)
+    damping: Number | None = Field(default=None, ge=0)
+    snr_db: Number | None = None
+    seed: Integer | None = None
+    max_measurements: Integer | None = Field(default=None, ge=5, le=200)
 
 
 class SweepRequest(BaseModel):
@@ -82,13 +83,13 @@ class SweepRequest(BaseModel):
     live: LiveOptions | None = Field(
         default=None, description="Live sweeps only (refused in batch mode): margin, step, budget."
     )
-    band: tuple[float, float] | None = Field(
+    band: tuple[Number, Number] | None = Field(
         default=None,
         description="The fundamental's band of sqrt|sigma2| (rad per time unit of the records): "
         "each record's fundamental is its slowest mode inside; a record with none is set "
         "aside. Default: the mode that softens continuously across the sweep.",
     )
-    notch: list[float] | None = Field(
+    notch: list[Number] | None = Field(
         default=None, max_length=16,
         description="Frequencies of stationary lines (cycles per time unit, e.g. 50 Hz mains "
         "and its harmonics) in every record: fitted as lines, never the fundamental. Default: "
