@@ -21,7 +21,9 @@ of its own.
 ``service.analysis.detect.detect`` runs with its default options on ``(y, dt)`` in seconds.
 Outcomes per record: ``right`` (the fundamental's undamped rate ``sqrt|sigma^2|`` within 1 %
 of the truth ``omega0``), ``withheld`` (no fundamental), ``flagged`` (wrong, with a warning
-flag: any flag but the informational ``pretrigger``), ``silent`` (wrong, no warning flag),
+flag: one of the detector's ``WARNING_FLAGS``), ``silent`` (wrong with only descriptive flags:
+``stationary_line``, ``clipped``, ``drift``... say what was done, not that the fundamental may
+be wrong),
 ``error`` (an exception). ``picked`` says what a wrong fundamental was: ``mode2``/``mode3``
 (a higher mode, within 2 %), ``hum`` (a mains line), ``slow`` (below the truth), ``other``.
 
@@ -54,7 +56,7 @@ for _p in (ROOT, ROOT / "tests" / "labrec"):
 
 import labgen  # noqa: E402
 
-from service.analysis.detect import detect  # noqa: E402
+from service.analysis.detect import WARNING_FLAGS, detect  # noqa: E402
 
 #: Every row but ``noise`` and ``all`` carries a sensor's noise floor at this per-sample SNR:
 #: today's detector takes 100-300 s per noise-free record and 7-70 s at 60 dB (2 cores shared
@@ -68,12 +70,11 @@ ROWS: dict[str, dict[str, Any]] = {
     **{k: {**OFF, k: True, "quantity": "displacement"} for k in labgen.IMPAIRMENTS},
     "all": {k: True for k in labgen.IMPAIRMENTS},
 }
-INFO_FLAGS = frozenset({"pretrigger"})
 TOL = 0.01
 OUTCOMES = ("right", "withheld", "flagged", "silent", "error")
-#: Flags that do not say the fundamental may be wrong (a mark on another mode, a drift of the
-#: frequency): a wrong fundamental flagged only by these is counted apart ("soft").
-SOFT_FLAGS = frozenset({"pretrigger", "nonlinear", "combination_tone"})
+#: Warnings that say the fundamental may be wrong without saying which part of the record is
+#: in doubt: a wrong fundamental warned only by these is also counted apart ("soft").
+SOFT_FLAGS = frozenset({"nonlinear"})
 
 
 def _picked(f_det: float, rec: labgen.LabRecord) -> str:
@@ -114,7 +115,7 @@ def one(row: str, seed: int, i: int) -> dict[str, Any]:
     if abs(rel) <= TOL:
         out.update(outcome="right", picked="fundamental")
     else:
-        warned = any(c not in INFO_FLAGS for c in codes)
+        warned = any(c in WARNING_FLAGS for c in codes)
         out.update(outcome="flagged" if warned else "silent", picked=_picked(f_det, rec))
     return out
 
@@ -182,7 +183,8 @@ def table(rows: list[dict[str, Any]]) -> str:
         top = ", ".join(f"{k} {v}" for k, v in sorted(picks.items(), key=lambda kv: -kv[1])[:3])
         times = [r["time_ms"] for r in sel if math.isfinite(r["time_ms"])]
         med = f"{np.median(times):.0f}" if times else "-"
-        soft = sum(r["outcome"] == "flagged" and set(r["flags"].split()) <= SOFT_FLAGS
+        soft = sum(r["outcome"] == "flagged"
+                   and not (set(r["flags"].split()) & WARNING_FLAGS) - SOFT_FLAGS
                    for r in sel) / n  # fmt: skip
         cells = " | ".join(f"{100 * frac[o]:.1f} %" for o in OUTCOMES)
         lines.append(f"| {name} | {n} | {cells} | {100 * soft:.1f} % | {top or '-'} | {med} |")
@@ -202,6 +204,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="30 records per row")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--rows", default=",".join(ROWS), help="comma-separated rows to run")
+    ap.add_argument("--only", default="",
+                    help="comma-separated record indices to run (re-checking chosen records; "
+                         "the CSV gives each record's flags, pick and error)")  # fmt: skip
     ap.add_argument(
         "--table-only",
         action="store_true",
@@ -219,6 +224,9 @@ def main(argv: list[str] | None = None) -> int:
     # record-major order: a run stopped early has every row equally far
     tasks = [(row, args.seed, i) for i in range(max(n, n1)) for row in names
              if i < (n if row == "all" else n1)]  # fmt: skip
+    if args.only:
+        keep = {int(v) for v in args.only.split(",") if v}
+        tasks = [t for t in tasks if t[2] in keep]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     commit = _commit()  # the code measured: read before the run (the worktree may move on)
@@ -238,10 +246,12 @@ def main(argv: list[str] | None = None) -> int:
         "Records: tests/labrec/labgen.py (`draw_record`); the detector: "
         "`service.analysis.detect.detect(y, dt=dt)` with its defaults. `right`: "
         f"`sqrt|sigma^2|` within {100 * TOL:g} % of the true undamped rate; `withheld`: no "
-        "fundamental; `wrong, flagged`: wrong with any flag but `pretrigger`; `silent wrong`: "
-        "wrong without one; `wrong, soft flags only`: the part of `wrong, flagged` whose "
-        "flags are only `nonlinear`/`combination_tone` (they do not say the fundamental may "
-        "be wrong). Rows: one impairment alone on a displacement record with a "
+        "fundamental; `wrong, flagged`: wrong with a warning flag (the detector's "
+        f"`WARNING_FLAGS`: {', '.join(sorted(WARNING_FLAGS))}); `silent wrong`: wrong with "
+        "only descriptive flags (what was done: `stationary_line`, `clipped`, `drift`, "
+        "`repeated_kick`, `combination_tone`...); `wrong, soft flags only`: the part of "
+        "`wrong, flagged` whose only warning is `nonlinear`. Rows: one impairment alone on a "
+        "displacement record with a "
         f"{FLOOR_DB:g} dB noise floor (`clean`: none), the two other sensors alone, and "
         "`all` impairments with a random sensor. See the module docstring for the ranges; "
         "per-record results in lab_records.csv.\n\n" + table(rows) + "\n"

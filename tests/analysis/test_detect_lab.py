@@ -20,6 +20,7 @@ import labgen  # noqa: E402
 
 from service.analysis.detect import (  # noqa: E402
     FLAG_CODES,
+    WARNING_FLAGS,
     Mode,
     _lab,  # noqa: E402
     detect,
@@ -28,11 +29,9 @@ from service.analysis.errors import ParameterError  # noqa: E402
 from service.recordings import quantity_of  # noqa: E402
 
 OFF = {k: False for k in labgen.IMPAIRMENTS}
-#: Flags that describe the record and what was done with it, not a doubt about the result: a
-#: wrong fundamental carrying only these is "silently wrong".
-INFO = frozenset({"pretrigger", "stationary_line", "no_static_level", "repeated_kick",
-                  "clipped", "forced_part", "drift", "trend", "start_given",
-                  "negligible_growth", "fundamental_band"})  # fmt: skip
+#: A wrong fundamental without one of the detector's WARNING_FLAGS (only flags that describe
+#: the record and what was done with it: pretrigger, stationary_line, clipped, drift...) is
+#: "silently wrong".
 
 
 def _record(seed: int, **switches) -> labgen.LabRecord:
@@ -169,7 +168,7 @@ def _campaign(n: int, seed: int) -> tuple[int, int, list]:
         if _right(det, rec):
             right += 1
             continue
-        warned = [c for c in det.flag_codes if c not in INFO]
+        warned = [c for c in det.flag_codes if c in WARNING_FLAGS]
         silent += not warned
         wrong.append((i, det.fundamental and math.sqrt(abs(det.fundamental.sigma2)),
                       rec.truth.omega0, det.flag_codes))  # fmt: skip

@@ -115,6 +115,16 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
 ``start_given``        the analysis starts at the user's ``start`` (no kick is located).
 ``no_static_level``    ``quantity`` is a velocity or an acceleration: the poles are the
                        structure's, the static level is NaN (only a displacement has one).
+``fundamental_ambiguous`` (a record read through a lab window: a lead-in, a later kick,
+                       clipped samples) the fundamental may not be the structure's: another
+                       mode lies within 25 % of its frequency with at least 10 % of its
+                       amplitude (one line split in several by a model that does not hold
+                       over the window: a later kick or clipped samples inside it; or two
+                       close modes), or it dies within the window (5 e-folds) 3x faster than
+                       a ringing mode (a transient), or does not decay beside a ringing mode
+                       3x stronger (a line, a drift).
+                       A warning: :data:`WARNING_FLAGS` lists the flags that say the
+                       fundamental may be wrong; the others describe the record.
 
 Detection limit: the record SNR of a mode is its energy over the noise variance,
 ``10 log10(A^2 N_eff / (2 s^2))`` = the per-sample SNR ``A^2 / (2 s^2)`` in dB plus
@@ -156,6 +166,7 @@ from service.analysis.detect._results import (
     MODE_KINDS,
     NOISE_FLOOR,
     NONLINEAR_Z,
+    WARNING_FLAGS,
     Detection,
     Fundamental,
     Mode,
@@ -168,6 +179,7 @@ __all__ = [
     "MODE_KINDS",
     "QUANTITIES",
     "FLAG_CODES",
+    "WARNING_FLAGS",
     "MIN_SAMPLES",
     "FEW_PERIODS",
     "LOW_SNR_DB",

@@ -378,7 +378,8 @@ def detect(
                 f"analysed from sample {first}",
             )]  # fmt: skip
     rec.flags[:0] = pre
-    return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab)
+    return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab,
+                   win is not None)
 
 
 def _suspect(modes: list, T: float) -> bool:
@@ -435,11 +436,13 @@ def _residual(rec: Record, out: Outcome, dt: float) -> np.ndarray:
 
 def _result(
     rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
-    quantity: str | None, seeds: np.ndarray, lab: bool = True,
+    quantity: str | None, seeds: np.ndarray, lab: bool = True, window: bool = False,
 ) -> Detection:  # fmt: skip
     """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags.
     ``lab``: tell lines, drift, transients and negligible growth (varpro, or a lab window:
-    the initialisation-only and FFT methods on a plain record read as before)."""
+    the initialisation-only and FFT methods on a plain record read as before); ``window``:
+    the record was read through a lab window (a lead-in, a later kick, clipped samples, the
+    user's start), where the fundamental is checked for ambiguity."""
     trend = frozenset()
     lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
@@ -487,6 +490,9 @@ def _result(
         growth=growth, trend=trend_at, aside=aside | tiny_at,
     )  # fmt: skip
     flags += _lab.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
+    doubt = _lab.ambiguity(modes, n * dt) if window and fund is not None else None
+    if doubt is not None:
+        flags.append(doubt)
     static, static_std = out.static * u, out.static_std * u
     if quantity in ("velocity", "acceleration"):
         static = static_std = math.nan

@@ -25,8 +25,9 @@ from service.analysis.detect._results import FEW_PERIODS, LOW_SNR_DB, MIN_SAMPLE
 #: A quiet lead-in: its envelope (moving rms, lines and noise included) stays below this
 #: fraction of the response's largest envelope ...
 LEAD_QUIET = 0.35
-#: ... for at least this fraction of the record (and MIN_SAMPLES samples).
-LEAD_MIN = 0.02
+#: ... for at least this fraction of the record (and MIN_SAMPLES samples); it ends where the
+#: envelope leaves this many times its median level before the rise.
+LEAD_MIN, LEAD_RISE = 0.02, 2.5
 #: A later kick: the envelope jumps to at least this many times its value just before.
 KICK_JUMP = 1.6
 #: Clipping: the record's extreme held in at least this many separate runs (the rule of the
@@ -118,7 +119,12 @@ def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
     """``(lead, i_half)``: the end of a quiet lead-in before the first kick (0: none) and the
     first sample where the envelope passes half its largest value. The lead-in lasts at least
     :data:`LEAD_MIN` of the record and half the dominant ``period`` (or 5 % of the record):
-    the short envelope also dips near the zero crossings of a ringing record."""
+    the short envelope also dips near the zero crossings of a ringing record. It ends at the
+    first sample where the envelope leaves :data:`LEAD_RISE` times its median before
+    ``i_half`` (a long hammer's contact rises over many samples: the lead's
+    level is not read on the rise), stays below :data:`LEAD_QUIET` of the largest envelope,
+    and is 4x longer than the rise (a kick; a growing or smoothly starting record rises as
+    long as it has been quiet)."""
     n = e.size
     emax = float(e.max())
     if not emax > 0:
@@ -128,13 +134,13 @@ def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
     end = i_half - 2 * L
     if end < m:
         return 0, i_half
-    level = float(np.max(e[:end]))
+    base = float(np.median(e[:end]))
+    rise_from = int(np.argmax(e[: i_half + 1] > LEAD_RISE * base))
+    if rise_from < m:
+        return 0, i_half
+    level = float(np.max(e[: max(rise_from - L, 1)]))
     if not level < LEAD_QUIET * emax:
         return 0, i_half
-    # the rise: from the lead's level to half the peak, much shorter than the lead (a kick;
-    # a growing or smoothly starting record rises as long as it has been quiet)
-    above = np.flatnonzero(e[:i_half] <= level)
-    rise_from = int(above[-1]) if above.size else 0
     if not (i_half - rise_from) * 4 <= rise_from:
         return 0, i_half
     return rise_from, i_half
@@ -219,7 +225,7 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
         win.n_clipped = int(clip.sum())
         inside = np.flatnonzero(clip[win.start : win.stop])
         if inside.size:
-            a, b = _unclipped(win.start + inside, win.start, win.stop, LL)
+            a, b = _unclipped(win.start + inside, win.start, win.stop, LL, i_half)
             if b - a >= max(WINDOW_MIN * (win.stop - win.start), 4 * MIN_SAMPLES):
                 win.start, win.stop = a, b
         win.flags.append(
@@ -232,13 +238,16 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
     return win
 
 
-def _unclipped(idx: np.ndarray, start: int, stop: int, LL: int) -> tuple[int, int]:
+def _unclipped(
+    idx: np.ndarray, start: int, stop: int, LL: int, rise: int = 0
+) -> tuple[int, int]:
     """The stretch of the window ``[start, stop)`` read past its clipped samples ``idx``: from
     the end of the first cluster of clipped peaks (the kick's, gaps below ``LL``) to the next
     clipped sample (a ring-down clips again only when kicked again); the part before the first
-    clipped sample when that comes late (a later kick clipped); else the longest stretch."""
+    clipped sample when that comes late after the response's rise ``rise`` (a later kick
+    clipped: never the lead-in alone, when no lead-in was found); else the longest stretch."""
     gaps = np.diff(idx)
-    if idx[0] - start > 2 * LL:
+    if idx[0] - max(start, rise) > 2 * LL:
         a, b = start, int(idx[0])
     else:
         far = np.flatnonzero(gaps > LL)
@@ -248,7 +257,9 @@ def _unclipped(idx: np.ndarray, start: int, stop: int, LL: int) -> tuple[int, in
     if b - a >= WINDOW_MIN * (stop - start):
         return a, b
     edges = np.concatenate(([start - 1], idx, [stop]))
-    g = int(np.argmax(np.diff(edges) - 1))
+    size = np.diff(edges) - 1
+    size[edges[1:] <= rise + 2 * LL] = -1  # a stretch over before the response is no window
+    g = int(np.argmax(size))
     return int(edges[g] + 1), int(edges[g + 1])
 
 
@@ -462,48 +473,100 @@ def forced_head(residual: np.ndarray, noise_std: float) -> int:
     return end * B
 
 
+#: The flags of components set aside, in their order: (flag, the mode's description in the
+#: list, the message around the list; ``{n}`` the count, ``{txt}`` the list, ``{big}`` the
+#: largest amplitude).
+_ASIDE_FLAGS = (
+    ("forced_part",
+     lambda m: f"sigma^2 = {m.sigma2:.4g}, decay rate {m.damping:.4g}",
+     "{n} transient(s) that die early in the record set aside: {txt}; slower than a ringing "
+     "mode but gone within the record (the hammer's contact, a forced response the free-decay "
+     "model absorbed); never the fundamental"),
+    ("stationary_line",
+     lambda m: f"{m.frequency:.6g} cycles/time, amplitude {m.amplitude:.3g}",
+     "{n} stationary line(s) fitted and set aside: {txt}; present before the kick, given as "
+     "notch frequencies, or not decaying while the kicked modes do (mains hum and its "
+     "harmonics look like this); never the fundamental"),
+    ("drift",
+     lambda m: f"sigma^2 = {m.sigma2:.4g}",
+     "{n} slow component(s) set aside as a drift of the baseline: {txt}; slower than a kicked "
+     "ringing mode and not kicked from rest (an offset that settles, a ramp, a slow wobble of "
+     "the sensor or of the equilibrium); never the fundamental"),
+    ("negligible_growth",
+     lambda m: f"amplitude {m.amplitude:.3g}, growth rate {-m.damping:.3g}",
+     "{n} growing component(s) stay below " + f"{GROWTH_NEGLIGIBLE:g}" + " of the largest "
+     "amplitude ({big:.3g}) over the record: {txt}; a by-product of the fit, not read as an "
+     "instability"),
+)  # fmt: skip
+
+
 def aside_flags(
     modes: list[Mode], lines: frozenset[int], drift: frozenset[int], tiny: frozenset[int],
     transient: frozenset[int] = frozenset(),
 ) -> list[Flag]:  # fmt: skip
-    """The flags stationary_line, drift, forced_part (a transient) and negligible_growth
-    (indices into ``modes``)."""
+    """The flags forced_part (a transient), stationary_line, drift and negligible_growth
+    (indices into ``modes``), built from :data:`_ASIDE_FLAGS`."""
+    sets = {"forced_part": transient, "stationary_line": lines, "drift": drift,
+            "negligible_growth": tiny}  # fmt: skip
     out = []
-    if transient:
-        txt = ", ".join(f"modes[{k}] (sigma^2 = {modes[k].sigma2:.4g}, decay rate "
-                        f"{modes[k].damping:.4g})" for k in sorted(transient))  # fmt: skip
-        out.append(Flag(
-            "forced_part",
-            f"{len(transient)} transient(s) that die early in the record set aside: {txt}; "
-            "slower than a ringing mode but gone within the record (the hammer's contact, a "
-            "forced response the free-decay model absorbed); never the fundamental",
-        ))  # fmt: skip
-    if lines:
-        txt = ", ".join(f"modes[{k}] ({modes[k].frequency:.6g} cycles/time, amplitude "
-                        f"{modes[k].amplitude:.3g})" for k in sorted(lines))  # fmt: skip
-        out.append(Flag(
-            "stationary_line",
-            f"{len(lines)} stationary line(s) fitted and set aside: {txt}; present before the "
-            "kick, given as notch frequencies, or not decaying while the kicked modes do "
-            "(mains hum and its harmonics look like this); never the fundamental",
-        ))  # fmt: skip
-    if drift:
-        txt = ", ".join(f"modes[{k}] (sigma^2 = {modes[k].sigma2:.4g})" for k in sorted(drift))
-        out.append(Flag(
-            "drift",
-            f"{len(drift)} slow component(s) set aside as a drift of the baseline: {txt}; "
-            "slower than a kicked ringing mode and not kicked from rest (an offset that "
-            "settles, a ramp, a slow wobble of the sensor or of the equilibrium); never the "
-            "fundamental",
-        ))  # fmt: skip
-    if tiny:
-        txt = ", ".join(f"modes[{k}] (amplitude {modes[k].amplitude:.3g}, growth rate "
-                        f"{-modes[k].damping:.3g})" for k in sorted(tiny))  # fmt: skip
+    for code, describe, text in _ASIDE_FLAGS:
+        idx = sets[code]
+        if not idx:
+            continue
+        txt = ", ".join(f"modes[{k}] ({describe(modes[k])})" for k in sorted(idx))
         big = max(m.amplitude for m in modes)
-        out.append(Flag(
-            "negligible_growth",
-            f"{len(tiny)} growing component(s) stay below {GROWTH_NEGLIGIBLE:g} of the "
-            f"largest amplitude ({big:.3g}) over the record: {txt}; a by-product of the fit, "
-            "not read as an instability",
-        ))  # fmt: skip
+        out.append(Flag(code, text.format(n=len(idx), txt=txt, big=big)))
     return out
+
+
+#: The fundamental is ambiguous (flag ``fundamental_ambiguous``) when another mode of the
+#: structure lies within AMBIG_CLOSE of its frequency with at least AMBIG_AMP of its amplitude
+#: (one line split in several by a model that does not hold over the window: a later kick or
+#: clipped samples inside it; or two close modes the record does not tell apart) ...
+AMBIG_CLOSE, AMBIG_AMP = 0.25, 0.1
+#: ... or when it dies within the window (AMBIG_DECAY e-folds) AMBIG_FASTER times faster than
+#: a ringing mode (a transient the fit absorbed), or does not decay beside a ringing mode at
+#: least 1/AMBIG_WEAK times stronger that does (a line or a drift kept as a mode).
+AMBIG_WEAK, AMBIG_DECAY, AMBIG_FASTER = 1.0 / 3.0, 5.0, 3.0
+
+
+def ambiguity(modes: list[Mode], T: float) -> Flag | None:
+    """The warning ``fundamental_ambiguous`` (None: the fundamental ``modes[0]`` is not in
+    doubt): another candidate is comparably plausible, or the fundamental does not behave as
+    a kicked mode of the structure beside one that does (window length ``T``)."""
+    if not modes or modes[0].kind != "mode" or modes[0].regime != "underdamped":
+        return None
+    f = modes[0]
+    rivals = [(j, m) for j, m in enumerate(modes) if j and m.kind == "mode"
+              and m.combination is None]  # fmt: skip
+    why = []
+    close = [j for j, m in rivals
+             if m.regime == "underdamped" and f.omega > 0
+             and abs(m.omega / f.omega - 1.0) <= AMBIG_CLOSE
+             and m.amplitude >= AMBIG_AMP * f.amplitude]  # fmt: skip
+    if close:
+        why.append(
+            ", ".join(f"modes[{j}] ({modes[j].frequency:.6g})" for j in close)
+            + f" within {100 * AMBIG_CLOSE:g} % of its frequency with at least "
+            f"{100 * AMBIG_AMP:g} % of its amplitude (one line split in several: a later kick "
+            "or clipped samples in the window, or two close modes)"
+        )
+    ringing = [(j, m) for j, m in rivals if _rings(m, T)]
+    if ringing:
+        j, slow = min(ringing, key=lambda jm: jm[1].damping)
+        if f.damping * T > AMBIG_DECAY and f.damping > AMBIG_FASTER * slow.damping:
+            why.append(f"it dies within the window ({f.damping * T:.3g} e-folds), "
+                       f"{f.damping / slow.damping:.3g}x faster than modes[{j}] that rings on "
+                       "(a transient?)")  # fmt: skip
+    strong = [(j, m) for j, m in ringing if f.amplitude < AMBIG_WEAK * m.amplitude]
+    if strong and (f.damping * T < RING_DECAY or not f.damping > 3.0 * f.damping_std):
+        j = max(strong, key=lambda jm: jm[1].amplitude)[0]
+        why.append(f"it does not decay ({f.damping * T:.3g} e-folds over the window) while "
+                   f"the stronger modes[{j}] rings down (a line or a drift?)")
+    if not why:
+        return None
+    return Flag(
+        "fundamental_ambiguous",
+        f"the fundamental ({f.frequency:.6g} cycles/time) may not be the structure's: "
+        + "; ".join(why) + ". Check the record (a clean single kick), or give the band",
+    )

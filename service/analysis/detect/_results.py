@@ -31,7 +31,15 @@ FLAG_CODES = (
     "clipped",
     "start_given",
     "no_static_level",
+    "fundamental_ambiguous",
 )
+#: The flags that say the fundamental may be wrong (or that there is none); the others
+#: describe the record and what was done with it (a wrong fundamental carrying only those is
+#: silently wrong).
+WARNING_FLAGS = frozenset({
+    "no_mode", "few_periods", "low_snr", "unstable", "nonlinear", "aliasing", "numerical",
+    "relaxation", "fundamental_ambiguous",
+})  # fmt: skip
 #: ``Mode.kind``: a mode of the structure, or a component set aside (never the fundamental).
 MODE_KINDS = ("mode", "line", "drift", "trend", "transient")
 MIN_SAMPLES = 16
