@@ -66,6 +66,15 @@ def test_detect_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:
     assert _absent(loaded, (*WEB_AND_CHARTS, "scipy.signal", "scipy.stats")) == []
 
 
+def test_plain_detect_imports_no_wire_models_and_no_scipy_modules(files: dict[str, Path]) -> None:
+    """The line alone needs no pydantic (~0.3 s CPU) and the detector no scipy submodule (each
+    ~0.2 s: its array-API layer parses docstrings at import)."""
+    loaded = _loaded("detect", str(files["record"]))
+    assert "service.analysis.detect" in loaded
+    assert _absent(loaded, ("pydantic", "service.convert", "scipy.fft", "scipy.ndimage",
+                            "scipy.linalg", "scipy.special")) == []  # fmt: skip
+
+
 def test_predict_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:
     loaded = _loaded("predict", str(files["table"]), "--json")
     assert "service.analysis.predict" in loaded

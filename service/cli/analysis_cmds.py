@@ -10,6 +10,7 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -140,7 +141,6 @@ def _rates_from_f_or_t(table: Any, path: str) -> dict[str, np.ndarray]:
 
 # ------------------------------------------------------------------------------- commands
 def _detect(args: argparse.Namespace) -> int:
-    from service import convert
     from service.analysis.detect import detect
 
     rec = read_record(args.file, dt=args.dt, resample=args.resample, reader=_reader_options(args))
@@ -152,6 +152,15 @@ def _detect(args: argparse.Namespace) -> int:
         if err is None:
             raise
         raise err from None
+    if not (args.json or args.plot):  # the line alone: the wire models (pydantic) not loaded
+        f = det.fundamental
+        mode = _finite(det.modes[int(f.index)]) if f is not None else None
+        emit({}, json_mode=False, text=detection_text(mode, len(det.modes),
+                                                      _flag_codes([*rec.flags, *det.flags]),
+                                                      rec.unit))  # fmt: skip
+        return 0
+    from service import convert
+
     doc = convert.detection(det, extra_flags=rec.flags, time_unit=rec.unit,
                             value_unit=rec.value_unit)  # fmt: skip
     if args.plot:
@@ -159,17 +168,49 @@ def _detect(args: argparse.Namespace) -> int:
 
         plot_detection(args.plot, rec.w, rec.dt, doc, time_unit=rec.unit,
                        value_unit=rec.value_unit, title=Path(args.file).name)  # fmt: skip
-    f = doc.fundamental
-    per = f" rad/{rec.unit}" if rec.unit else ""
-    sq = f" 1/{rec.unit}^2" if rec.unit else ""
-    text = (
-        f"fundamental: omega = {f.omega}{per}, sigma2 = {f.sigma2} +- {f.sigma2_std}{sq} "
-        f"({f.regime})"
-        if f is not None
-        else "no fundamental"
-    ) + f"; {len(doc.modes)} modes; flags: {[x.code for x in doc.flags] or 'none'}"
+    text = detection_text(doc.fundamental, len(doc.modes), [x.code for x in doc.flags], rec.unit)
     emit(doc, json_mode=args.json, text=text)
     return 0
+
+
+def detection_text(fund: Any, n_modes: int, codes: list[str], unit: str | None) -> str:
+    """``snapwarn detect``'s line: the fundamental (``omega``, ``sigma2``, ``sigma2_std``,
+    ``regime`` as the wire's ``Fundamental`` has them), the number of modes, the flags' codes."""
+    per = f" rad/{unit}" if unit else ""
+    sq = f" 1/{unit}^2" if unit else ""
+    return (
+        f"fundamental: omega = {fund.omega}{per}, sigma2 = {fund.sigma2} +- {fund.sigma2_std}{sq} "
+        f"({fund.regime})"
+        if fund is not None
+        else "no fundamental"
+    ) + f"; {n_modes} modes; flags: {codes or 'none'}"
+
+
+def _finite(mode: Any) -> argparse.Namespace:
+    """A numerics mode's fields of the line as the wire has them (non-finite numbers ``None``,
+    see ``service.convert.plain``)."""
+
+    def num(x: Any) -> float | None:
+        v = float(x)
+        return v if math.isfinite(v) else None
+
+    return argparse.Namespace(omega=num(mode.omega), sigma2=num(mode.sigma2),
+                              sigma2_std=num(mode.sigma2_std), regime=mode.regime)  # fmt: skip
+
+
+def _flag_codes(items: list[Any]) -> list[str]:
+    """The codes of ``service.convert.flags(items)``: each (code, message) once, in order."""
+    seen: set[tuple[str, str]] = set()
+    out: list[str] = []
+    for f in items:
+        if isinstance(f, Mapping):
+            code, msg = str(f["code"]), str(f["message"])
+        else:
+            code, msg = f.code, f.message
+        if (code, msg) not in seen:
+            seen.add((code, msg))
+            out.append(code)
+    return out
 
 
 def _predict(args: argparse.Namespace) -> int:

@@ -190,3 +190,36 @@ def test_an_all_positive_sigma2_column_is_told_how_to_give_it(tmp_path, capsys) 
     assert main(["predict", str(p)]) == 2
     err = capsys.readouterr().err
     assert "every value is >= 0" in err and "give its negative" in err, err
+
+
+def test_detect_line_is_the_wire_documents(tmp_path, capsys) -> None:
+    """``snapwarn detect`` prints its line from the numerics (no pydantic loaded); it is the line
+    the wire document gives (``--json`` path), flags of the reader and the detector included:
+    a clean ring-down, an overdamped record, one with a pre-trigger and hum, one with a unit,
+    and noise only (no fundamental)."""
+    from service import convert
+    from service.analysis.detect import detect
+    from service.cli.analysis_cmds import detection_text
+    from service.recordings import read_file
+
+    rng = np.random.default_rng(11)
+    t = np.arange(3000) * 1e-3
+    cases = {
+        "clean.csv": np.exp(-3 * t) * np.cos(50 * t),
+        "over.csv": np.exp(-40 * t) - 0.5 * np.exp(-90 * t),
+        "lab.csv": np.r_[np.zeros(600), np.exp(-3 * t[:2400]) * np.sin(60 * t[:2400])]
+        + 0.05 * np.sin(2 * np.pi * 50 * t) + 1e-2 * rng.normal(size=3000),
+        "noise.csv": 1e-3 * rng.normal(size=3000),
+    }
+    for name, w in cases.items():
+        p = tmp_path / name
+        np.savetxt(p, np.c_[t, w], delimiter=",", header="t_s,w_mm" if name == "lab.csv"
+                   else "t,w", comments="")  # fmt: skip
+        assert main(["detect", str(p)]) == 0
+        line = capsys.readouterr().out.strip()
+        rec = read_file(p)
+        doc = convert.detection(detect(rec.w, dt=rec.dt), extra_flags=rec.flags,
+                                time_unit=rec.unit, value_unit=rec.value_unit)  # fmt: skip
+        want = detection_text(doc.fundamental, len(doc.modes), [f.code for f in doc.flags],
+                              rec.unit)  # fmt: skip
+        assert line == want, name

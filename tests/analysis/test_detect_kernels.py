@@ -200,3 +200,29 @@ def test_top_eigenpairs_match_numpy_on_a_hankel_covariance() -> None:
     s = np.linalg.svd(Ve[:, :4].T @ V[:, :4], compute_uv=False)
     np.testing.assert_allclose(s, 1.0, atol=1e-10)
     np.testing.assert_allclose(V.T @ V, np.eye(r), atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 100, 2001])
+@pytest.mark.parametrize("h", [0, 1, 3, 50, 5000])
+def test_running_min_matches_scipy_minimum_filter(n: int, h: int) -> None:
+    from scipy.ndimage import minimum_filter1d
+
+    from service.analysis.detect._kernels import running_min
+
+    rng = np.random.default_rng(n * 7 + h)
+    for x in (rng.random(n), np.cumsum(rng.normal(size=n)), np.round(rng.random(n), 1)):
+        ref = minimum_filter1d(x, size=2 * h + 1, mode="nearest")
+        np.testing.assert_array_equal(running_min(x, h), ref)
+    x32 = rng.random(n).astype(np.float32)
+    ref32 = minimum_filter1d(x32, size=2 * h + 1, mode="nearest").astype(np.float64)
+    np.testing.assert_array_equal(running_min(x32, h), ref32)
+
+
+def test_prev_fast_len_matches_scipy() -> None:
+    import scipy.fft
+
+    from service.analysis.detect._spectral import prev_fast_len
+
+    rng = np.random.default_rng(5)
+    ns = [*range(1, 5000), *rng.integers(5000, 10**9, 3000).tolist(), 2**40 + 1]
+    assert [prev_fast_len(n) for n in ns] == [scipy.fft.prev_fast_len(n, real=True) for n in ns]

@@ -28,6 +28,10 @@ import math
 import numpy as np
 from numba import njit
 
+from service.analysis._numba_load import install as _fast_cache_load
+
+_fast_cache_load()
+
 _SERIES_D = 1e-2  # |D| below which the entire functions are summed as power series
 
 
@@ -650,3 +654,35 @@ def top_eigenpairs(R: np.ndarray, r: int, iters: int, w: np.ndarray, V: np.ndarr
         w[j] = ws[r - 1 - j]
         for i in range(L):
             V[i, j] = Vr[i, r - 1 - j]
+
+
+@njit(cache=True)
+def _running_min(x: np.ndarray, h: int, out: np.ndarray) -> None:
+    n = x.shape[0]
+    dq = np.empty(n, np.int64)  # indices of increasing values: the window's minimum first
+    head = 0
+    tail = 0
+    j = 0
+    for i in range(n):
+        hi = min(n - 1, i + h)
+        while j <= hi:
+            v = x[j]
+            while tail > head and x[dq[tail - 1]] >= v:
+                tail -= 1
+            dq[tail] = j
+            tail += 1
+            j += 1
+        while dq[head] < i - h:
+            head += 1
+        out[i] = x[dq[head]]
+
+
+def running_min(x: np.ndarray, h: int) -> np.ndarray:
+    """The lowest value of ``x`` over ``[i - h, i + h]`` (clipped to the record) at each sample:
+    ``scipy.ndimage.minimum_filter1d(x, 2 h + 1, mode="nearest")`` in O(n) with a monotone
+    queue, as float64 (a minimum is one of the values: exact)."""
+    xf = np.ascontiguousarray(x, dtype=np.float64)
+    out = np.empty(xf.shape[0])
+    if xf.shape[0]:
+        _running_min(xf, max(int(h), 0), out)
+    return out

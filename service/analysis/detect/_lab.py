@@ -17,9 +17,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 
 from service.analysis.common import Flag
+from service.analysis.detect._kernels import running_min
 from service.analysis.detect._results import FEW_PERIODS, LOW_SNR_DB, MIN_SAMPLES, Mode
 
 #: A quiet lead-in: its envelope (moving rms, lines and noise included) stays below this
@@ -167,7 +167,7 @@ def _later_kicks(E: np.ndarray, first: int, LL: int) -> list[int]:
     j0 = first + int(np.argmax(E[first : min(n, first + n // 10)]))
     top = float(E[j0])
     # the lowest value over the 2 LL samples up to each sample (a trailing running minimum)
-    cm = minimum_filter1d(E, size=2 * LL + 1, mode="nearest")
+    cm = running_min(E, LL)
     trail = np.empty(n)
     trail[LL:] = cm[: n - LL]
     trail[:LL] = cm[0]

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import scipy.fft as sfft
 
 from service.analysis.common import Flag
 from service.analysis.detect._kernels import hankel_gram, top_eigenpairs
@@ -309,6 +308,20 @@ def _fft_modes(
     return [first] + sorted(others, key=lambda m: -m.sigma2), flags
 
 
+def prev_fast_len(n: int) -> int:
+    """The largest ``2^a 3^b 5^c <= n`` (``n >= 1``): ``scipy.fft.prev_fast_len(n, real=True)``,
+    here because importing ``scipy.fft`` costs a command ~0.2 s CPU for this one integer."""
+    best = 1
+    p5 = 1
+    while p5 <= n:
+        p35 = p5
+        while p35 <= n:
+            best = max(best, p35 << ((n // p35).bit_length() - 1))
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
 def _head_peaks(
     r: np.ndarray, spec: _Spectrum, p: np.ndarray, q: np.ndarray, max_modes: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -325,7 +338,7 @@ def _head_peaks(
     heads = [N]
     L = N // 2
     while L >= 64:
-        heads.append(sfft.prev_fast_len(L, real=True))
+        heads.append(prev_fast_len(L))
         L //= 2
     if noise_var <= 0:
         return np.zeros(0), np.zeros(0)

@@ -1,0 +1,82 @@
+"""Cached kernels loaded without refreshing numba's whole target context
+(``service.analysis._numba_load``) run as they do with numba's own loader: same results, the
+runtime (arrays returned) available, and a later cache miss still compiles. Each case runs fresh
+interpreters (a process loads a kernel once)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+_KERNELS = """
+import numpy as np
+from numba import njit
+
+@njit(cache=True)
+def ramp(n):
+    return np.arange(n) * 0.5
+
+@njit(cache=True)
+def total(x):
+    return x.sum()
+"""
+
+_RUN = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from service.analysis._numba_load import install
+applied = install() if sys.argv[2] == "patched" else False
+import kern
+a = kern.ramp(5)                    # cached: loaded, returns an array (numba's runtime)
+s = kern.total(a.astype("float32")) # float32: not in the cache, compiled after the load
+print(json.dumps({"applied": applied, "a": a.tolist(), "s": float(s),
+                  "hits": sum(kern.ramp.stats.cache_hits.values()),
+                  "misses": sum(kern.total.stats.cache_misses.values())}))
+"""
+
+
+def _run(code: str, *argv: str, env: dict[str, str] | None = None) -> dict:
+    r = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                       timeout=600, env={**os.environ, **(env or {})})  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def test_a_cached_kernel_loads_and_a_miss_still_compiles(tmp_path: Path) -> None:
+    (tmp_path / "kern.py").write_text(_KERNELS)
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    first = _run(_RUN, str(tmp_path), "plain", env=env)  # compiles and caches ramp and total
+    assert first["hits"] == 0
+    for f in (tmp_path / "cache").rglob("*total*"):
+        f.unlink()  # total is a miss again
+    second = _run(_RUN, str(tmp_path), "patched", env=env)
+    assert second["applied"] is True
+    assert second["hits"] == 1 and second["misses"] == 1
+    assert second["a"] == first["a"] == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert second["s"] == first["s"] == 5.0
+
+
+_DETECT = """
+import json, sys
+import numpy as np
+from service.analysis.detect import detect
+from service.analysis import _numba_load
+t = np.arange(4000) * 1e-3
+rng = np.random.default_rng(3)
+w = np.r_[np.zeros(400), np.exp(-2 * t[:3600]) * np.sin(40 * t[:3600])
+          + 0.3 * np.exp(-5 * t[:3600]) * np.sin(130 * t[:3600])] + 1e-3 * rng.normal(size=4000)
+d = detect(w, dt=1e-3)
+print(json.dumps({"patched": _numba_load._installed, "modes": [
+    [m.omega, m.sigma2, m.sigma2_std, m.amplitude] for m in d.modes],
+    "flags": [f.code for f in d.flags]}))
+"""
+
+
+def test_detect_is_the_same_with_numbas_full_refresh() -> None:
+    fast = _run(_DETECT)
+    full = _run(_DETECT, env={"SNAPWARN_NUMBA_FULL_REFRESH": "1"})
+    assert fast.pop("patched") is True and full.pop("patched") is False
+    assert fast == full  # bit for bit (json floats round-trip)
