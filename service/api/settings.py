@@ -135,6 +135,18 @@ class Settings(BaseSettings):
         description="Longest wait for the next bytes of a request body (408 and the connection "
         "closed beyond): a slow client holds no worker for ever.",
     )
+    header_read_timeout_s: float = Field(
+        default=20.0,
+        gt=0,
+        description="Longest time a client may take to send a request's headers, from the "
+        "connection (or the request's first byte) on: 408 and the connection closed beyond, or "
+        "closed without an answer if nothing was sent (service.api.header_guard).",
+    )
+    max_header_bytes: int = Field(
+        default=64 * 1024,
+        gt=0,
+        description="Most bytes of a request's line and headers: 431 and closed beyond.",
+    )
     idempotency_lease_s: float = Field(
         default=10.0,
         gt=0,

@@ -180,6 +180,8 @@ def _serve(args: argparse.Namespace) -> int:
         f"snapwarn: serving on http://{settings.host}:{settings.port} (db {settings.db_url}; "
         f"{keys})\n"
     )
+    from service.api.header_guard import protocol_for
+
     uvicorn.run(
         "service.api.app:app_from_env",
         factory=True,
@@ -187,7 +189,7 @@ def _serve(args: argparse.Namespace) -> int:
         port=settings.port,
         workers=settings.http_workers,
         log_level=settings.log_level,
-        http=settings.http_impl,
+        http=protocol_for(settings.http_impl),  # uvicorn's, with a bound on the headers
         loop=settings.loop_impl,
         proxy_headers=bool(settings.forwarded_allow_ips),
         forwarded_allow_ips=",".join(settings.forwarded_allow_ips) or None,
