@@ -139,7 +139,7 @@ def snap(scene: Scene, model: str, dmu: float, *, duration: float | None = None,
     act = scene.actuation
     side, frm, to, probe = _protocol(act)
     if duration is None:
-        duration = min(MAX_DURATION, 4.0 * normal_form_time(act, dmu) + 2.0)
+        duration = default_duration(act, dmu)
     if not (math.isfinite(duration) and 1e-3 <= duration <= MAX_DURATION):
         raise ParameterError("duration", duration,
                              f"duration must lie in [0.001, {MAX_DURATION}], got {duration!r}")
@@ -177,6 +177,48 @@ def snap(scene: Scene, model: str, dmu: float, *, duration: float | None = None,
                       {"level": level, "perturbation": pert})  # fmt: skip
 
 
+def default_duration(actuation: str, dmu: float) -> float:
+    """A snap's default record length: 4 normal-form snap times and 2 time units, at most
+    ``MAX_DURATION``."""
+    return min(MAX_DURATION, 4.0 * normal_form_time(actuation, dmu) + 2.0)
+
+
+@dataclass(frozen=True)
+class RodSnapGrid:
+    """The time grid of a rod's snap: ``samples`` records ``dt`` apart, each ``every``
+    internal steps of ``dt / every``, no coarser than the rod's own step (``step``: its
+    fundamental period at rest / ``sim.resolution.rod_steps_per_period(rtol)``, the step a
+    simulation of the same scene runs). ``steps`` = samples x every; the cost of the run is
+    about elements x steps (``work``)."""
+
+    samples: int
+    every: int
+    step: float
+    elements: int
+
+    @property
+    def steps(self) -> int:
+        return self.samples * self.every
+
+    @property
+    def work(self) -> int:
+        return self.elements * self.steps
+
+
+def rod_snap_grid(scene: Scene, elements: int, duration: float, dt: float) -> RodSnapGrid:
+    """The grid :func:`snap` runs the rod on (see :class:`RodSnapGrid`). Blocking: the rod's
+    equilibrium at rest (cached); ParameterError when it has none."""
+    from sim.resolution import rod_cost
+
+    cost = rod_cost(scene, elements)
+    if cost is None:
+        raise ParameterError("scene", scene.actuation,
+                             "the rod has no equilibrium at rest to take its time step from")
+    step = cost.period / cost.grid.steps_per_period
+    every = max(1, math.ceil(dt / step * (1 - 1e-12)))
+    return RodSnapGrid(int(round(duration / dt)), every, step, int(elements))
+
+
 def _rod_snap(scene: Scene, dmu: float, duration: float, dt: float) -> SnapResult:
     """The rod: asymmetric, the paper's released indenter (``cosserat.snap_through``);
     pitchforks, the state at the rod's own mu* with the control stepped to mu* +- dmu and the
@@ -188,10 +230,13 @@ def _rod_snap(scene: Scene, dmu: float, duration: float, dt: float) -> SnapResul
 
     bif = BACKENDS["cosserat"].bifurcation(scene)
     n = bif.resolution.size
+    grid = rod_snap_grid(scene, n, duration, dt)
     if scene.actuation == "asymmetric":
         st = snap_through(dmu, end_shortening=scene.end_shortening,
                           slenderness=scene.slenderness, elements=n, damping=scene.damping,
-                          duration=duration, dt=dt, mu_star=bif.mu_star)  # fmt: skip
+                          duration=duration, dt=dt, mu_star=bif.mu_star,
+                          every=grid.every)  # fmt: skip
+        _check_resolved(st.info["stop"], st.t, duration, st.info["dt"])
         k = bif.w_star.size // 2
         amp = st.w_mid - float(bif.w_star[k])
         level = 0.5 * abs(st.w_mid_final - float(bif.w_star[k]))
@@ -209,10 +254,26 @@ def _rod_snap(scene: Scene, dmu: float, duration: float, dt: float) -> SnapResul
     pert = PERTURBATION * dmu
     (i, j), (wi, wj) = rod.interp_weights(probe)
     r = math.sqrt(rod.end_shortening)
-    run = integrate(rod, z0, kick_velocity(rod, 0.25, pert), mu, xi=scene.damping, dt=dt,
-                    nsteps=int(round(duration / dt)), probes=[((i, j), (wi / r, wj / r))])
+    run = integrate(rod, z0, kick_velocity(rod, 0.25, pert), mu, xi=scene.damping,
+                    dt=dt / grid.every, nsteps=grid.steps, every=grid.every,
+                    probes=[((i, j), (wi / r, wj / r))])  # fmt: skip
+    _check_resolved(run.stop, run.t, duration, run.dt)
     amp = run.rec[:, 0] - w0
     return SnapResult(scene.actuation, "cosserat", float(dmu), mu, bif.mu_star, frm, to,
                       _first_crossing(run.t, amp, level), run.t, amp, probe, bif.resolution,
                       {"level": level, "perturbation": pert, "stop": run.stop,
                        "cpu_s": run.cpu_s})  # fmt: skip
+
+
+def _check_resolved(stop: str, t: np.ndarray, duration: float, step: float) -> None:
+    """A rod whose integration diverged (Newton failed after its step was halved) gives no
+    snap: ParameterError naming the duration, never a truncated record passed as one."""
+    if stop == "done":
+        return
+    reached = float(t[-1]) if len(t) else 0.0
+    raise ParameterError(
+        "duration", duration,
+        f"the rod's integration diverged at t={reached:.4g} of duration={duration:.4g} "
+        f"(Newton failed at the step {step:.3g}, halved 3 times): the snap is not resolved; "
+        "ask for a shorter duration, a larger dmu or more elements",
+    )  # fmt: skip

@@ -419,6 +419,7 @@ def snap_through(
     duration: float = 5.0,
     dt: float = 1e-3,
     mu_star: float | None = None,
+    every: int = 1,
 ) -> SnapThrough:
     """The paper's released-indenter experiment, asymmetric actuation.
 
@@ -437,6 +438,9 @@ def snap_through(
         Record length and time step (time units).
     mu_star : float or None
         The fold, if already known (else computed by :func:`bifurcation`).
+    every : int
+        Internal steps per recorded sample (the rod steps ``dt / every``; the record is
+        sampled every ``dt`` whatever ``every``).
     """
     from .bifurcation import find_bifurcation
 
@@ -461,8 +465,9 @@ def snap_through(
         (rod.interp_weights(0.25)[0], tuple(w / r for w in rod.interp_weights(0.25)[1])),
     ]
     run = integrate(
-        rod, z, np.zeros(rod.N), ms + dmu, xi=damping, dt=dt, nsteps=nsteps, probes=probes
-    )
+        rod, z, np.zeros(rod.N), ms + dmu, xi=damping, dt=dt / every, nsteps=nsteps * every,
+        every=every, probes=probes,
+    )  # fmt: skip
     w_mid = run.rec[:, 0]
     wf = float(zB[k] / r)
     hit = np.flatnonzero(w_mid >= wf)

@@ -44,3 +44,76 @@ async def test_a_nul_in_a_large_streamed_body_is_refused(asgi) -> None:  # noqa:
     r = await client.post("/v1/signals", content=body.encode(),
                           headers={"content-type": "application/json"})  # fmt: skip
     assert 400 <= r.status_code < 500, r.text[:300]
+
+
+SNAP = {"model": "cosserat", "actuation": "asymmetric", "dmu": 0.01, "damping": 2e-4,
+        "end_shortening": 1e-2, "slenderness": 1e-3, "poisson": 0.5, "rtol": None,
+        "elements": None}  # fmt: skip
+
+
+def _snap_refusal(**kw: object) -> object:
+    from service.api.routers.snaps import check_snap
+    from service.api.settings import Settings
+
+    try:
+        check_snap(SNAP | kw, Settings())
+    except Exception as exc:  # noqa: BLE001 - the problem is the answer
+        return exc
+    return None
+
+
+def test_a_rod_snap_over_the_work_budget_is_refused_naming_the_duration() -> None:
+    """The audit's reproducer: duration 500 ran 4000 steps of 0.125 (the rod's own step is
+    5.5e-4), Newton diverged and a 5-sample record 'succeeded'. Now its cost at the rod's step
+    (4000 x 227 steps x 290 elements) is over SNAPWARN_MAX_SIM_WORK: 422 on duration, with the
+    longest duration that fits, which the door then takes (and 10 % more it refuses)."""
+    import re
+
+    from service.api.problems import ApiProblem
+
+    exc = _snap_refusal(duration=500.0)
+    assert isinstance(exc, ApiProblem) and exc.status == 422, exc
+    assert [e["field"] for e in exc.errors] == ["duration"], exc.errors
+    assert "SNAPWARN_MAX_SIM_WORK" in exc.detail and "elements=290" in exc.detail, exc.detail
+    fits = float(re.search(r"duration <= ([0-9.e+-]+)", exc.detail).group(1))
+    assert 10 < fits < 500, exc.detail
+    assert _snap_refusal(duration=fits * 0.999) is None
+    assert isinstance(_snap_refusal(duration=fits * 1.1), ApiProblem)
+    assert _snap_refusal() is None  # the default duration (4.4) fits: 2 steps a sample
+
+
+async def test_the_snap_door_refuses_it_before_any_job(asgi) -> None:  # noqa: ANN001
+    _, client = asgi
+    before = (await client.get("/v1/jobs", params={"limit": 500})).json()["total"]
+    r = await client.post("/v1/snaps", json={"model": "cosserat", "dmu": 0.01, "duration": 500})
+    assert r.status_code == 422, r.text[:300]
+    assert [e["field"] for e in r.json()["errors"]] == ["duration"], r.json()
+    assert (await client.get("/v1/jobs", params={"limit": 500})).json()["total"] == before
+
+
+def test_a_diverged_rod_is_an_error_naming_the_duration_not_a_short_record() -> None:
+    import numpy as np
+
+    from sim.errors import ParameterError
+    from sim.snap import _check_resolved
+
+    _check_resolved("done", np.arange(5.0), 4.0, 0.1)
+    with pytest.raises(ParameterError) as exc:
+        _check_resolved("diverged", np.arange(5) * 0.125, 500.0, 0.0156)
+    assert exc.value.parameter == "duration" and "diverged at t=0.5" in str(exc.value)
+
+
+@pytest.mark.slow
+def test_the_rod_steps_at_its_own_step_within_a_coarse_record() -> None:
+    """``every``: a record sampled every 2e-3 by steps of 1e-3 is the 1e-3 run's record at
+    every other sample (the same steps, only fewer of them recorded)."""
+    import numpy as np
+
+    from sim.cosserat import snap_through
+
+    coarse = snap_through(0.01, elements=16, duration=1.0, dt=2e-3, every=2)
+    fine = snap_through(0.01, elements=16, duration=1.0, dt=1e-3, mu_star=coarse.mu_star)
+    assert coarse.info["stop"] == fine.info["stop"] == "done"
+    assert coarse.info["dt"] == fine.info["dt"] and coarse.t.size == 501
+    np.testing.assert_allclose(coarse.t, fine.t[::2], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(coarse.w_mid, fine.w_mid[::2], rtol=0, atol=1e-12)

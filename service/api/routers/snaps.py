@@ -8,14 +8,18 @@ nonlinear backends, whose slow passage would need a long integration (the CLI ha
 The strip, damping and resolution are checked at the door exactly as a simulation's
 (``service.api.limits.check_scene``: the wire bounds, ``sim.Scene``'s rules, elements <=
 SNAPWARN_MAX_ELEMENTS whether given or chosen from rtol) and the duration against
-SNAPWARN_MAX_SIM_DURATION. A snap's record is a fixed number of steps (``sim.snap``: dt =
-duration / 4000), so its cost is elements x 4000 steps whatever the duration: the elements
-bound bounds it, and a simulation's budget (elements x time steps <= SNAPWARN_MAX_SIM_WORK)
-is not charged (``check_scene(timed=False)``).
+SNAPWARN_MAX_SIM_DURATION. A snap's record is 4000 samples (``sim.snap``: duration / 4000
+apart); the rod steps no coarser than its own step for its rtol (as its simulation would:
+``sim.snap.rod_snap_grid``), several steps a sample over a long duration, so its cost is
+elements x 4000 x steps per sample: charged against a simulation's budget
+(SNAPWARN_MAX_SIM_WORK element-steps), a 422 naming the duration (and the longest that fits)
+before any job. A rod whose integration still diverges fails with a 422 naming the duration,
+never a truncated record passed as a snap.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from anyio import to_thread
@@ -25,7 +29,7 @@ from fastapi.responses import JSONResponse
 from service.api import limits
 from service.api.auth import CallerDep
 from service.api.jobs import JobContext, job_handler
-from service.api.problems import as_problems
+from service.api.problems import as_problems, invalid
 from service.api.routers._common import problems
 from service.api.state import StateDep, job_doc
 from service.schemas import Job
@@ -34,6 +38,7 @@ from service.schemas.snaps import SnapAnswer, SnapRequest, SnapResult
 router = APIRouter(prefix="/v1/snaps", tags=["snaps"])
 
 MIN_DMU_NONLINEAR = 1e-4
+SNAP_SAMPLES = 4000  # sim.snap's record: duration / 4000 apart
 
 
 def scene_of(params: dict[str, Any]) -> dict[str, Any]:
@@ -45,8 +50,41 @@ def scene_of(params: dict[str, Any]) -> dict[str, Any]:
 def check_snap(params: dict[str, Any], settings: Any) -> None:
     """The door's checks of a snap (blocking: numerics for the rod's elements; see the module
     docstring): 422 naming the field and the value."""
-    limits.check_scene(scene_of(params), params["model"], settings, timed=False)
+    plan = limits.check_scene(scene_of(params), params["model"], settings, timed=False)
     limits.check_simulation({"duration": params.get("duration")}, params["model"], settings)
+    if params["model"] == "cosserat" and plan.elements is not None:
+        _check_rod_work(params, plan.elements, settings)
+
+
+def _check_rod_work(params: dict[str, Any], elements: int, settings: Any) -> None:
+    """422 when the rod's snap would cost more than a simulation may (``max_sim_work``
+    element-steps): its 4000 samples, each as many steps as the rod's own step needs
+    (``sim.snap.rod_snap_grid``), x its elements. Names the duration (with the longest that
+    fits), or the elements when even one step per sample is over the budget."""
+    from sim.scene import Scene
+    from sim.snap import default_duration, rod_snap_grid
+
+    with as_problems("snap"):
+        scene = Scene(**scene_of(params))
+        duration = params.get("duration")
+        if duration is None:
+            duration = default_duration(scene.actuation, params["dmu"])
+        grid = rod_snap_grid(scene, elements, duration, duration / SNAP_SAMPLES)
+    budget = settings.max_sim_work
+    if grid.work <= budget:
+        return
+    charge = (
+        f"{grid.samples} samples x {grid.every} steps (the rod's own step {grid.step:.3g} for "
+        f"its rtol) x elements={elements} = {grid.work:.3g} element-steps, more than the budget "
+        f"{budget:.3g} of the cosserat backend (setting SNAPWARN_MAX_SIM_WORK)"
+    )
+    every = math.floor(budget / (elements * grid.samples))
+    if every < 1:
+        raise invalid("elements", elements, f"gives {charge}; ask for fewer elements")
+    given = "" if params.get("duration") is not None else "(the default) "
+    fits = grid.samples * every * grid.step
+    raise invalid("duration", duration, f"{given}gives {charge}; ask for duration <= "
+                  f"{fits:.3g}")  # fmt: skip
 
 
 def run_snap(params: dict[str, Any]) -> dict[str, Any]:
