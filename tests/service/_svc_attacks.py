@@ -14,6 +14,9 @@ import json
 import zipfile
 
 import numpy as np
+from _svc_bombs import mat_bomb
+
+__all__ = ["CASES", "W", "deep_json", "mat_bomb", "npz_bomb"]
 
 
 def _wav(channels: int = 2, n: int = 64) -> bytes:
@@ -50,33 +53,6 @@ def npz_bomb(uncompressed: int = 1 << 30) -> bytes:
                 f.write(chunk[: min(left, len(chunk))])
                 left -= len(chunk)
     return out.getvalue()
-
-
-@functools.lru_cache(maxsize=4)
-def mat_bomb(uncompressed: int = 1 << 30) -> bytes:
-    """A MAT v5 file whose one compressed double vector ``w`` inflates to ``uncompressed``
-    bytes; written by streaming the deflate, never holding the zeros."""
-    import struct
-    import zlib
-
-    n = uncompressed // 8
-    header = b"MATLAB 5.0 MAT-file, made by the snapwarn tests".ljust(116, b" ")
-    header += b"\x00" * 8 + struct.pack("<H", 0x0100) + b"IM"
-    sub = struct.pack("<II", 6, 8) + struct.pack("<II", 6, 0)  # array flags: double
-    sub += struct.pack("<II", 5, 8) + struct.pack("<ii", n, 1)  # dims n x 1
-    sub += struct.pack("<II", 1, 1) + b"w" + b"\x00" * 7  # name
-    sub += struct.pack("<II", 9, n * 8)  # miDOUBLE real part
-    inner = struct.pack("<II", 14, len(sub) + n * 8) + sub
-    z = zlib.compressobj(9)
-    parts = [z.compress(inner)]
-    chunk = b"\x00" * (1 << 22)
-    left = n * 8
-    while left > 0:
-        parts.append(z.compress(chunk[: min(left, len(chunk))]))
-        left -= len(chunk)
-    parts.append(z.flush())
-    payload = b"".join(parts)
-    return header + struct.pack("<II", 15, len(payload)) + payload
 
 
 def deep_json(depth: int) -> str:

@@ -11,14 +11,15 @@ import numpy as np
 
 
 @functools.lru_cache(maxsize=4)
-def mat_liar(n: int = 200_000_000, honest_length: bool = True) -> bytes:
-    """A MAT v5 file whose compressed double ``w`` declares dims 1x1 but holds ``n`` doubles
-    (zeros: ~1.55 MB on the wire for 2e8). ``honest_length``: the matrix element's length
-    says so (else it claims the 1x1 size, and the deflate stream holds more)."""
+def mat_deflated(n: int, dims: tuple[int, int], honest_length: bool = True) -> bytes:
+    """A MAT v5 file whose one compressed double ``w`` holds ``n`` zeros (~1.55 MB on the wire
+    for 2e8) and declares ``dims``; the deflate stream is written in chunks, never holding the
+    zeros. ``honest_length``: the matrix element's length says ``n`` doubles (else it claims
+    one double's size, and the deflate stream holds more)."""
     header = b"MATLAB 5.0 MAT-file, made by the snapwarn tests".ljust(116, b" ")
     header += b"\x00" * 8 + struct.pack("<H", 0x0100) + b"IM"
     sub = struct.pack("<II", 6, 8) + struct.pack("<II", 6, 0)  # array flags: double
-    sub += struct.pack("<II", 5, 8) + struct.pack("<ii", 1, 1)  # dims 1 x 1
+    sub += struct.pack("<II", 5, 8) + struct.pack("<ii", *dims)
     sub += struct.pack("<II", 1, 1) + b"w" + b"\x00" * 7  # name
     sub += struct.pack("<II", 9, n * 8)  # miDOUBLE real part: n doubles
     length = len(sub) + n * 8 if honest_length else len(sub) + 8
@@ -33,6 +34,18 @@ def mat_liar(n: int = 200_000_000, honest_length: bool = True) -> bytes:
     parts.append(z.flush())
     payload = b"".join(parts)
     return header + struct.pack("<II", 15, len(payload)) + payload
+
+
+def mat_liar(n: int = 200_000_000, honest_length: bool = True) -> bytes:
+    """A MAT v5 file whose compressed double ``w`` declares dims 1x1 but holds ``n`` doubles."""
+    return mat_deflated(n, (1, 1), honest_length)
+
+
+def mat_bomb(uncompressed: int = 1 << 30) -> bytes:
+    """A MAT v5 file whose one compressed double vector ``w`` (n x 1, as declared) inflates to
+    ``uncompressed`` bytes."""
+    n = uncompressed // 8
+    return mat_deflated(n, (n, 1))
 
 
 def npy_liar(n: int = 250_000_000) -> bytes:
