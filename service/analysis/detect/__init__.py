@@ -122,9 +122,16 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        over the window: a later kick or clipped samples inside it; or two
                        close modes), or it dies within the window (5 e-folds) 3x faster than
                        a ringing mode (a transient), or does not decay beside a ringing mode
-                       3x stronger (a line, a drift).
+                       3x stronger (a line, a drift), or a stronger component up to 5x slower
+                       was set aside as a line or a drift from fewer than 4 cycles.
                        A warning: :data:`WARNING_FLAGS` lists the flags that say the
                        fundamental may be wrong; the others describe the record.
+``baseline_drift``     (a displacement read through a lab window) the baseline moves: drift
+                       set aside, the residual's block means scatter beyond noise (chi^2 at
+                       1e-6 false alarm), or the level at rest before the kick differs from
+                       the fitted static level by 5 standard errors. A sensor's offset cannot
+                       be told from the static deflection: static_level is NaN (the sweep
+                       then predicts from frequencies alone).
 
 Detection limit: the record SNR of a mode is its energy over the noise variance,
 ``10 log10(A^2 N_eff / (2 s^2))`` = the per-sample SNR ``A^2 / (2 s^2)`` in dB plus

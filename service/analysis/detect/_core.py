@@ -343,6 +343,7 @@ def detect(
     quantity, start, notch_w = _validate_lab(quantity, start, notch, arr.size, dt)
     resolved = ALIASES.get(method, method)
     win, first, _ = _window(arr, dt, kind, start)
+    lead = arr[: win.lead] if win is not None and win.lead and not win.user_start else None
     if win is None:
         arr, first, lead = _cut_pretrigger(arr, dt, kind)
         pre = [] if lead is None else [lead]
@@ -378,8 +379,9 @@ def detect(
                 f"analysed from sample {first}",
             )]  # fmt: skip
     rec.flags[:0] = pre
+    base = (arr, lead) if win is not None and rec.scale > 0 else None
     return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab,
-                   win is not None)
+                   base)
 
 
 def _suspect(modes: list, T: float) -> bool:
@@ -436,13 +438,15 @@ def _residual(rec: Record, out: Outcome, dt: float) -> np.ndarray:
 
 def _result(
     rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
-    quantity: str | None, seeds: np.ndarray, lab: bool = True, window: bool = False,
+    quantity: str | None, seeds: np.ndarray, lab: bool = True,
+    base: tuple[np.ndarray, np.ndarray | None] | None = None,
 ) -> Detection:  # fmt: skip
     """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags.
     ``lab``: tell lines, drift, transients and negligible growth (varpro, or a lab window:
-    the initialisation-only and FFT methods on a plain record read as before); ``window``:
-    the record was read through a lab window (a lead-in, a later kick, clipped samples, the
-    user's start), where the fundamental is checked for ambiguity."""
+    the initialisation-only and FFT methods on a plain record read as before); ``base``: a
+    record read through a lab window (a lead-in, a later kick, clipped samples, the user's
+    start): the window as given (no slope removed) and the lead-in before the kick (None:
+    none), where the fundamental is checked for ambiguity and the baseline for drift."""
     trend = frozenset()
     lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
@@ -490,10 +494,28 @@ def _result(
         growth=growth, trend=trend_at, aside=aside | tiny_at,
     )  # fmt: skip
     flags += _lab.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
-    doubt = _lab.ambiguity(modes, n * dt) if window and fund is not None else None
+    doubt = _lab.ambiguity(modes, n * dt) if base is not None and fund is not None else None
     if doubt is not None:
         flags.append(doubt)
     static, static_std = out.static * u, out.static_std * u
+    moved = None
+    if base is not None and kind == "impulse" and quantity in (None, "displacement"):
+        raw, lead = base
+        r = raw / u - out.static
+        for m in out.modes:
+            r = r - _waveform(m, n, dt)
+        moved = _lab.baseline_drift(r, out.noise_std, out.static, out.static_std,
+                                    None if lead is None else lead / u, len(drift))  # fmt: skip
+    if moved is not None:
+        flags.append(
+            Flag(
+                "baseline_drift",
+                f"the record's baseline moves ({moved}): a sensor's offset, ramp or wobble "
+                f"cannot be told from the static deflection (the level read, {static:.6g}, "
+                "holds the sensor's offset too); static_level is NaN",
+            )
+        )
+        static = static_std = math.nan
     if quantity in ("velocity", "acceleration"):
         static = static_std = math.nan
         flags.append(

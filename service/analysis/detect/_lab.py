@@ -528,6 +528,9 @@ AMBIG_CLOSE, AMBIG_AMP = 0.25, 0.1
 #: a ringing mode (a transient the fit absorbed), or does not decay beside a ringing mode at
 #: least 1/AMBIG_WEAK times stronger that does (a line or a drift kept as a mode).
 AMBIG_WEAK, AMBIG_DECAY, AMBIG_FASTER = 1.0 / 3.0, 5.0, 3.0
+#: ... or when a stronger component within AMBIG_SLOWER times below its frequency was set
+#: aside as a line or a drift from fewer than 2 FEW_PERIODS cycles in the window.
+AMBIG_SLOWER = 5.0
 
 
 def ambiguity(modes: list[Mode], T: float) -> Flag | None:
@@ -563,6 +566,15 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
         j = max(strong, key=lambda jm: jm[1].amplitude)[0]
         why.append(f"it does not decay ({f.damping * T:.3g} e-folds over the window) while "
                    f"the stronger modes[{j}] rings down (a line or a drift?)")
+    slower = [j for j, m in enumerate(modes)
+              if j and m.kind in ("line", "drift") and m.regime == "underdamped"
+              and f.omega / AMBIG_SLOWER <= m.omega < f.omega and m.amplitude >= f.amplitude
+              and _cycles(m, T) < 2 * FEW_PERIODS]  # fmt: skip
+    if slower:
+        j = slower[0]
+        why.append(f"the stronger, slower modes[{j}] ({modes[j].frequency:.6g}, set aside as "
+                   f"a {modes[j].kind}) rings only {_cycles(modes[j], T):.2g} cycles in the "
+                   "window: too few to tell a fundamental from a line or a drift")  # fmt: skip
     if not why:
         return None
     return Flag(
@@ -570,3 +582,42 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
         f"the fundamental ({f.frequency:.6g} cycles/time) may not be the structure's: "
         + "; ".join(why) + ". Check the record (a clean single kick), or give the band",
     )
+
+
+#: The baseline drifts (flag ``baseline_drift``, static level NaN) when the block means of the
+#: residual over the window (DRIFT_BLOCKS blocks) scatter with a chi^2 above DRIFT_CHI2 (the
+#: 1e-6 false-alarm point of chi^2 with 15 degrees of freedom), or the quiet lead-in's level
+#: differs from the fitted static level by more than DRIFT_Z standard errors.
+DRIFT_BLOCKS, DRIFT_CHI2, DRIFT_Z = 16, 56.5, 5.0
+
+
+def baseline_drift(
+    residual: np.ndarray, noise_std: float, static: float, static_std: float,
+    lead: np.ndarray | None, drift_modes: int,
+) -> str | None:  # fmt: skip
+    """Why the static level of a lab record cannot be trusted (None: nothing says so).
+
+    ``residual``: the window minus its fitted model (modes and static level), with any slope
+    the fit removed left in; ``lead``: the lead-in before the kick (the structure at rest);
+    ``drift_modes``: the number of components set aside as drift. A sensor's offset, ramp or
+    wobble is not the structure's equilibrium, and a constant offset cannot be told from it at
+    all: where the baseline is seen to move, the level it has is not reported as static."""
+    why = []
+    if drift_modes:
+        why.append(f"{drift_modes} slow component(s) set aside as drift")
+    n = residual.size
+    B = n // DRIFT_BLOCKS
+    if B >= 8 and noise_std > 0 and math.isfinite(noise_std):
+        bm = residual[: DRIFT_BLOCKS * B].reshape(DRIFT_BLOCKS, B).mean(axis=1)
+        chi2 = float(np.sum((bm - bm.mean()) ** 2)) / (noise_std**2 / B)
+        if chi2 > DRIFT_CHI2:
+            why.append(f"the residual's baseline moves by {float(np.ptp(bm)):.3g} over the "
+                       f"window (chi^2 {chi2:.3g}, {DRIFT_BLOCKS - 1} degrees of freedom)")
+    if lead is not None and lead.size >= 64:
+        sd = math.hypot(float(np.std(lead)) / math.sqrt(lead.size),
+                        static_std if math.isfinite(static_std) else 0.0)  # fmt: skip
+        diff = float(np.mean(lead)) - static
+        if sd > 0 and abs(diff) > DRIFT_Z * sd:
+            why.append(f"the level at rest before the kick differs from it by {diff:.3g} "
+                       f"({abs(diff) / sd:.3g} standard errors)")  # fmt: skip
+    return "; ".join(why) or None

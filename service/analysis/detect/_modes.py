@@ -255,7 +255,8 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
     An underdamped mode whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or
     ``2 omega_i`` of two stronger modes (record SNR), within :data:`COMBINATION_Z` combined
     standard errors, a relative :data:`COMBINATION_REL`, or :data:`COMBINATION_WIDTH` times its
-    own decay rate (its half linewidth; sign ``"+"`` / ``"-"``); and an
+    own decay rate (its half linewidth; sign ``"+"`` / ``"-"``), the parents ringing (less
+    than one e-fold per cycle); and an
     overdamped mode whose slow decay rate is ``gamma_i + gamma_j`` of two stronger underdamped
     modes within a relative :data:`COMBINATION_RATE_REL` (sign ``"0"``): the difference tone
     ``omega_i - omega_j = 0`` of a quadratic response, a mean shift that decays at the sum of
@@ -265,11 +266,14 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
     out: dict[int, tuple[int, int, str]] = {}
     strength = [m.snr_db if math.isfinite(m.snr_db) else -math.inf for m in modes]
     under = [k for k, m in enumerate(modes) if m.regime == "underdamped" and m.omega > 0]
+    # a parent rings: it loses less than one e-fold per cycle (a component that dies within a
+    # cycle, such as a hammer's contact absorbed by the fit, makes no combination tone)
+    rings = [k for k in under if 2 * math.pi * modes[k].damping < modes[k].omega]
     for k, mk in enumerate(modes):
         if mk.regime != "overdamped" or mk.real_poles is None:
             continue
         slow = -max(mk.real_poles)  # the slow decay rate (> 0 when decaying)
-        parents = [i for i in under if strength[i] > strength[k]]
+        parents = [i for i in rings if strength[i] > strength[k]]
         best = math.inf
         for a, i in enumerate(parents):
             for j in parents[a:]:
@@ -280,7 +284,7 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
                     out[k] = (i, j, "0")
     for k in under:
         mk = modes[k]
-        parents = [i for i in under if i != k and strength[i] > strength[k]]
+        parents = [i for i in rings if i != k and strength[i] > strength[k]]
         best = math.inf
         for a, i in enumerate(parents):
             for j in parents[a:]:

@@ -32,6 +32,7 @@ FLAG_CODES = (
     "start_given",
     "no_static_level",
     "fundamental_ambiguous",
+    "baseline_drift",
 )
 #: The flags that say the fundamental may be wrong (or that there is none); the others
 #: describe the record and what was done with it (a wrong fundamental carrying only those is
