@@ -322,6 +322,17 @@ def prev_fast_len(n: int) -> int:
     return best
 
 
+@lru_cache(maxsize=64)
+def _head_lengths(N: int) -> tuple[int, ...]:
+    """``N`` and FFT-friendly lengths of about ``N/2, N/4, ...`` down to 64 samples."""
+    heads = [N]
+    L = N // 2
+    while L >= 64:
+        heads.append(prev_fast_len(L))
+        L //= 2
+    return tuple(heads)
+
+
 def _head_peaks(
     r: np.ndarray, spec: _Spectrum, p: np.ndarray, q: np.ndarray, max_modes: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -335,11 +346,7 @@ def _head_peaks(
     damping is the head's resolution (``p = 2 / L``)."""
     N = r.shape[0]
     noise_var = spec.noise_var
-    heads = [N]
-    L = N // 2
-    while L >= 64:
-        heads.append(prev_fast_len(L))
-        L //= 2
+    heads = _head_lengths(N)
     if noise_var <= 0:
         return np.zeros(0), np.zeros(0)
     om_have = list(np.sqrt(np.maximum(q - 0.25 * p * p, 0.0)))
