@@ -120,8 +120,9 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        mode lies within 25 % of its frequency with at least 10 % of its
                        amplitude (one line split in several by a model that does not hold
                        over the window: a later kick or clipped samples inside it; or two
-                       close modes), or it dies within the window (5 e-folds) 3x faster than
-                       a ringing mode (a transient), or does not decay beside a ringing mode
+                       close modes), or it dies within the window (5 e-folds; 1 beside a
+                       ringing mode 3x stronger) 3x faster than a ringing mode (a
+                       transient), or does not decay beside a ringing mode
                        3x stronger (a line, a drift), or a stronger component up to 5x slower
                        was set aside as a line or a drift from fewer than 4 cycles.
                        A warning: :data:`WARNING_FLAGS` lists the flags that say the

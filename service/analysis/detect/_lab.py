@@ -186,6 +186,55 @@ def _later_kicks(E: np.ndarray, first: int, LL: int) -> list[int]:
     return out
 
 
+#: A later kick seen in the dominant line's complex amplitude: demodulated at its frequency and
+#: smoothed twice over KICK_PERIODS periods, the amplitude's ratio over that span departs from
+#: its median (a free decay keeps it constant) by more than KICK_DEV, for at least half the
+#: span, where the line is at least KICK_STRONG of its largest amplitude.
+KICK_PERIODS, KICK_DEV, KICK_STRONG = 2, 0.25, 0.2
+
+
+def _line_kick(hp: np.ndarray, a: int, b: int) -> int | None:
+    """The sample (before a later kick) where the window ``[a, b)`` should stop, from the
+    complex amplitude of its dominant line: a kick changes a ringing line's amplitude or
+    phase at once (up or down: a second hit out of phase lowers the envelope), which an
+    envelope rise alone misses; None when the line decays freely to the end."""
+    seg = hp[a:b]
+    m = seg.size
+    if m < 256:
+        return None
+    P = np.abs(np.fft.rfft(seg * np.hanning(m))) ** 2
+    k = int(np.argmax(P[3:])) + 3
+    if k >= P.size - 1:
+        return None
+    lo, mid, hi = np.log(P[k - 1 : k + 2] + 1e-300)
+    den = lo - 2 * mid + hi
+    w = 2 * math.pi * (k + (0.5 * (lo - hi) / den if den < 0 else 0.0)) / m
+    Lp = int(round(KICK_PERIODS * 2 * math.pi / w))
+    if Lp < 8 or 6 * Lp > m:
+        return None
+    z = seg * np.exp(-1j * w * np.arange(m))
+    re = _movmean(_movmean(z.real, Lp), Lp)
+    im = _movmean(_movmean(z.imag, Lp), Lp)
+    z = re + 1j * im
+    mag = np.abs(z)
+    r = z[Lp:] / np.where(mag[:-Lp] > 0, z[:-Lp], 1.0)
+    ok = (mag[:-Lp] >= KICK_STRONG * float(mag.max())) & (mag[Lp:] > 0)
+    ok[: 2 * Lp] = False  # the contact and the filter's edge
+    ok[max(0, ok.size - Lp) :] = False
+    if np.count_nonzero(ok) < 2 * Lp:
+        return None
+    ref = complex(float(np.median(r[ok].real)), float(np.median(r[ok].imag)))
+    if abs(ref) == 0:
+        return None
+    bad = ok & (np.abs(r / ref - 1.0) > KICK_DEV)
+    # the first run of at least Lp/2 samples: the kick comes 1.2-1.5 Lp after its start
+    run = np.convolve(bad.astype(float), np.ones(Lp // 2), mode="valid") >= Lp // 2
+    hit = np.flatnonzero(run)
+    if not hit.size:
+        return None
+    return a + int(hit[0]) + Lp
+
+
 def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
     """The window of free response of an impulse record (see the module docstring).
 
@@ -221,6 +270,19 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
                     f"analysed (samples {win.start} to {win.stop}), the later ones are not",
                 )
             )
+    if (win.lead or clip is not None) and not few and not win.user_start:
+        stop = _line_kick(hp, win.start, win.stop)
+        if stop is not None and stop - win.start >= max(WINDOW_MIN * n, 4 * MIN_SAMPLES):
+            win.kicks = sorted({*win.kicks, stop})
+            win.stop = stop
+            if not any(f.code == "repeated_kick" for f in win.flags):
+                win.flags.append(Flag(
+                    "repeated_kick",
+                    f"a later kick in the record (the dominant line's amplitude or phase "
+                    f"jumps near t = {stop * dt:.6g} from its first sample): the first "
+                    f"ring-down is analysed (samples {win.start} to {win.stop}), the later "
+                    "one is not",
+                ))  # fmt: skip
     if clip is not None:
         win.n_clipped = int(clip.sum())
         inside = np.flatnonzero(clip[win.start : win.stop])
@@ -524,9 +586,10 @@ def aside_flags(
 #: (one line split in several by a model that does not hold over the window: a later kick or
 #: clipped samples inside it; or two close modes the record does not tell apart) ...
 AMBIG_CLOSE, AMBIG_AMP = 0.25, 0.1
-#: ... or when it dies within the window (AMBIG_DECAY e-folds) AMBIG_FASTER times faster than
-#: a ringing mode (a transient the fit absorbed), or does not decay beside a ringing mode at
-#: least 1/AMBIG_WEAK times stronger that does (a line or a drift kept as a mode).
+#: ... or when it dies within the window (AMBIG_DECAY e-folds; one e-fold beside a ringing mode
+#: at least 1/AMBIG_WEAK times stronger) AMBIG_FASTER times faster than a ringing mode (a
+#: transient the fit absorbed), or does not decay beside a ringing mode at least 1/AMBIG_WEAK
+#: times stronger that does (a line or a drift kept as a mode).
 AMBIG_WEAK, AMBIG_DECAY, AMBIG_FASTER = 1.0 / 3.0, 5.0, 3.0
 #: ... or when a stronger component within AMBIG_SLOWER times below its frequency was set
 #: aside as a line or a drift from fewer than 2 FEW_PERIODS cycles in the window.
@@ -555,13 +618,17 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
             "or clipped samples in the window, or two close modes)"
         )
     ringing = [(j, m) for j, m in rivals if _rings(m, T)]
-    if ringing:
-        j, slow = min(ringing, key=lambda jm: jm[1].damping)
-        if f.damping * T > AMBIG_DECAY and f.damping > AMBIG_FASTER * slow.damping:
-            why.append(f"it dies within the window ({f.damping * T:.3g} e-folds), "
-                       f"{f.damping / slow.damping:.3g}x faster than modes[{j}] that rings on "
-                       "(a transient?)")  # fmt: skip
     strong = [(j, m) for j, m in ringing if f.amplitude < AMBIG_WEAK * m.amplitude]
+    for group, decay in ((ringing, AMBIG_DECAY), (strong, 1.0)):
+        if not group:
+            continue
+        j, slow = min(group, key=lambda jm: jm[1].damping)
+        if f.damping * T > decay and f.damping > AMBIG_FASTER * slow.damping:
+            why.append(f"it dies within the window ({f.damping * T:.3g} e-folds), "
+                       f"{f.damping / slow.damping:.3g}x faster than modes[{j}] that rings on"
+                       + (" and is 3x stronger" if decay == 1.0 else "")
+                       + " (a transient?)")  # fmt: skip
+            break
     if strong and (f.damping * T < RING_DECAY or not f.damping > 3.0 * f.damping_std):
         j = max(strong, key=lambda jm: jm[1].amplitude)[0]
         why.append(f"it does not decay ({f.damping * T:.3g} e-folds over the window) while "
