@@ -25,6 +25,7 @@ from service.api.executor import make_analysis_pool, make_pool, warm_pool
 from service.api.hotpath import HotPathMiddleware
 from service.api.idempotency import IdempotencyMiddleware
 from service.api.jobs import JobRunner
+from service.api.openapi_links import add_links
 from service.api.routers import (
     detections,
     health,
@@ -181,6 +182,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         comps.setdefault(model.__name__, schema)
     _document_common_problems(doc)
     _add_links(doc)
+    add_links(doc)  # the chains that need a body (service.api.openapi_links)
     app.openapi_schema = doc
     return doc
 
