@@ -94,3 +94,25 @@ def test_the_parsers_vocabulary_is_its_owners() -> None:
     assert _vocab.STATIC_MODELS == tuple(BACKENDS)
     assert _vocab.PREDICT_TRANSITIONS == PREDICT_TRANSITIONS
     assert _vocab.RECORDING_FORMATS == FORMATS
+
+
+def test_each_commands_module_is_the_one_that_registers_it() -> None:
+    """``service.cli.COMMANDS`` (a command's run builds only its module's parser) names, for
+    every command, the module whose ``register`` adds it, and no module adds another."""
+    import argparse
+    import importlib
+
+    from service import cli
+
+    found: dict[str, str] = {}
+    for name in cli._MODULES:
+        sub = argparse.ArgumentParser().add_subparsers()
+        importlib.import_module(f"service.cli.{name}").register(sub)
+        found.update(dict.fromkeys(sub.choices, name))
+    assert found == cli.COMMANDS
+
+
+def test_a_commands_run_builds_only_its_modules_parser(files: dict[str, Path]) -> None:
+    loaded = _loaded("detect", str(files["record"]))
+    assert _absent(loaded, ("service.cli.sim_cmds", "service.cli.service_cmds",
+                            "service.cli.atlas_cmds", "service.cli.watch_cmds")) == []  # fmt: skip
