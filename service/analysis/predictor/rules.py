@@ -15,6 +15,8 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from service.analysis.common import Flag
 from service.analysis.predictor.compare import ModelFit, fold_rival_gap, secondary_fold
 from service.analysis.predictor.likelihood import U_MAX as FOLD_U_MAX
@@ -148,6 +150,21 @@ def _rival_exponent(transition: str, ev: Evidence) -> str | None:
     return None
 
 
+def _static_misfit(transition: str, ev: Evidence) -> str | None:
+    sw, sw0 = ev.sw, ev.sw0
+    if transition != "supercritical-pitchfork" or sw.w_sd is None or sw0.w_sd is None:
+        return None
+    ratio = float(np.max(sw.w_sd / sw0.w_sd))
+    if ratio > 1.0 + 1e-9:
+        return (
+            "only the static deflection tells a supercritical pitchfork (b = 1/2) from a "
+            f"subcritical one, but the static records scatter {ratio:.3g} times more than "
+            "their noise about the static law: the static exponent does not decide (an "
+            "imperfect column's records far from its fold look alike); the type is not named"
+        )
+    return None
+
+
 RULES: tuple[Rule, ...] = (
     Rule("slowdown_not_reached", "classification",
          "far from mu* (T/T0 < 2.75) a fold and a pitchfork with a nearby secondary fold look "
@@ -168,6 +185,11 @@ RULES: tuple[Rule, ...] = (
          "the free exponent is far from every candidate's: none of the laws holds",
          "tests/analysis/test_classify.py::test_exponent_far_from_candidates_is_undetermined",
          _exponent_off),
+    Rule("static_misfit", "classification",
+         "a supercritical pitchfork is told by its static exponent alone: not where the "
+         "static records scatter beyond their noise about the static law",
+         "tests/structures/test_predict_imperfect.py::test_imperfect_softening_never_"
+         "supercritical_smooth_nor_late", _static_misfit),
     Rule("type_withheld", "prediction",
          "the other exponent keeps >= 5 %: the type is not decided at the interval's 95 %",
          "tests/analysis/test_predict_lab.py::test_no_type_named_while_the_other_exponent_keeps_"
