@@ -247,8 +247,36 @@ class LinkColumn:
         return self.stiffness(P) / self.inertia
 
 
+class _ArchPath:
+    """The fundamental path of an arch loaded at its apex, parametrised by the apex deflection
+    ``w`` (shared by the trusses): the snap is the fold ``(w_f, F_f)`` of ``_fold()``, the
+    equilibrium at ``F`` inverts ``load_on_path`` on ``[0, w_f]``."""
+
+    def load_on_path(self, w: float) -> float:  # pragma: no cover - each truss has its own
+        raise NotImplementedError
+
+    def _fold(self) -> tuple[float, float]:  # pragma: no cover - each truss has its own
+        raise NotImplementedError
+
+    def fold(self) -> tuple[float, float]:
+        """``(w_f, F_f)``: the saddle-node along the path (Brent, once per model)."""
+        return _fold_of(self)
+
+    def critical_load(self) -> float:
+        return self.fold()[1]
+
+    def equilibrium(self, F: float) -> float:
+        """Apex deflection ``w`` on the fundamental path at ``F`` (the static level; m)."""
+        w_f, F_f = self.fold()
+        if not 0 <= F < F_f:
+            raise ValueError(f"F={F!r} outside [0, F_f={F_f!r})")
+        if F == 0.0:
+            return 0.0
+        return _brent(lambda w: self.load_on_path(w) - F, 0.0, w_f)
+
+
 @dataclass(frozen=True)
-class VonMisesTruss:
+class VonMisesTruss(_ArchPath):
     """Two-bar shallow arch under a vertical apex load (see the module docstring).
 
     Attributes
@@ -300,25 +328,10 @@ class VonMisesTruss:
         """``F_f = 2 k (L0^(2/3) - b^(2/3))^(3/2)``: the saddle-node load (N)."""
         return 2.0 * self.k * (self.L0 ** (2 / 3) - self.b ** (2 / 3)) ** 1.5
 
-    def fold(self) -> tuple[float, float]:
-        """``(w_f, F_f)`` by root finding of ``V''`` along the path (``V' = V'' = 0``)."""
-        return _fold_of(self)
-
     def _fold(self) -> tuple[float, float]:
+        """By root finding of ``V''`` along the path (``V' = V'' = 0``)."""
         w_f = _brent(self.d2V, 0.0, self.h)
         return w_f, self.load_on_path(w_f)
-
-    def critical_load(self) -> float:
-        return self.fold()[1]
-
-    def equilibrium(self, F: float) -> float:
-        """Apex deflection on the fundamental path at ``F`` (m)."""
-        w_f, F_f = self.fold()
-        if not 0 <= F < F_f:
-            raise ValueError(f"F={F!r} outside [0, F_f={F_f!r})")
-        if F == 0.0:
-            return 0.0
-        return _brent(lambda w: self.load_on_path(w) - F, 0.0, w_f)
 
     def stiffness(self, F: float) -> float:
         return self.d2V(self.equilibrium(F))
@@ -328,7 +341,7 @@ class VonMisesTruss:
 
 
 @dataclass(frozen=True)
-class AsymmetricTruss:
+class AsymmetricTruss(_ArchPath):
     """A two-bar arch with unequal bars and a free apex: two degrees of freedom.
 
     The apex (mass ``m`` in both directions) moves by ``u`` (horizontal) and ``w`` (down) under
@@ -398,27 +411,12 @@ class AsymmetricTruss:
     def det_on_path(self, w: float) -> float:
         return float(np.linalg.det(self.hessian(self.u_on_path(w), w)))
 
-    def fold(self) -> tuple[float, float]:
-        """``(w_f, F_f)``: the saddle-node, ``det V'' = 0`` along the path (Brent)."""
-        return _fold_of(self)
-
     def _fold(self) -> tuple[float, float]:
-        # det V'' > 0 unloaded, < 0 at the flat position (both bars compressed, w = h): a
-        # shallow arch has one fold between (checked by the tests against two other methods)
+        """``det V'' = 0`` along the path: ``det V'' > 0`` unloaded, ``< 0`` at the flat
+        position (both bars compressed, ``w = h``): a shallow arch has one fold between
+        (checked by the tests against two other methods)."""
         w_f = _brent(self.det_on_path, 0.0, self.h)
         return w_f, self.load_on_path(w_f)
-
-    def critical_load(self) -> float:
-        return self.fold()[1]
-
-    def equilibrium(self, F: float) -> float:
-        """Apex deflection ``w`` on the fundamental path at ``F`` (the static level; m)."""
-        w_f, F_f = self.fold()
-        if not 0 <= F < F_f:
-            raise ValueError(f"F={F!r} outside [0, F_f={F_f!r})")
-        if F == 0.0:
-            return 0.0
-        return _brent(lambda w: self.load_on_path(w) - F, 0.0, w_f)
 
     def omega2(self, F: float) -> float:
         w = self.equilibrium(F)

@@ -4,12 +4,14 @@ stiffening ones never lose stability and must not raise a snap alarm, and the he
 the one value its interval and flags refer to.
 
 The default suite runs a few fixed plans per kind (each plan's own guarantees: no confident
-snap where there is none, mu* inside its interval, no flag denying it); the slow suite runs 40
-plans per kind: perfect columns and trusses no worse than before issue 28's engine. The
-issue's other checks (the fold covered in >= 90 % of imperfect softening plans and never
-wholly later, "no transition" in >= 90 % of stiffening plans within 1 % of ``P_c``) join this
-file as the engine passes them; mu* inside its interval and no flag denying it in every slow
-plan already holds.
+snap where there is none, imperfect softening columns never named supercritical or smooth nor
+warned of too late, mu* inside its interval, no flag denying it); the slow suite runs 40 plans
+per kind: perfect columns and trusses no worse than before issue 28's engine, imperfect
+softening columns never supercritical nor smooth and their fold covered in >= 90 %, mu* inside
+its interval and no flag denying it in every plan. The issue's checks the engine does not pass
+yet are strict xfails with their figures: softening intervals never wholly later than the fold,
+stiffening columns never a confident snap and "no transition" in >= 90 % of the plans within
+1 % of ``P_c``, the records door.
 """
 
 from __future__ import annotations
@@ -121,6 +123,31 @@ def test_mu_star_inside_its_interval_and_no_flag_contradicts_it() -> None:
         _check_one_answer(p, r)
 
 
+def test_imperfect_softening_never_supercritical_smooth_nor_late() -> None:
+    for p, r in _of(_fast(), "imperfect-softening", "coupled-softening"):
+        _check_softening(p, r)
+
+
+def test_a_static_law_that_misfits_never_names_a_supercritical_pitchfork() -> None:
+    """An imperfect softening column's static level far from its fold (coarse grid, 0.34 %
+    before the fold, static data with their noise) passes for a supercritical pitchfork's
+    side branch (b = 1/2; bench/structures.py named 6 of 40 such columns supercritical at
+    p = 1.00): the static records scatter beyond their noise about that law, and rule
+    ``static_misfit`` withholds the name."""
+    fired = 0
+    for seed in range(1, 11):
+        p = random_plan(np.random.default_rng(seed), "imperfect-softening",
+                        family="column-lateral", eps=4.3e-4, stop=3.35e-3, rel=5.9e-4,
+                        static=True, grid="coarse")  # fmt: skip
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = predict(p.mu, **p.predict_kwargs())
+        _check_softening(p, r)
+        _check_one_answer(p, r)
+        fired += any(f.code == "static_misfit" for f in r.flags)
+    assert fired >= 5, fired
+
+
 # ------------------------------------------------------------------------------ slow suite
 @pytest.mark.slow
 def test_every_answer_is_one_answer() -> None:
@@ -159,3 +186,79 @@ def test_perfect_structures_no_worse_than_before(kind: str) -> None:
     assert cov >= cov0 - 0.05, f"coverage {cov:.3f} < {cov0:.3f} before"
     assert n_wrong <= wrong0
     assert err <= 1.25 * err0, f"median error {err:.3g} > {err0:.3g} before"
+
+
+SOFT = ("imperfect-softening", "coupled-softening")  # snap at a fold before P_c
+STIFF = ("imperfect-stiffening", "coupled-stiffening")  # never lose stability
+
+
+@pytest.mark.slow
+def test_imperfect_softening_never_supercritical_nor_smooth_and_the_fold_covered() -> None:
+    res = _of(_slow(), *SOFT)
+    for p, r in res:
+        assert r.transition != "supercritical-pitchfork", _describe(p, r)
+        assert r.transition not in NONE_NAMES, _describe(p, r)
+    covers = [r.mu_star_interval[0] <= p.critical <= r.mu_star_interval[1] for p, r in res]
+    assert np.mean(covers) >= 0.90, f"{sum(covers)}/{len(covers)} intervals cover the fold"
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "3 of 80 intervals wholly later than the fold: plans 89 (a saddle-node the perfect fold law "
+    "names at p = 1.0 with no misfit, [97.36211, 97.43507] for the fold 97.33359) and 106 "
+    "(imperfect), 242 (coupled); covered 38/40 and 37/40"))
+def test_imperfect_softening_interval_never_wholly_later_than_the_fold() -> None:
+    for p, r in _of(_slow(), *SOFT):
+        _check_softening(p, r)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "stiffening columns named a snap at p >= 0.9 in 4 of 40 plans (130, 143, 147, 159) and "
+    "coupled ones in 1 of 40 (318): the perfect fold law wins where the stiffening law is not "
+    "told"))
+def test_imperfect_stiffening_never_a_confident_snap_slow() -> None:
+    for p, r in _of(_slow(), *STIFF):
+        _check_stiffening(p, r)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "'no transition' said in 6 of 12 (single) and 5 of 13 (coupled) plans within 1 % of P_c "
+    "(needs >= 90 %): where no law holds on the window the imperfect laws' gain over the plain "
+    "pitchfork is not evidence (the beam's antisymmetric plans show the same), so 'none' is "
+    "not said there"))
+def test_imperfect_stiffening_says_no_transition() -> None:
+    res = _of(_slow(), *STIFF)
+    near = [(p, r) for p, r in res if p.stop <= 0.01]
+    assert len(near) >= 10
+    said = [r.transition in NONE_NAMES for _, r in near]
+    assert np.mean(said) >= 0.90, f"'no transition' in {sum(said)}/{len(said)} plans"
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "records door: plan 0 (rotational, eps -2.35e-3, coarse grid, stop 2.4e-2) is withheld "
+    "(undetermined) but its interval [98.10721, 99.94947] lies wholly later than the fold "
+    "98.08531: the cusp law's fold is biased late for so large an imperfection"))
+def test_records_of_imperfect_columns() -> None:
+    """The records door (detect every impulse record, then predict): imperfect softening
+    columns never called supercritical or smooth nor warned of too late, stiffening ones never
+    a confident snap, one answer per document."""
+    from _struct_plans import records
+
+    from service.analysis.pipeline import sweep_from_signals
+
+    rng = np.random.default_rng(2031)
+    for kind in ("imperfect-softening", "imperfect-stiffening"):
+        for j in range(3):
+            p = random_plan(rng, kind, index=j, grid="coarse")
+            recs = records(p, max_samples=16_000, seed=j)
+            res = sweep_from_signals(recs, names=[f"rec{i:03d}.csv" for i in range(len(recs))])
+            r = res.prediction
+            assert r is not None, f"no prediction: {res.stopped}"
+            _check_one_answer(p, r)
+            if kind == "imperfect-softening":
+                _check_softening(p, r)
+            else:
+                _check_stiffening(p, r)
