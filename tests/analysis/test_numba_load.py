@@ -11,6 +11,17 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numba
+import pytest
+
+from service.analysis._numba_load import CHECKED
+
+pytestmark = pytest.mark.skipif(
+    not numba.__version__.startswith(CHECKED),
+    reason=f"numba {numba.__version__}: the fast loader applies to {CHECKED} only (numba's own "
+    "loader runs, unchanged)",
+)
+
 _KERNELS = """
 import numpy as np
 from numba import njit
@@ -69,14 +80,18 @@ rng = np.random.default_rng(3)
 w = np.r_[np.zeros(400), np.exp(-2 * t[:3600]) * np.sin(40 * t[:3600])
           + 0.3 * np.exp(-5 * t[:3600]) * np.sin(130 * t[:3600])] + 1e-3 * rng.normal(size=4000)
 d = detect(w, dt=1e-3)
-print(json.dumps({"patched": _numba_load._installed, "modes": [
+from service.analysis.detect import _kernels
+hits = sum(sum(getattr(_kernels, k).stats.cache_hits.values()) for k in ("model_gram", "psd_pinv"))
+print(json.dumps({"patched": _numba_load._installed, "hits": hits, "modes": [
     [m.omega, m.sigma2, m.sigma2_std, m.amplitude] for m in d.modes],
     "flags": [f.code for f in d.flags]}))
 """
 
 
 def test_detect_is_the_same_with_numbas_full_refresh() -> None:
+    full = _run(_DETECT, env={"SNAPWARN_NUMBA_FULL_REFRESH": "1"})  # fills a cold cache
     fast = _run(_DETECT)
-    full = _run(_DETECT, env={"SNAPWARN_NUMBA_FULL_REFRESH": "1"})
     assert fast.pop("patched") is True and full.pop("patched") is False
+    assert fast.pop("hits") >= 2  # read from the cache by the fast loader
+    full.pop("hits")
     assert fast == full  # bit for bit (json floats round-trip)
