@@ -11,8 +11,9 @@ plan's step, else the largest step between its records) and ``span`` the control
 ============  ====  =====================================================================
 level         rank  when (and what to do)
 ============  ====  =====================================================================
-insufficient  0     no prediction yet, or its interval is wider than ``span``: too little
-                    evidence to judge; step by the advice (the model-free bound guards)
+insufficient  0     no prediction yet, or its interval is wider than ``span`` with its
+                    lower end more than 4 steps ahead: too little evidence to judge; step
+                    by the advice (the model-free bound guards)
 clear         1     ``gap > 4 step``, or the type is ``none`` (no loss of stability): go on
 watch         2     ``2 step < gap <= 4 step``: the interval is a few steps ahead; the
                     advice now shortens the steps
@@ -22,7 +23,9 @@ critical      4     ``gap <= step`` (the next step would reach the interval), or
 ============  ====  =====================================================================
 
 The width decides whether there is evidence (``insufficient``); danger is counted in the lab's
-steps, so a wide interval alone never raises the top level. ``T/T0`` (``T = 1/sqrt|sigma^2|``,
+steps, so a wide interval alone never raises the top level: an interval wider than ``span``
+whose lower end lies within 4 steps is ``watch`` or ``warning`` by the steps to that end (its
+lower end is still a bound the lab must respect), never ``critical``. ``T/T0`` (``T = 1/sqrt|sigma^2|``,
 ``T0`` at the first point) is kept in the alarm as information.
 
 The next measurement (:func:`next_measurement`) advances a fraction of the way to the safe
@@ -174,15 +177,20 @@ def alarm_for(
     if not has_pred:
         return make("insufficient", f"no prediction yet (T/T0 = {t_ratio:.3g}): too little "
                     "evidence to judge")  # fmt: skip
-    if math.isfinite(span) and width > span:
-        return make("insufficient", f"the interval [{_num(lo, 0.5 * width)}, "
-                    f"{_num(hi, 0.5 * width)}] is wider "
-                    f"({_num(width)}) than the controls travelled ({_num(span)}): too little "
-                    "evidence to judge")  # fmt: skip
     n = steps_left if math.isfinite(steps_left) else widths_left
     unit = f"steps of {_num(step)}" if math.isfinite(steps_left) else "interval widths"
     where = (f"the interval's lower end {_num(lo, 0.5 * width)} is {n:.3g} {unit} above the "
              f"last control {_num(mu, 0.5 * width)}")  # fmt: skip
+    if math.isfinite(span) and width > span:
+        wide = (f"the interval [{_num(lo, 0.5 * width)}, {_num(hi, 0.5 * width)}] is wider "
+                f"({_num(width)}) than the controls travelled ({_num(span)})")  # fmt: skip
+        if not (math.isfinite(steps_left) and steps_left <= WATCH_STEPS):
+            return make("insufficient", f"{wide}: too little evidence to judge")
+        # its lower end is still a bound the lab must respect: danger by the steps to it, but
+        # never the top level on a wide interval
+        level = "warning" if steps_left <= WARNING_STEPS else "watch"
+        return make(level, f"{wide}, but its lower end is {steps_left:.3g} {unit} above the "
+                    f"last control: {level} (never critical on so wide an interval)")  # fmt: skip
     if not n > CRITICAL_STEPS:
         return make("critical", f"{where}: the next step would reach the interval")
     if n <= WARNING_STEPS:

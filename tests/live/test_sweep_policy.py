@@ -38,10 +38,14 @@ def point(mu: float, sigma2: float | None = None) -> Measurement:
 def test_the_scale_counts_danger_in_lab_steps_and_evidence_in_widths() -> None:
     a = alarm_for(10.0, 1.2)
     assert (a.level, a.rank) == ("insufficient", 0)
-    # [23, 600] from 22.5 with steps of 2.5: wider than the 22.5 travelled: no judgement, never
-    # the top level because the interval is wide (before: critical)
+    # [23, 600] from 22.5 with steps of 2.5: wider than the 22.5 travelled; its lower end 0.2
+    # steps ahead is still a bound: warning, never the top level because the interval is wide
+    # (before: critical); a wide interval whose lower end is far gives no judgement
     a = alarm_for(22.5, 1.5, 50.0, (23.0, 600.0), step=2.5, span=22.5)
-    assert a.level == "insufficient"
+    assert a.level == "warning" and "never critical" in a.reason
+    assert alarm_for(22.5, 1.5, 50.0, (30.0, 600.0), step=2.5, span=22.5).level == "watch"
+    assert alarm_for(22.5, 1.5, 50.0, (33.0, 600.0), step=2.5, span=22.5).level == "insufficient"
+    assert alarm_for(22.5, 1.5, 50.0, (23.0, 600.0), span=22.5).level == "insufficient"
     for lo, level in ((40.0, "clear"), (30.5, "watch"), (27.0, "warning"), (24.0, "critical")):
         a = alarm_for(22.5, 1.5, lo + 1.0, (lo, lo + 2.0), step=2.5, span=22.5)
         assert a.level == level, (lo, a)
