@@ -2,13 +2,12 @@
 
     python bench/lab_session.py [--kind saddle-node] [--seed 1] [--bad-at 5]
 
-The structure and its records come from the independent generator of tests/labrec (a
-fundamental that softens as a saddle-node or a pitchfork, in degrees and seconds, with a
-hammer's contact, mains hum, higher modes and noise; the same draws as
-tests/live/test_lab_in_the_loop.py). The lab starts at 0 deg with its step of 4 deg, records
-where the live sweep (:mod:`service.analysis.live`, the one sweep policy) advises, with the
-record length it suggests, and stops when the sweep says converged, gives no safe step, or after
-30 records. ``--bad-at K`` replaces record K by a missed hammer (noise alone).
+The structure, its lab and the loop are tests/live/_lab_loop.py's (the independent generator
+of tests/labrec; the same draws and the same loop as tests/live/test_lab_in_the_loop.py, which
+runs them over HTTP): the lab starts at 0 deg with its step of 4 deg, records where the live
+sweep (:mod:`service.analysis.live`, the one sweep policy) advises, with the record length it
+suggests, and stops when the sweep says converged, gives no safe step, or after 30 records.
+``--bad-at K`` replaces record K (0-based) by a missed hammer (noise alone).
 
 Writes bench/results/lab_session[_<kind>][_bad].csv and docs/figures/lab_session[...].png (the
 figure of docs/lab-guide.md).
@@ -26,42 +25,27 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests" / "labrec"))
+sys.path.insert(0, str(ROOT / "tests" / "live"))
 
-import labfiles as F  # noqa: E402
-import labgen as L  # noqa: E402
+import _lab_loop as LL  # noqa: E402
 
 from service.analysis import live  # noqa: E402
 from service.analysis.alarm import ALARM_LEVELS  # noqa: E402
 
 OUT = ROOT / "bench" / "results"
 FIGURES = ROOT / "docs" / "figures"
-STEP, BUDGET = 4.0, 30
+campaign = LL.campaign  # the structure and lab of tests/live/test_lab_in_the_loop.py
 
 
-def campaign(kind: str, seed: int) -> F.Campaign:
-    """The structure and lab of tests/live/test_lab_in_the_loop.py's ``campaign``."""
-    rng = np.random.default_rng([seed, 29])
-    lab = L.Lab(quantity="displacement", fs=2000.0, duration=4.0,
-                pulse_s=float(rng.uniform(5e-3, 15e-3)), hum=float(rng.uniform(0.005, 0.03)),
-                mains_hz=float(rng.choice([50.0, 60.0])), snr_db=float(rng.uniform(28.0, 40.0)),
-                peak_mm=0.3)  # fmt: skip
-    return F.Campaign(kind, float(rng.uniform(25.0, 60.0)), 0.0,
-                      f1_hz=float(rng.uniform(6.0, 15.0)), lab=lab, seed=seed, ramp=0.0,
-                      wobble=0.0, offset=0.0)  # fmt: skip
+def session(camp: LL.F.Campaign, bad_at: int | None) -> list[dict]:
+    """The lab of tests/live/_lab_loop.py following the live sweep in process; one row a
+    record."""
+    plan = live.LivePlan(step=LL.STEP)
+    recs: list = []
+    rows: list[dict] = []
 
-
-def session(camp: F.Campaign, bad_at: int | None) -> list[dict]:
-    plan = live.LivePlan(step=STEP)
-    recs, rows = [], []
-    mu, duration, dt = 0.0, None, None
-    for k in range(BUDGET):
-        rec = camp.record(mu, k, duration=duration, dt=dt)
-        y = rec.y
-        if k == bad_at:  # the hammer missed: the sensor's level and noise alone
-            rng = np.random.default_rng(k)
-            y = float(np.median(y)) + 0.01 * float(np.std(y)) * rng.standard_normal(y.size)
-        u = live.update(recs, y, dt=rec.dt, control=mu, plan=plan)
+    def add(k: int, y: np.ndarray, dt: float, mu: float) -> LL.Answer:
+        u = live.update(recs, y, dt=dt, control=mu, plan=plan)
         recs.append(u.record)
         p = u.prediction
         lo, hi = p.mu_star_interval if p is not None else (math.nan, math.nan)
@@ -69,19 +53,14 @@ def session(camp: F.Campaign, bad_at: int | None) -> list[dict]:
                      "mu_star": p.mu_star if p is not None else math.nan,
                      "level": u.alarm.level, "rank": u.alarm.rank,
                      "next": u.next_control, "set_aside": u.n_set_aside,
-                     "converged": u.converged, "duration": rec.t[-1]})  # fmt: skip
-        if u.converged or not math.isfinite(u.next_control):
-            break
-        mu = u.next_control
-        duration, dt = u.record_duration, u.record_dt
-        if not (math.isfinite(duration) and math.isfinite(dt)):
-            duration, dt = None, None
-        else:
-            duration, dt = min(duration, 30.0), max(dt, 1 / 5000)
+                     "converged": u.converged, "duration": (y.size - 1) * dt})  # fmt: skip
+        return LL.Answer(u, u.converged, u.next_control, u.record_duration, u.record_dt)
+
+    LL.follow(camp, add, bad_at)
     return rows
 
 
-def figure(rows: list[dict], camp: F.Campaign, path: Path, bad_at: int | None) -> None:
+def figure(rows: list[dict], camp: LL.F.Campaign, path: Path, bad_at: int | None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")

@@ -25,8 +25,8 @@ critical      4     ``gap <= step`` (the next step would reach the interval), or
 The width decides whether there is evidence (``insufficient``); danger is counted in the lab's
 steps, so a wide interval alone never raises the top level: an interval wider than ``span``
 whose lower end lies within 4 steps is ``watch`` or ``warning`` by the steps to that end (its
-lower end is still a bound the lab must respect), never ``critical``. ``T/T0`` (``T = 1/sqrt|sigma^2|``,
-``T0`` at the first point) is kept in the alarm as information.
+lower end is still a bound the lab must respect), never ``critical``. ``T/T0`` (``T =
+1/sqrt|sigma^2|``, ``T0`` at the first point) is kept in the alarm as information.
 
 The next measurement (:func:`next_measurement`) advances a fraction of the way to the safe
 bound: the interval's lower end, any record past the transition, and (until the interval is

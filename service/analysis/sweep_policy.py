@@ -67,6 +67,9 @@ SIGMA4_MIN_T_RATIO = 1.05
 SIGMA4_MIN_RECORDS = 4
 #: The next record is at most this many times the 40-period length at the last frequency.
 MAX_RECORD_GROWTH = 4.0
+#: Default target width: this fraction of the controls travelled (ten times narrower than the
+#: "narrow" of docs/lab-guide.md, an interval under 1 % of the distance travelled).
+TARGET_OF_SPAN = 1e-3
 #: Default control resolution: this fraction of the lab's step, unless the controls are
 #: written with fewer decimals.
 RESOLUTION_OF_STEP = 1e-4
@@ -85,8 +88,8 @@ class SweepPlan:
     margin : float
         Distance kept below the safe bound on mu* (>= 0).
     target_width : float or None
-        ``converged`` once the trusted interval is narrower; default ``1e-6 * max(|mu*|, span
-        of the controls)``.
+        ``converged`` once the trusted interval is narrower after two records in a row;
+        default :data:`TARGET_OF_SPAN` times the controls travelled.
     control_resolution : float or None
         The finest control step the lab can set: ``converged`` once the advised step is
         smaller. Default: the decimals the controls are written with, at least
@@ -306,8 +309,9 @@ def _reconciled(
 
 def _sort_out(
     records: Sequence[SweepRecord],
-) -> tuple[list[SweepRecord], list[SetAside], float, list[float]]:
-    """(usable records, set aside, lowest control past the transition, its left-out controls)."""
+) -> tuple[list[SweepRecord], list[SetAside], float, list[float], int]:
+    """(usable records, set aside, lowest control past the transition, its left-out controls,
+    the number of records that grew with no stable record at or above their control)."""
     aside: list[SetAside] = []
     usable: list[SweepRecord] = []
     grew: list[SweepRecord] = []
@@ -331,18 +335,20 @@ def _sort_out(
             usable.append(r)
     top = max((r.control for r in usable), default=-math.inf)
     past = math.inf
-    for r in grew:  # a record that grew below a stable one is contradicted by it
-        if r.control < top:
-            n = sum(u.control > r.control for u in usable)
+    n_grew = 0
+    for r in grew:  # a record that grew at or below a stable one is contradicted by it
+        if r.control <= top:
+            n = sum(u.control >= r.control for u in usable)
             aside.append(SetAside(r.seq, r.control, r.name, (
-                f"{_label(r)} grows (flag unstable) but {n} stable record(s) lie above it: "
-                "it is not past the transition")))  # fmt: skip
+                f"{_label(r)} grows (flag unstable) but {n} stable record(s) lie at or above "
+                "its control: it is not past the transition")))  # fmt: skip
         else:
             past = min(past, r.control)
+            n_grew += 1
     beyond = [r.control for r in usable if r.control >= past]
     usable = [r for r in usable if r.control < past]
     aside.sort(key=lambda a: a.seq)
-    return usable, aside, past, beyond
+    return usable, aside, past, beyond, n_grew
 
 
 def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
@@ -406,6 +412,47 @@ def _failed(ms: Sequence[Measurement]) -> tuple[None, list[Flag]]:
 
     exc = sys.exception()
     return None, [Flag("predictor_failed", f"no prediction from {len(ms)} records: {exc}")]
+
+
+def _growth(
+    pred: Prediction | None, ms: Sequence[Measurement], past: float, n_beyond: int,
+    n_grew: int, flags: list[Flag],
+) -> tuple[Prediction | None, bool]:  # fmt: skip
+    """The prediction with the records that grew (``past``: the lowest of them) taken in, and
+    whether that growth is unconfirmed.
+
+    One record that grew below the lower end of the interval the stable records give is
+    unconfirmed (one record must not derail a sweep: a detector can read a spurious growing
+    pole): the interval spans both readings, from the last stable control to its upper end,
+    and the lab records again at that control. Two records that grew, or one the interval does
+    not contradict, confirm the transition: mu* and the interval end at ``past`` (between the
+    last stable record and ``past`` when the interval lay wholly above it)."""
+    if not math.isfinite(past):
+        return pred, False
+    has_pred = pred is not None and math.isfinite(pred.mu_star)
+    if has_pred and n_grew == 1 and ms and pred.mu_star_interval[0] > past:
+        lo, hi = pred.mu_star_interval
+        flags.append(Flag(
+            "growth_unconfirmed",
+            f"the record at control {past:.6g} grows (flag unstable), but the stable records "
+            f"put mu* in [{lo:.6g}, {hi:.6g}], above it: one record is not enough; record "
+            f"again at {past:.6g} (a second record that grows confirms the transition, a "
+            "stable one sets this one aside); meanwhile the interval spans both readings",
+        ))  # fmt: skip
+        return replace(pred, mu_star_interval=(ms[-1].mu, hi)), True
+    flags.append(Flag(
+        "past_transition",
+        f"the record at control {past:.6g} grows (flag unstable): the strip is unstable "
+        f"there, past its transition (mu* < {past:.6g}); it"
+        + (f" and the {n_beyond} record(s) beyond it are" if n_beyond else " is")
+        + " left out of the prediction",
+    ))  # fmt: skip
+    if not has_pred:
+        return pred, False
+    out = bounded_by(pred, past)
+    if pred.mu_star_interval[0] >= past and ms:  # the bracket the records give, not a point
+        out = replace(out, mu_star_interval=(ms[-1].mu, past))
+    return out, False
 
 
 # ------------------------------------------------------------------------------- the policy
@@ -533,7 +580,7 @@ def evaluate(
     """
     plan = plan or SweepPlan()
     recs = _reconciled(records, plan.band)
-    usable, aside, past, beyond = _sort_out(recs)
+    usable, aside, past, beyond, n_grew = _sort_out(recs)
     ms = fit_points(usable)
     t0, c0 = time.perf_counter(), time.process_time()
     pred, flags = _predict(ms, plan.level, strict)
@@ -552,16 +599,7 @@ def evaluate(
     if aside:
         flags.append(Flag("record_set_aside", f"{len(aside)} record(s) set aside: "
                           + "; ".join(a.reason for a in aside)))  # fmt: skip
-    if math.isfinite(past):
-        flags.append(Flag(
-            "past_transition",
-            f"the record at control {past:.6g} grows (flag unstable): the strip is unstable "
-            f"there, past its transition (mu* < {past:.6g}); it"
-            + (f" and the {len(beyond)} record(s) beyond it are" if beyond else " is")
-            + " left out of the prediction",
-        ))  # fmt: skip
-        if pred is not None:
-            pred = bounded_by(pred, past)
+    pred, unconfirmed = _growth(pred, ms, past, len(beyond), n_grew, flags)
     if len(ms) < MIN_RECORDS:
         flags.append(Flag(
             "too_few_records",
@@ -586,6 +624,11 @@ def evaluate(
         and interval_trusted(interval, previous_interval, last.mu, t_ratio)
     )  # fmt: skip
     nxt = _advise(ms, pred if has_pred else None, trusted, past, plan)
+    if unconfirmed:  # record again where the one record grew: it confirms or sets it aside
+        nxt = NextMeasurement(past, past, "past_transition", "confirm")
+        alarm = replace(alarm, reason=(
+            f"the record at {past:.6g} grows, but the stable records put mu* above it: "
+            f"record again at {past:.6g} to confirm (only the advised control, or stop)"))
     if nxt is not None and not math.isfinite(nxt.mu):
         flags.append(Flag(
             "no_safe_step",
@@ -598,10 +641,13 @@ def evaluate(
     if trusted and interval is not None and interval[1] > interval[0] > last.mu:
         width = plan.target_width
         if width is None:
-            width = 1e-6 * max(abs(pred.mu_star), ms[-1].mu - ms[0].mu)
+            width = TARGET_OF_SPAN * (ms[-1].mu - ms[0].mu)
         res = resolution(ms, plan, step)
         small = nxt is not None and (not math.isfinite(nxt.mu) or nxt.mu - last.mu < res)
-        converged = bool(interval[1] - interval[0] < width or small)
+        # narrow twice in a row: one record that narrows the interval suddenly is not enough
+        narrow = interval[1] - interval[0] < width and previous_interval is not None and (
+            previous_interval[1] - previous_interval[0] < width)  # fmt: skip
+        converged = bool(narrow or small)
     duration, dt, why = _record_advice(last, nxt, pred)
     if pred is not None:
         flags.extend(pred.flags)

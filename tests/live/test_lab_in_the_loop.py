@@ -18,24 +18,14 @@ against the generator's truth:
 from __future__ import annotations
 
 import math
-import sys
 import time
-from pathlib import Path
 
 import httpx2
 import numpy as np
 import pytest
+from _lab_loop import BUDGET, KINDS, STEP, Answer, F, L, campaign, follow
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "labrec"))
-
-import labfiles as F  # noqa: E402
-import labgen as L  # noqa: E402
-
-from service.client import Client  # noqa: E402
-
-KINDS = ("saddle-node", "subcritical-pitchfork", "supercritical-pitchfork")
-BUDGET = 30
-STEP = 4.0  # deg: the lab's own step far from the transition
+from service.client import Client
 
 
 @pytest.fixture(scope="module")
@@ -48,46 +38,18 @@ def ready(server):  # noqa: ANN001, ANN201
     raise RuntimeError("the analysis workers never became ready")
 
 
-def campaign(kind: str, seed: int) -> F.Campaign:
-    """A softening structure and a lab, drawn from ``seed`` (the drift is off: see the note)."""
-    rng = np.random.default_rng([seed, 29])
-    lab = L.Lab(quantity="displacement", fs=2000.0, duration=4.0,
-                pulse_s=float(rng.uniform(5e-3, 15e-3)), hum=float(rng.uniform(0.005, 0.03)),
-                mains_hz=float(rng.choice([50.0, 60.0])), snr_db=float(rng.uniform(28.0, 40.0)),
-                peak_mm=0.3)  # fmt: skip
-    return F.Campaign(kind, float(rng.uniform(25.0, 60.0)), 0.0,
-                      f1_hz=float(rng.uniform(6.0, 15.0)), lab=lab, seed=seed, ramp=0.0,
-                      wobble=0.0, offset=0.0)  # fmt: skip
-
-
-def missed_hammer(rec: L.LabRecord, seed: int) -> np.ndarray:
-    """The record of a hammer that missed: the sensor's level and its noise alone."""
-    rng = np.random.default_rng(seed)
-    return float(np.median(rec.y)) + 0.01 * float(np.std(rec.y)) * rng.standard_normal(
-        rec.y.size)
-
-
 def session(client: Client, camp: F.Campaign, bad_at: int | None = None) -> list:
-    """Follow the advice from 0 deg; the updates."""
+    """Follow the advice from 0 deg over HTTP (tests/live/_lab_loop.py's lab); the updates."""
     live = client.live_sweep(f"{camp.kind} seed {camp.seed}", control="theta", unit="deg",
                              step=STEP)  # fmt: skip
-    mu, duration, dt, updates = 0.0, None, None, []
-    for k in range(BUDGET):
-        assert mu < camp.mu_star, f"advised {mu} at or past mu* = {camp.mu_star}"
-        rec = camp.record(mu, k, duration=duration, dt=dt)
-        y = missed_hammer(rec, k) if k == bad_at else rec.y
-        u = live.add(w=y, dt=rec.dt, control=mu, name=f"rec_{k:02d}.csv")
-        updates.append(u)
-        if u.converged or u.next_control is None:
-            break
-        mu = u.next_control
-        duration, dt = u.record_duration, u.record_dt
-        if duration is None or dt is None:
-            duration, dt = None, None
-        else:  # what the lab's recorder allows
-            duration, dt = min(duration, 30.0), max(dt, 1 / 5000)
+
+    def add(k: int, y: np.ndarray, dt: float, mu: float) -> Answer:
+        u = live.add(w=y, dt=dt, control=mu, name=f"rec_{k:02d}.csv")
+        return Answer(u, u.converged, u.next_control, u.record_duration, u.record_dt)
+
+    answers = follow(camp, add, bad_at)
     live.close()
-    return updates
+    return [a.update for a in answers]
 
 
 def check(camp: F.Campaign, updates: list, bad_at: int | None) -> None:
@@ -118,14 +80,22 @@ def test_a_lab_following_the_advice(ready) -> None:  # noqa: ANN001
     sessions(ready, ("saddle-node",), (1,), bad_at=5)
 
 
+_SADDLE_3 = pytest.mark.xfail(strict=True, reason=(
+    "saddle-node seed 3 (mu* 28.6005959 deg): two intervals in a row narrower than the target "
+    "(1e-3 of the 28.4 deg travelled), [28.6005239, 28.6006161] then [28.6005186, "
+    "28.6005933], and the second misses mu* by 2.6e-6 deg (the predictor's saddle-node "
+    "interval too narrow for its bias, reported to the predictor); the 9 other seeds meet "
+    "every criterion"))
+CELLS = [pytest.param(k, b, marks=_SADDLE_3 if (k, b) == (KINDS[0], None) else ())
+         for b in (None, 6) for k in KINDS]  # fmt: skip
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("bad_at", [None, 6])
+@pytest.mark.parametrize(("kind", "bad_at"), CELLS)
 def test_ten_labs_per_type_following_the_advice(ready, kind: str, bad_at) -> None:  # noqa: ANN001
-    """Ten labs per type: none ever records at or past mu* (asserted on every session, inside
-    ``session``); the issue's other criteria (covered, narrower than 1 % of the distance,
-    within 30 records, the bad record named) are counted and must hold in every session.
-    Not met yet on every seed: the failures are listed, not hidden."""
+    """Ten labs per type: none ever records at or past mu* (asserted on every record, inside
+    ``follow``); every session ends covered, narrower than 1 % of the distance travelled,
+    within 30 records, the bad record set aside by name."""
     misses = []
     with Client(ready.url, timeout=300.0) as c:
         for seed in range(1, 11):
@@ -134,10 +104,8 @@ def test_ten_labs_per_type_following_the_advice(ready, kind: str, bad_at) -> Non
             try:
                 check(camp, updates, bad_at)
             except AssertionError as exc:
-                misses.append((seed, str(exc)[:120]))
-    if misses:
-        pytest.xfail(f"{len(misses)} of 10 sessions miss the issue's criteria "
-                     f"(none recorded at or past mu*): {misses}")
+                misses.append((seed, str(exc)[:160]))
+    assert not misses, f"{len(misses)} of 10 sessions miss the issue's criteria: {misses}"
 
 
 @pytest.mark.slow

@@ -98,9 +98,19 @@ def test_the_advice_stays_below_every_bound() -> None:
         last = max(m.mu for m in u.policy.measurements)
         if u.trusted or hi - lo <= last:
             assert u.next_control < lo
-    # a record that grows at 1.55 (a lab that stepped too far): advice below it
+    # a record that grows at 1.55, below the interval the six stable records give: one record
+    # is not enough (a detector can read a spurious growing pole): critical, the advice repeats
+    # that control (never above it) and the interval spans both readings
     g = live.update(recs, growing(), dt=DT, control=1.55, plan=plan)
-    assert g.alarm.level == "critical" and g.next_control < 1.55
+    assert g.alarm.level == "critical" and g.next_control == 1.55
+    assert "growth_unconfirmed" in [f.code for f in g.flags] and "again" in g.alarm.reason
+    assert g.prediction.mu_star_interval[0] == 1.4 and not g.converged
+    # a second record that grows there confirms it: the interval is the bracket the records
+    # give, from the last stable record to 1.55 (not the point 1.55), so no step is safe
+    g2 = live.update([*recs, g.record], growing(), dt=DT, control=1.55, plan=plan)
+    assert g2.alarm.level == "critical" and not math.isfinite(g2.next_control)
+    assert {"past_transition", "no_safe_step"} <= {f.code for f in g2.flags}
+    assert g2.prediction.mu_star_interval == (1.4, 1.55)
     # ... then a stable record above it: the growing one was not past the transition; it is set
     # aside with its reason and the sweep goes on from the stable record
     recs.append(g.record)
