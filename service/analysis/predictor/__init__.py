@@ -30,6 +30,8 @@ Pipeline, top to bottom (each module imports only from the ones below it)::
     _kernels.profile compiled searches over mu*
     _kernels.brent   Brent's bookkeeping shared by the three searches
     _kernels.cusp    compiled cusp law: amplitude, stiffness, misfit, profile over G
+    _dist            normal and chi-square quantiles from scipy.special (scipy.stats' values,
+                     without importing scipy.stats)
 
 Adding a law: a row of :data:`laws.LAWS` (and, for a new family, the module that fits it).
 Adding a reason to withhold a type: a row of :data:`rules.RULES`.

@@ -25,9 +25,10 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import optimize, special, stats
+from scipy import optimize, special
 
 from service.analysis.common import Flag
+from service.analysis.predictor._dist import chi2_ppf, norm_ppf
 from service.analysis.predictor._kernels.cusp import (
     R_FOLD,
     R_MIN,
@@ -57,7 +58,7 @@ ESTABLISHED = 2 * math.log(1e3)
 TOLD = 2 * math.log(100.0)
 #: -2 log L gain (chi-square 95 % of one parameter) from which a softening imperfection the
 #: perfect answer ignores is said: the interval then reaches down to the earliest fold allowed
-LEANS = float(stats.chi2.ppf(0.95, 1))
+LEANS = float(chi2_ppf(0.95, 1))
 
 
 @dataclass(frozen=True)
@@ -173,7 +174,7 @@ def _fit(
     r = optimize.minimize_scalar(prof, bounds=(a, b), method="bounded",
                                  options={"xatol": 1e-5})  # fmt: skip
     t0, f0 = (float(r.x), float(r.fun)) if r.fun <= f[i] else (float(_TS[i]), float(f[i]))
-    thr = f0 + float(stats.chi2.ppf(level, 1))
+    thr = f0 + float(chi2_ppf(level, 1))
     last = float(mu[-1])
     _, g0 = profile_g(mu, y, wt, scale, t0, _GS, soft, K, shift)
     G = scale * math.exp(g0) if g0 > -700 else 0.0
@@ -394,7 +395,7 @@ def decide(
       beats both others by :data:`LEANS` (and the perfect laws do not name a fold).
     """
     m, std, lo, hi = answer
-    z = float(stats.norm.ppf(0.5 + level / 2))
+    z = float(norm_ppf(0.5 + level / 2))
     es, et = imp.evidence_soft, imp.evidence_stiff
     s, t = imp.soft, imp.stiff
     w = imp.weights

@@ -18,10 +18,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
 
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
+from service.analysis.predictor._dist import norm_cdf, norm_ppf
 from service.analysis.predictor.classification import Classification, classify_sweep
 from service.analysis.predictor.compare import (
     CANDIDATES,
@@ -122,7 +123,7 @@ def _mixture(
 ) -> tuple[float, float, float, float]:
     """Mean, std and ``level`` quantile interval of a mixture of two-piece normals (one per
     candidate: centre mu*, left/right widths from its profile interval)."""
-    z = float(stats.norm.ppf(0.5 + level / 2))
+    z = float(norm_ppf(0.5 + level / 2))
     cs = np.array([f.profile.mu_star for f in fits])
     # widths floored at a few ulps of mu* (noise-free data give zero widths, and a mixture of
     # zero-width pieces has no bracket for the quantiles)
@@ -133,9 +134,9 @@ def _mixture(
     p = p / p.sum()
 
     def cdf(v: float) -> float:
-        left = 2 * sl / (sl + sr) * stats.norm.cdf((v - cs) / sl)
+        left = 2 * sl / (sl + sr) * norm_cdf((v - cs) / sl)
         right = 2 * sl / (sl + sr) * 0.5 + 2 * sr / (sl + sr) * (
-            stats.norm.cdf((v - cs) / sr) - 0.5
+            norm_cdf((v - cs) / sr) - 0.5
         )
         return float(np.sum(p * np.where(v < cs, left, right)))
 
@@ -195,7 +196,7 @@ def _truncation_spread(sw: Sweep, fit: ModelFit) -> tuple[float, float]:
 @functools.lru_cache(maxsize=8)
 def _z(level: float) -> float:
     """The two-sided normal quantile of ``level`` (1.96 at 0.95)."""
-    return float(stats.norm.ppf(0.5 + level / 2))
+    return float(norm_ppf(0.5 + level / 2))
 
 
 def interval(

@@ -15,9 +15,10 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from service.analysis.common import Flag
+from service.analysis.predictor._dist import chi2_ppf
 from service.analysis.predictor._kernels.laws import REL_FLOOR as _REL_FLOOR
 from service.analysis.predictor.laws import CANDIDATES
 from service.analysis.predictor.likelihood import (
@@ -383,7 +384,7 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
             idx = slice(N - m, N)
             c = _Comp(sw.w[idx], 1.0 / sw.w_sd[idx], np.array([0.0, 0.5, 1.0, 1.5, 2.0]), True)
             phi = float(_nll(sw.mu[idx], [c], np.array([mu_star]))[0]) / (m - 5)
-            if phi > float(stats.chi2.ppf(0.99, m - 5)) / (m - 5):
+            if phi > float(chi2_ppf(0.99, m - 5)) / (m - 5):
                 sw = replace(sw, w_sd=sw.w_sd * math.sqrt(phi))
                 flags.append(
                     Flag(
