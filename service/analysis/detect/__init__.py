@@ -97,7 +97,8 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        aside (``Mode.kind = "line"``); never the fundamental, never ``unstable``.
 ``drift``              beside a kicked ringing mode, a slower component that was not kicked
                        (an overdamped one not starting from rest, less than one oscillation in
-                       the record: an offset that settles, a ramp, a slow wobble) is set aside
+                       the record, fewer than 2 at below 15 % of the ringing mode's amplitude:
+                       an offset that settles, a ramp, a slow wobble) is set aside
                        (``Mode.kind = "drift"``); never the fundamental. A record whose
                        slowest mode grows beside a ringing one is refitted with its slope
                        removed (a ramp of the baseline).
@@ -124,7 +125,8 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        ringing mode 3x stronger) 3x faster than a ringing mode (a
                        transient), or does not decay beside a ringing mode
                        3x stronger (a line, a drift), or a stronger component up to 5x slower
-                       was set aside as a line or a drift from fewer than 4 cycles.
+                       was set aside as a line or a drift from fewer than 4 cycles, or a
+                       slower oscillation of a cycle or more was set aside as a drift.
                        A warning: :data:`WARNING_FLAGS` lists the flags that say the
                        fundamental may be wrong; the others describe the record.
 ``baseline_drift``     (a displacement read through a lab window) the baseline moves: drift

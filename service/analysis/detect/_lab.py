@@ -135,7 +135,7 @@ def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
     if end < m:
         return 0, i_half
     base = float(np.median(e[:end]))
-    rise_from = int(np.argmax(e[: i_half + 1] > LEAD_RISE * base))
+    rise_from = int(np.argmax(e[: i_half + 1] > min(LEAD_RISE * base, 0.5 * emax)))
     if rise_from < m:
         return 0, i_half
     level = float(np.max(e[: max(rise_from - L, 1)]))
@@ -376,6 +376,10 @@ DRIFT_DECAY = 0.5
 #: below this fraction of the ringing mode's amplitude (past a transition the soft mode grows
 #: as a real pole, not as an oscillation).
 DRIFT_SMALL, DRIFT_RELATIVE = 0.1, 0.2
+#: ... or an oscillation of fewer than FEW_PERIODS cycles below this fraction of the ringing
+#: mode's amplitude (a wobble of the baseline; flagged ``fundamental_ambiguous`` when it
+#: rings a cycle or more: the record is too short to tell it from a slow fundamental).
+DRIFT_WEAK = 0.15
 #: A growing mode whose largest amplitude over the window stays below this fraction of the
 #: largest mode's is not evidence of instability (a fit's by-product beside a loud ringing).
 GROWTH_NEGLIGIBLE = 1e-2
@@ -428,7 +432,8 @@ def lines_and_drift(
       oscillation of less than one cycle in the window, one of less than FEW_PERIODS that
       decays by less than :data:`DRIFT_DECAY` e-folds at a rate below :data:`DRIFT_RELATIVE`
       of the ringing modes', or one that grows while staying below :data:`DRIFT_SMALL` of
-      the ringing (a slow wobble);
+      the ringing (a slow wobble), or one of fewer than FEW_PERIODS cycles below
+      :data:`DRIFT_WEAK` of the ringing mode's amplitude;
     * transient: beside a kicked ringing mode a slower one that dies within the window
       (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed.
     """
@@ -477,6 +482,8 @@ def lines_and_drift(
                     and abs(m.damping) < DRIFT_RELATIVE * ring_decay)
                 or (m.damping < 0 and m.amplitude * math.exp(min(-m.damping * T, 700.0))
                     < DRIFT_SMALL * max(modes[j].amplitude for j in rings))
+                or (_cycles(m, T) < FEW_PERIODS
+                    and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings))
             ):  # fmt: skip
                 drift.add(k)
     return frozenset(lines), frozenset(drift), frozenset(transient)
@@ -642,6 +649,14 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
         why.append(f"the stronger, slower modes[{j}] ({modes[j].frequency:.6g}, set aside as "
                    f"a {modes[j].kind}) rings only {_cycles(modes[j], T):.2g} cycles in the "
                    "window: too few to tell a fundamental from a line or a drift")  # fmt: skip
+    wobble = [j for j, m in enumerate(modes)
+              if j and m.kind == "drift" and m.regime == "underdamped" and m.omega < f.omega
+              and _cycles(m, T) >= 1.0]  # fmt: skip
+    if wobble:
+        j = wobble[0]
+        why.append(f"the slower modes[{j}] ({modes[j].frequency:.6g}, {_cycles(modes[j], T):.2g} "
+                   "cycles in the window) was set aside as a drift: were it the structure's "
+                   "fundamental, the window is too short to tell")  # fmt: skip
     if not why:
         return None
     return Flag(
