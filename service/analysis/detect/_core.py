@@ -380,8 +380,9 @@ def detect(
             )]  # fmt: skip
     rec.flags[:0] = pre
     base = (arr, lead) if win is not None and rec.scale > 0 else None
+    lead_T = lead.size * dt if lead is not None else 0.0
     return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab,
-                   base)
+                   base, lead_T)
 
 
 def _suspect(modes: list, T: float) -> bool:
@@ -439,14 +440,15 @@ def _residual(rec: Record, out: Outcome, dt: float) -> np.ndarray:
 def _result(
     rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
     quantity: str | None, seeds: np.ndarray, lab: bool = True,
-    base: tuple[np.ndarray, np.ndarray | None] | None = None,
+    base: tuple[np.ndarray, np.ndarray | None] | None = None, lead_T: float = 0.0,
 ) -> Detection:  # fmt: skip
     """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags.
     ``lab``: tell lines, drift, transients and negligible growth (varpro, or a lab window:
     the initialisation-only and FFT methods on a plain record read as before); ``base``: a
     record read through a lab window (a lead-in, a later kick, clipped samples, the user's
     start): the window as given (no slope removed) and the lead-in before the kick (None:
-    none), where the fundamental is checked for ambiguity and the baseline for drift."""
+    none), where the fundamental is checked for ambiguity and the baseline for drift;
+    ``lead_T``: the duration of the lead-in before the kick (lines are looked for there)."""
     trend = frozenset()
     lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
@@ -454,9 +456,10 @@ def _result(
         combos = frozenset(_combinations(out.modes))
         if lab:
             lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
-                                                           trend | combos)  # fmt: skip
+                                                           trend | combos, lead_T)  # fmt: skip
             tiny = _lab.negligible_growth(out.modes, n * dt)
-    modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient)
+    modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
+                                aside=lines)
     growth = None if out.growth is None else [out.growth[k] for k in order]
     at = {k: i for i, k in enumerate(order)}
     trend_at = frozenset(at[k] for k in trend)

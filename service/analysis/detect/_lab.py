@@ -360,6 +360,9 @@ LINE_DECAY, LINE_RING_DECAY = 0.05, 0.3
 #: A line seen before the kick (or given by the user) matches a mode within this many
 #: frequency bins of the window (``2 pi / T``) or 4 standard errors.
 LINE_BINS = 1.5
+#: A mode that does not decay over the window is a line only when the lead-in before the kick
+#: (where lines are looked for) is shorter than this many of its cycles.
+LINE_LEAD_CYCLES = 3.0
 #: A slow component not kicked from rest: its value at the window's first sample above this
 #: fraction of its largest (a kicked overdamped mode starts from rest).
 DRIFT_REST = 0.25
@@ -413,8 +416,9 @@ def _from_rest(m: Mode, T: float) -> bool:
 
 
 def lines_and_drift(
-    modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int]
-) -> tuple[frozenset[int], frozenset[int], frozenset[int]]:
+    modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int],
+    lead_T: float = 0.0,
+) -> tuple[frozenset[int], frozenset[int], frozenset[int]]:  # fmt: skip
     """Indices of the stationary lines, of the slow drift and of the transients among
     ``modes`` (a window of
     length ``T``; ``seeds`` the angular frequencies of lines seen before the kick or given
@@ -423,8 +427,9 @@ def lines_and_drift(
     * line: an underdamped mode at a seed's frequency (within :data:`LINE_BINS` bins or 4
       standard errors) that does not decay appreciably (``gamma T < 10 LINE_DECAY``); or one
       whose decay is not significant (``gamma T <`` :data:`LINE_DECAY` and within 3 standard
-      errors of 0) beside a kicked mode that decays (``gamma T >=`` :data:`LINE_RING_DECAY`):
-      a stationary line decays neither before nor after the kick;
+      errors of 0) beside a kicked mode that decays (``gamma T >=`` :data:`LINE_RING_DECAY`),
+      unless a lead-in of ``lead_T`` holding :data:`LINE_LEAD_CYCLES` of its cycles did not
+      show it: a stationary line decays neither before nor after the kick;
     * drift: beside a kicked ringing mode (:func:`_rings`) a slower component that was not
       kicked: an overdamped one that does not start from rest (a step, a ramp or a settling
       of the baseline) or whose slow pole decays by less than :data:`DRIFT_DECAY` e-folds
@@ -447,7 +452,10 @@ def lines_and_drift(
             lines.add(k)
             continue
         still = abs(gT) < LINE_DECAY and abs(m.damping) <= 3.0 * m.damping_std
-        if still and _cycles(m, T) >= 1.0:
+        # a line is there before the kick too: a lead-in of LINE_LEAD_CYCLES of it that did
+        # not show it says it is a lightly damped mode that the window is too short to see decay
+        seen = _cycles(m, lead_T) >= LINE_LEAD_CYCLES
+        if still and _cycles(m, T) >= 1.0 and not seen:
             ring = any(
                 j != k and j not in exclude and mj.regime == "underdamped"
                 and mj.damping * T >= LINE_RING_DECAY and mj.damping > 5.0 * mj.damping_std

@@ -249,7 +249,9 @@ def _ambient_errors(
     return out
 
 
-def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
+def _combinations(
+    modes: list[Mode], aside: frozenset[int] = frozenset()
+) -> dict[int, tuple[int, int, str]]:
     """Combination tones among ``modes``: ``{k: (i, j, sign)}``.
 
     An underdamped mode whose frequency is ``omega_i + omega_j``, ``|omega_i - omega_j|`` or
@@ -261,14 +263,16 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
     modes within a relative :data:`COMBINATION_RATE_REL` (sign ``"0"``): the difference tone
     ``omega_i - omega_j = 0`` of a quadratic response, a mean shift that decays at the sum of
     the rates (a true overdamped fundamental of a structure with one damping ``xi`` has its slow
-    rate below ``xi / 2``, the sums are ``>= xi``).
+    rate below ``xi / 2``, the sums are ``>= xi``). Components in ``aside`` (stationary lines:
+    mains hum is added by the sensor's wiring, not the structure's response) are no parents.
     """
     out: dict[int, tuple[int, int, str]] = {}
     strength = [m.snr_db if math.isfinite(m.snr_db) else -math.inf for m in modes]
     under = [k for k, m in enumerate(modes) if m.regime == "underdamped" and m.omega > 0]
     # a parent rings: it loses less than one e-fold per cycle (a component that dies within a
     # cycle, such as a hammer's contact absorbed by the fit, makes no combination tone)
-    rings = [k for k in under if 2 * math.pi * modes[k].damping < modes[k].omega]
+    rings = [k for k in under
+             if 2 * math.pi * modes[k].damping < modes[k].omega and k not in aside]  # fmt: skip
     for k, mk in enumerate(modes):
         if mk.regime != "overdamped" or mk.real_poles is None:
             continue
@@ -307,8 +311,9 @@ def _combinations(modes: list[Mode]) -> dict[int, tuple[int, int, str]]:
 
 
 def _fundamental(
-    modes: list[Mode], *, n: int, dt: float, trend: frozenset[int] = frozenset()
-) -> tuple[list[Mode], list[int]]:
+    modes: list[Mode], *, n: int, dt: float, trend: frozenset[int] = frozenset(),
+    aside: frozenset[int] = frozenset(),
+) -> tuple[list[Mode], list[int]]:  # fmt: skip
     """Mark combination tones and put the fundamental first.
 
     Parameters
@@ -319,7 +324,10 @@ def _fundamental(
     n, dt : int, float
         Record length and sample step.
     trend : frozenset of int
-        Indices of slow components set aside as a trend (see :func:`_trends`).
+        Indices of slow components set aside as a trend (see :func:`_trends`) or as lines,
+        drift or transients.
+    aside : frozenset of int
+        Indices of the stationary lines (no parents of combination tones).
 
     Returns
     -------
@@ -332,7 +340,7 @@ def _fundamental(
     """
     if not modes:
         return [], []
-    comb = _combinations(modes)
+    comb = _combinations(modes, aside)
     free = [k for k in range(len(modes)) if k not in comb and k not in trend]
     first = free[0] if free else next((k for k in range(len(modes)) if k not in comb), 0)
     order = [first] + [k for k in range(len(modes)) if k != first]
