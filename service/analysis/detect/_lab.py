@@ -141,7 +141,11 @@ def _lead(e: np.ndarray, L: int, period: float) -> tuple[int, int]:
     level = float(np.max(e[: max(rise_from - L, 1)]))
     if not level < LEAD_QUIET * emax:
         return 0, i_half
-    if not (i_half - rise_from) * 4 <= rise_from:
+    # the rise is timed from the lead's band (a loud lead-in: from 1.25x its median)
+    band = np.flatnonzero(e[:rise_from] <= (1.25 * base if LEAD_RISE * base > 0.5 * emax
+                                           else LEAD_RISE * base))  # fmt: skip
+    foot = int(band[-1]) if band.size else 0
+    if not (i_half - foot) * 4 <= foot:
         return 0, i_half
     return rise_from, i_half
 
