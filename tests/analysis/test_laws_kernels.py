@@ -229,3 +229,34 @@ def test_exponent_rows_equal_one_exponent_at_a_time(conformal: bool) -> None:
            for b in grid]  # fmt: skip
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
     assert np.ptp(got) > 1.0  # the exponents matter: a grid of distinct values
+
+
+def test_brent_step_minimises_as_scipy_fminbound() -> None:
+    """The shared Brent step (with :func:`brent_keep`) finds scipy's ``fminbound`` minimum of
+    smooth and kinked functions on a bracket, to its tolerance."""
+    import math
+
+    from scipy import optimize
+
+    from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_step
+
+    def brent(fn, a, b, xatol):
+        x = a + GOLD * (b - a)
+        fx = fn(x)
+        w, fw, v, fv = x, fx, x, fx
+        d = e = 0.0
+        for _ in range(500):
+            u, d, e = brent_step(a, b, x, fx, w, fw, v, fv, d, e, xatol)
+            if math.isnan(u):
+                break
+            a, b, x, fx, w, fw, v, fv = brent_keep(a, b, x, fx, w, fw, v, fv, u, fn(u))
+        return x
+
+    for fn, a, b in [
+        (lambda t: (t - 0.3) ** 2 + 1.0, -1.0, 2.0),
+        (lambda t: math.cosh(3.0 * (t - 1.7)), 0.0, 4.0),
+        (lambda t: abs(t - 0.123) + 0.1 * t * t, -2.0, 1.0),
+        (lambda t: math.exp(t) - 5.0 * t, 0.0, 3.0),
+    ]:
+        ref = optimize.fminbound(fn, a, b, xtol=1e-10)
+        assert abs(brent(fn, a, b, 1e-10) - ref) < 1e-7

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import optimize
 
-from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_parabola
+from service.analysis.predictor._kernels.brent import brent_keep, brent_step
 from service.analysis.predictor._kernels.fold import nll_exponent_rows
 from service.analysis.predictor.likelihood import _LOGU, _Comp, _nll, _pack, _profile, _profile_near
 
@@ -25,9 +25,6 @@ def exponent_grid(lo: float, hi: float, cands: list[float]) -> np.ndarray:
     (precise data give valleys far narrower than the uniform step)."""
     extra = [c + d for c in cands for d in (-0.02, -0.005, 0.0, 0.005, 0.02)]
     return np.unique(np.concatenate([np.linspace(lo, hi, 16), extra]))
-
-
-_SQRT_EPS = 1.4901161193847656e-08
 
 
 def _brent_min(
@@ -47,24 +44,9 @@ def _brent_min(
     w, fw, v, fv = (a, fa, c, fc) if fa <= fc else (c, fc, a, fa)
     d = e = c - a
     for _ in range(500):
-        xm = 0.5 * (a + c)
-        tol1 = _SQRT_EPS * abs(x) + xatol / 3.0
-        tol2 = 2.0 * tol1
-        if abs(x - xm) <= tol2 - 0.5 * (c - a):
+        u, d, e = brent_step(a, c, x, fx, w, fw, v, fv, d, e, xatol)
+        if math.isnan(u):
             break
-        golden = True
-        if abs(e) > tol1:
-            p, q = brent_parabola(x, fx, w, fw, v, fv)
-            e_old, e = e, d
-            if abs(p) < abs(0.5 * q * e_old) and q * (a - x) < p < q * (c - x):
-                d = p / q
-                if (x + d) - a < tol2 or c - (x + d) < tol2:
-                    d = tol1 if xm >= x else -tol1
-                golden = False
-        if golden:
-            e = (c - x) if x < xm else (a - x)
-            d = GOLD * e
-        u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
         fu = fn(u)
         a, c, x, fx, w, fw, v, fv = brent_keep(a, c, x, fx, w, fw, v, fv, u, fu)
     curv = math.nan

@@ -10,11 +10,14 @@ steps of scipy's ``fminbound``).
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 
-__all__ = ["GOLD", "brent_keep", "brent_parabola"]
+__all__ = ["GOLD", "brent_keep", "brent_parabola", "brent_step"]
 
 GOLD = 0.3819660112501051  # (3 - sqrt(5)) / 2: the golden section's step
+_SQRT_EPS = 1.4901161193847656e-08  # fminbound's relative tolerance
 
 
 @njit(cache=True, inline="always")
@@ -55,3 +58,34 @@ def brent_parabola(
     if q > 0.0:
         p = -p
     return p, abs(q)
+
+
+@njit(cache=True, inline="always")
+def brent_step(
+    a: float, b: float, x: float, fx: float, w: float, fw: float, v: float, fv: float,
+    d: float, e: float, xatol: float,
+) -> tuple[float, float, float]:
+    """The next trial point of a bounded minimisation on ``[a, b]`` (lowest points ``x``,
+    ``w``, ``v``; last steps ``d``, ``e``; tolerance ``xatol``, scipy's ``fminbound``): the
+    parabola's vertex where it is acceptable, else a golden section. Returns ``(u, d, e)``;
+    ``u`` NaN once ``x`` is converged."""
+    xm = 0.5 * (a + b)
+    tol1 = _SQRT_EPS * abs(x) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    if abs(x - xm) <= tol2 - 0.5 * (b - a):
+        return math.nan, d, e
+    golden = True
+    if abs(e) > tol1:
+        p, q = brent_parabola(x, fx, w, fw, v, fv)
+        e_old = e
+        e = d
+        if abs(p) < abs(0.5 * q * e_old) and p > q * (a - x) and p < q * (b - x):
+            d = p / q
+            u = x + d
+            if u - a < tol2 or b - u < tol2:
+                d = tol1 if xm >= x else -tol1
+            golden = False
+    if golden:
+        e = (b - x) if x < xm else (a - x)
+        d = GOLD * e
+    return x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1)), d, e

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_parabola
+from service.analysis.predictor._kernels.brent import GOLD, brent_keep, brent_step
 from service.analysis.predictor._kernels.fold import (
     _profile_u,
     _profile_u_from,
@@ -30,7 +30,6 @@ from service.analysis.predictor._kernels.fold import (
 )
 from service.analysis.predictor._kernels.laws import _total, _work
 
-_SQRT_EPS = 1.4901161193847656e-08
 _EPS = 2.220446049250313e-16
 BIG = 1e300  # value of a non-finite -2 log L inside the searches
 _XTOL_PROBE = 1e-4  # tolerance (in t) of the refinement probing a further local minimum
@@ -117,26 +116,9 @@ def _minimise(a, b, xatol, P, mu_last, logu, W, cf, H, L, x0, f0, fa, fb):
         d = 0.0
         e = 0.0
     for _ in range(500):
-        xm = 0.5 * (a + b)
-        tol1 = _SQRT_EPS * abs(x) + xatol / 3.0
-        tol2 = 2.0 * tol1
-        if abs(x - xm) <= tol2 - 0.5 * (b - a):
+        u, d, e = brent_step(a, b, x, fx, w, fw, v, fv, d, e, xatol)
+        if math.isnan(u):
             break
-        golden = True
-        if abs(e) > tol1:
-            p, q = brent_parabola(x, fx, w, fw, v, fv)
-            e_old = e
-            e = d
-            if abs(p) < abs(0.5 * q * e_old) and p > q * (a - x) and p < q * (b - x):
-                d = p / q
-                u = x + d
-                if u - a < tol2 or b - u < tol2:
-                    d = tol1 if xm >= x else -tol1
-                golden = False
-        if golden:
-            e = (b - x) if x < xm else (a - x)
-            d = GOLD * e
-        u = x + (d if abs(d) >= tol1 else (tol1 if d > 0.0 else -tol1))
         fu = _row_near(mu_last + math.exp(u), P, mu_last, logu, W, cf, H, L)
         a, b, x, fx, w, fw, v, fv = brent_keep(a, b, x, fx, w, fw, v, fv, u, fu)
     return x, fx
