@@ -455,8 +455,10 @@ def _result(
         trend = _trends(out.modes, n=n, dt=dt, noise_std=out.noise_std)
         combos = frozenset(_combinations(out.modes))
         if lab:
+            peak = float(np.max(np.abs(rec.x))) if rec.x.size else math.inf
             lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
-                                                           trend | combos, lead_T)  # fmt: skip
+                                                           trend | combos, lead_T,
+                                                           peak)  # fmt: skip
             tiny = _lab.negligible_growth(out.modes, n * dt)
     modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
                                 aside=lines)

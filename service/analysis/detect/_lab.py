@@ -375,6 +375,9 @@ RING_DECAY = 0.1
 #: A transient (the hammer's contact absorbed by the fit): a mode whose envelope decays by
 #: more than this many e-folds over the window (its slow pole), slower than a ringing mode.
 TRANSIENT_DECAY = 8.0
+#: ... or an overdamped mode whose terms exceed this many times the window's largest deviation
+#: (two terms that cancel: a component that large cannot be in the record otherwise).
+TRANSIENT_HUGE = 10.0
 #: A slow oscillation of fewer than FEW_PERIODS cycles, or a slow real pole, that decays by
 #: less than this many e-folds over the window beside a ringing mode is the baseline's drift.
 DRIFT_DECAY = 0.5
@@ -421,7 +424,7 @@ def _from_rest(m: Mode, T: float) -> bool:
 
 def lines_and_drift(
     modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int],
-    lead_T: float = 0.0,
+    lead_T: float = 0.0, peak: float = math.inf,
 ) -> tuple[frozenset[int], frozenset[int], frozenset[int]]:  # fmt: skip
     """Indices of the stationary lines, of the slow drift and of the transients among
     ``modes`` (a window of
@@ -444,7 +447,9 @@ def lines_and_drift(
       the ringing (a slow wobble), or one of fewer than FEW_PERIODS cycles below
       :data:`DRIFT_WEAK` of the ringing mode's amplitude;
     * transient: beside a kicked ringing mode a slower one that dies within the window
-      (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed.
+      (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed;
+      or an overdamped one whose terms exceed :data:`TRANSIENT_HUGE` times the record's
+      largest deviation ``peak`` (they cancel: a pair the fit made of the contact).
     """
     lines: set[int] = set()
     for k, m in enumerate(modes):
@@ -498,6 +503,10 @@ def lines_and_drift(
                     and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings))
             ):  # fmt: skip
                 drift.add(k)
+        # (also where the first pass read it as a combination tone)
+        transient |= {k for k, m in enumerate(modes)
+                      if m.regime == "overdamped" and m.amplitude > TRANSIENT_HUGE * peak
+                      and k not in lines and k not in drift and k not in rings}  # fmt: skip
     return frozenset(lines), frozenset(drift), frozenset(transient)
 
 
