@@ -270,6 +270,21 @@ def _window(sw: Sweep, n_max: int) -> tuple[int, bool]:
     return ok, found
 
 
+def _joined(
+    f: CuspFit, mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, K: int,
+    level: float,
+) -> CuspFit:
+    """``f`` with its interval joined with that of the same law with one more correction,
+    where the window allows it (the truncation's share: a link column's fold 1.4 half-widths
+    before a one-correction law's interval lay inside the two-correction law's)."""
+    if K >= K_MAX or mu.size - K - 4 < 1 or not math.isfinite(f.lo):
+        return f
+    more = _fit(mu, y, wt, scale, K + 1, f.law == "imperfect-softening", level)
+    if not math.isfinite(more.lo):
+        return f
+    return replace(f, lo=min(f.lo, more.lo), hi=max(f.hi, more.hi))
+
+
 def assess(sw: Sweep, level: float = 0.95) -> Imperfection | None:
     """Compare the perfect pitchfork with the softening and stiffening imperfect ones on the
     nearest points of ``sw`` (its ``y = |sigma^2|`` and noise ``sd``) where one of them holds;
@@ -294,18 +309,11 @@ def assess(sw: Sweep, level: float = 0.95) -> Imperfection | None:
     _, K, nll_p, t_p = best
     if not math.isfinite(nll_p):
         return None
-    soft = _fit(mu, y, wt, scale, K, True, level)
-    if K < K_MAX and n - K - 4 >= 1 and math.isfinite(soft.lo):
-        # the fold's interval holds the next correction's too (its truncation: a link
-        # column's fold 1.4 half-widths before a one-correction law's interval, inside the
-        # two-correction law's)
-        more = _fit(mu, y, wt, scale, K + 1, True, level)
-        if math.isfinite(more.lo):
-            soft = replace(soft, lo=min(soft.lo, more.lo), hi=max(soft.hi, more.hi))
+    soft = _joined(_fit(mu, y, wt, scale, K, True, level), mu, y, wt, scale, K, level)
     # the stiffening law's interval matters only where it may be told
     stiff = _fit(mu, y, wt, scale, K, False, level, with_interval=False)
     if nll_p - stiff.nll >= ESTABLISHED:  # (before the dispersion: a superset)
-        stiff = _fit(mu, y, wt, scale, K, False, level)
+        stiff = _joined(_fit(mu, y, wt, scale, K, False, level), mu, y, wt, scale, K, level)
     phi = 1.0  # the gains are read against the records' noise (see docs/predictor.md)
     pen = math.log(n)
     crit = {
