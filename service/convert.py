@@ -293,12 +293,16 @@ def sweep_result(
     *,
     record_flags: Mapping[str, Iterable[Any]] | None = None,
     time_unit: str | None = None,
+    signal_ids: Mapping[str, str] | None = None,
 ) -> wire.SweepResult:
     """A sweep (``WarnResult``: simulated or recorded) as the one sweep document.
 
     ``record_flags``: per record name, what the reader noticed about the file (rounded
     timestamps, resampling), listed first among that record's detection flags.
     ``time_unit``: the records' common time unit (their detections are in it), if named.
+    ``signal_ids``: per record name, its stored signal's id (a sweep of stored signals): the
+    detection's ``name`` is then the signal id (pages link the record by it) and its
+    ``record_name`` the record's name.
     """
     doc = _fields(r, skip=("measurements", "prediction", "alarm", "flags", "detections",
                            "set_aside"))  # fmt: skip
@@ -307,9 +311,13 @@ def sweep_result(
         if isinstance(d, Mapping):
             one = _detection_doc(d, d.get("control"), d.get("name"))
         else:  # a (detection, control, name) triple or a detection with those attributes
-            det, control, name = d if isinstance(d, tuple) else (d, None, None)
+            det, control, label = d if isinstance(d, tuple) else (d, None, None)
+            name = (signal_ids or {}).get(label or "", label)
             one = detection(det, control=control, name=name, time_unit=time_unit)
-        notes = (record_flags or {}).get(getattr(one, "name", None) or "")
+            if label is not None:
+                one = one.model_copy(update={"record_name": label})
+        notes = (record_flags or {}).get(getattr(one, "record_name", None)
+                                         or getattr(one, "name", None) or "")  # fmt: skip
         if notes:
             one = one.model_copy(update={"flags": flags([*notes, *one.flags])})
         dets.append(one)
@@ -364,6 +372,7 @@ def live_update(
         sweep_id=sweep_id,
         seq=rec.seq,
         signal_id=signal_id,
+        record_name=rec.name,
         control=rec.control,
         record_flags=flags(rec.flags),
         used_in_fit=u.used_in_fit,

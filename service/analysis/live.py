@@ -284,11 +284,18 @@ def update(
     dt: float,
     control: float,
     plan: LivePlan | None = None,
+    options: Mapping[str, Any] | None = None,
+    name: str | None = None,
+    time_unit: str | None = None,
 ) -> LiveUpdate:
-    """Detect a new record and assess the sweep with it (:func:`measure` then :func:`assess`)."""
+    """Detect a new record and assess the sweep with it (:func:`measure` then :func:`assess`):
+    ``options`` the detector's lab options and ``exclude``, ``name`` the record's (file) name
+    for the reasons it may be set aside, ``time_unit`` its time unit."""
     plan = plan or LivePlan()
-    det, m, fl = measure(w, dt=dt, control=control, method=plan.method)
-    return assess(previous, det, m, control, plan=plan, detection_flags=fl)
+    det, m, fl = measure(w, dt=dt, control=control, method=plan.method, options=options,
+                         name=name)  # fmt: skip
+    return assess(previous, det, m, control, plan=plan, detection_flags=fl, name=name,
+                  time_unit=time_unit)  # fmt: skip
 
 
 def finish(records: Sequence[LiveRecord], *, plan: LivePlan | None = None,

@@ -50,6 +50,10 @@ Progress = Callable[[float, str], None]
 # nears (with a constant amplitude the normal-form sweeps were biased by -2e-6, 7-11 standard
 # errors; the simulators' noise is relative to the response, so the SNR is unchanged)
 KICK_POWER = 3.0
+#: The control resolution of a simulated sweep: a simulator sets any control, so ``warn``
+#: converges only by the interval's width (a lab loop that wants ``warn``'s sweep gives the
+#: same plan: ``step=first_step``, ``target_width=rel_width`` and this resolution)
+SIMULATED_RESOLUTION = 1e-12
 
 
 @dataclass(frozen=True)
@@ -175,7 +179,7 @@ def warn(
     base = Scene(actuation=actuation, mu=0.0, damping=damping, kick=kick, snr_db=snr_db,
                  **(scene_options or {}))  # fmt: skip
     policy = SweepPolicy(SweepPlan(step=first_step, target_width=rel_width,
-                                   control_resolution=1e-12))  # fmt: skip
+                                   control_resolution=SIMULATED_RESOLUTION))  # fmt: skip
     alarm: list[Alarm] = []
     flags: list[Flag] = []
     u: PolicyUpdate | None = None
@@ -324,4 +328,5 @@ def sweep_from_signals(
     return result_of(u, alarms=[*alarms, u.alarm], stopped="done", detections=dets)
 
 
-__all__ = ["WarnResult", "paper_rule", "result_of", "sweep_from_signals", "warn"]
+__all__ = ["SIMULATED_RESOLUTION", "WarnResult", "paper_rule", "result_of", "sweep_from_signals",
+           "warn"]

@@ -90,7 +90,11 @@ class InProcess:
         from service.recordings import read_file
 
         rec = read_file(path, dt=self.dt)
-        u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan)
+        # the record as the service's live door reads an uploaded file: named by its file,
+        # the quantity its value unit says
+        opts = {"quantity": rec.quantity} if rec.quantity else {}
+        u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan,
+                   options=opts, name=path.name, time_unit=rec.unit)  # fmt: skip
         self.records.append(u.record)
         return convert.live_update(u)
 

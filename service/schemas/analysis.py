@@ -125,6 +125,9 @@ class RecordDetection(Detection):
 
     control: Num = Field(default=None, description="Control value of the record.")
     name: str | None = Field(default=None, description="The record's label (file, signal id).")
+    record_name: str | None = Field(
+        default=None, description="The record's file name (a stored signal: the name it was "
+        "uploaded with), as set-aside reasons name it.")  # fmt: skip
 
 
 class Measurement(_Result):

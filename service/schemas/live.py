@@ -114,6 +114,9 @@ class LiveUpdate(BaseModel):
     sweep_id: str | None = Field(default=None, description="None in process (snapwarn watch).")
     seq: int = Field(description="Position of the record in arrival order (1, 2, ...).")
     signal_id: str | None = Field(default=None, description="The stored record.")
+    record_name: str | None = Field(
+        default=None, description="The record's name: the one the client gave, else its file's "
+        "(a stored signal: the name it was uploaded with).")  # fmt: skip
     control: float
     record_flags: list[Flag] = Field(
         default_factory=list,

@@ -403,7 +403,7 @@ def _detrended(arr: np.ndarray) -> np.ndarray:
     """The record with its least-squares slope removed (its mean kept): a drift's ramp."""
     n = arr.size
     u = np.arange(n, dtype=float) - 0.5 * (n - 1)
-    slope = float(u @ (arr - arr.mean())) / float(u @ u)
+    slope = float(np.sum(u * (arr - arr.mean()))) / float(np.sum(u * u))
     return arr - slope * u
 
 

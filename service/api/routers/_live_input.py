@@ -29,8 +29,19 @@ RECORD_FORM_SCHEMA = {
     "properties": {
         **RECORDING_FORM_FIELDS,
         "control": {"type": "number", "description": "Control value of the record."},
+        "quantity": {"type": "string", "enum": ["displacement", "velocity", "acceleration"],
+                     "description": "What the record measures (default: the file's value "
+                     "unit says, else a displacement)."},
+        "start": {"type": "number", "description": "Time from the record's first sample where "
+                  "its free response starts (default: the kick is located)."},
+        "notch": {"type": "string", "description": "Frequencies of stationary lines, comma- or "
+                  "space-separated (cycles per time unit; default: found)."},
+        "exclude": {"type": "boolean", "description": "Leave this record out of the sweep "
+                    "(listed as set aside, 'excluded by the user')."},
     },
-}
+}  # fmt: skip
+_QUANTITIES = ("displacement", "velocity", "acceleration")
+_TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
 
 
 def _recording_problem(exc: recordings.RecordingError) -> ApiProblem:
@@ -70,6 +81,7 @@ async def record_from_json(request: Request, state: AppState, caller: Caller) ->
             opts.setdefault("quantity", q)
         return {"w": sig.w, "dt": float(sig.row.dt), "control": _finite_control(value),
                 "signal_id": sig.row.id, "unit": sig.row.unit, "options": opts,
+                "name": doc.name or sig.row.name or sig.row.id,
                 "control_unit": sig.row.control_unit if doc.control is None else None}  # fmt: skip
     if doc.w is None:
         raise invalid("w", None, "give 'signal_id', or 'w' with 't' or 'dt'")
@@ -138,7 +150,39 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
                                    rec.source, rec.flags, rec.metadata)  # fmt: skip
     name = _form_text(form, "name", 500) or (upload.filename or "")[:500] or None
     return {"recording": rec, "control": control, "name": name,
+            "options": _form_options(form, rec.quantity),
             "metadata": {"file": {"filename": upload.filename, **rec.metadata}}}  # fmt: skip
+
+
+def _form_options(form: Any, quantity: str | None) -> dict[str, Any]:
+    """The detector's lab options of a multipart record (the JSON record's fields of the same
+    names): ``quantity`` (default: the file's value unit says), ``start``, ``notch`` (numbers
+    separated by commas or spaces) and ``exclude``."""
+    opts: dict[str, Any] = {}
+    q = _form_text(form, "quantity", 20) or quantity
+    if q is not None:
+        if q not in _QUANTITIES:
+            raise invalid("quantity", q, f"must be one of {', '.join(_QUANTITIES)}")
+        opts["quantity"] = q
+    start = _form_text(form, "start")
+    if start is not None:
+        v = _finite_control(start, "start")
+        if v < 0:
+            raise invalid("start", start, "must be >= 0")
+        opts["start"] = v
+    notch = _form_text(form, "notch", 400)
+    if notch is not None:
+        freqs = [_finite_control(x, "notch") for x in notch.replace(",", " ").split()]
+        if not freqs or len(freqs) > 16 or not all(f > 0 for f in freqs):
+            raise invalid("notch", notch, "must be 1 to 16 positive frequencies")
+        opts["notch"] = freqs
+    exclude = _form_text(form, "exclude", 10)
+    if exclude is not None:
+        if exclude.lower() not in _TRUE + _FALSE:
+            raise invalid("exclude", exclude, "must be true or false")
+        if exclude.lower() in _TRUE:
+            opts["exclude"] = True
+    return opts
 
 
 async def signal_for(item: dict[str, Any], live_row: Any, caller: Caller) -> Any:

@@ -292,7 +292,7 @@ def run_simulated_sweep_job(ctx: JobContext) -> dict[str, Any]:
 def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
     """A sweep of stored recordings: detect each, then classify and predict."""
     params, progress, store = ctx.params, ctx.progress, ctx.store
-    items, notes, units = [], {}, []
+    items, units, labels, metas = [], [], [], []
     quantities: list[str | None] = []
     for k, m in enumerate(params["measurements"]):
         sig = store.get_signal(m["signal_id"])
@@ -306,10 +306,13 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
         items.append((sig.w, float(sig.row.dt), float(m["control_value"])))
         units.append(sig.row.unit)
         quantities.append(recordings.quantity_of(sig.row.value_unit))
-        notes[m["signal_id"]] = (sig.row.meta or {}).get("recording_flags") or []
+        labels.append(sig.row.name)
+        metas.append((sig.row.meta or {}).get("recording_flags") or [])
         progress(0.1 * (k + 1) / len(params["measurements"]), "loading signals")
     progress(0.1, f"analysing {len(items)} signals")
-    names = [m["signal_id"] for m in params["measurements"]]
+    ids = [m["signal_id"] for m in params["measurements"]]
+    names = record_names(labels, ids)  # set-aside reasons name the file, never an index or id
+    notes = dict(zip(names, metas))
     # signals stored in different time units (one in ms, another in s) are brought to seconds
     try:
         factors, time_unit = recordings.common_time_base(units, names)
@@ -331,6 +334,14 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
             items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg),
             options=options, plan=SweepPlan(band=tuple(band) if band else None),
         )  # fmt: skip
-    return convert.sweep_result(res, record_flags=notes, time_unit=time_unit).model_dump(
-        mode="json"
-    )
+    doc = convert.sweep_result(res, record_flags=notes, time_unit=time_unit,
+                               signal_ids=dict(zip(names, ids)))  # fmt: skip
+    return doc.model_dump(mode="json")
+
+
+def record_names(names: list[str | None], ids: list[str]) -> list[str]:
+    """Each stored signal's record name: the name it was uploaded with (its file's), else its
+    id; a name two signals share gets the signal's id beside it (one name, one record)."""
+    base = [n or i for n, i in zip(names, ids, strict=True)]
+    seen = {n: base.count(n) for n in base}
+    return [n if seen[n] == 1 else f"{n} (signal {i})" for n, i in zip(base, ids, strict=True)]
