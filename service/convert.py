@@ -362,10 +362,12 @@ def live_update(
     signal_id: str | None = None,
     created_at: Any = None,
     finished: bool = False,
+    options: Mapping[str, Any] | None = None,
 ) -> Any:
     """A live sweep's update (``service.analysis.live.LiveUpdate``) as its wire model
-    (:class:`service.schemas.live.LiveUpdate`)."""
-    from service.schemas.live import LiveUpdate
+    (:class:`service.schemas.live.LiveUpdate`); ``options``: the detector's options the record
+    was read with."""
+    from service.schemas.live import LiveUpdate, RecordOptions
 
     p, rec, nxt = u.prediction, u.record, u.next
     return LiveUpdate(
@@ -374,6 +376,7 @@ def live_update(
         signal_id=signal_id,
         record_name=rec.name,
         control=rec.control,
+        record_options=RecordOptions.model_validate(dict(options or {})),
         record_flags=flags(rec.flags),
         used_in_fit=u.used_in_fit,
         measurement=measurement(rec.measurement) if rec.measurement is not None else None,

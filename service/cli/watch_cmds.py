@@ -96,7 +96,7 @@ class InProcess:
         u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan,
                    options=opts, name=path.name, time_unit=rec.unit)  # fmt: skip
         self.records.append(u.record)
-        return convert.live_update(u)
+        return convert.live_update(u, options=opts)
 
     def close(self) -> None:
         pass

@@ -218,7 +218,9 @@ class _LiveOperations(Operations):
     @operation
     def add(self, file: str | os.PathLike | bytes | None = None, **kw: Any) -> Flow[LiveUpdate]:
         """Add one record: a file (path or bytes), ``w=`` with ``t=``/``dt=``, or
-        ``signal_id=``; always ``control=`` (its control value). Returns the updated warning."""
+        ``signal_id=``; always ``control=`` (its control value); optionally ``name=`` and the
+        detector's ``quantity=``, ``start=``, ``notch=`` (a list) and ``exclude=``. Returns
+        the updated warning."""
         return (yield add_record(self.id, file, **kw))
 
     @operation

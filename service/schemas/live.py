@@ -101,6 +101,18 @@ class LiveRecordIn(BaseModel):
         return {k: v for k, v in opts.items() if v is not None}
 
 
+class RecordOptions(BaseModel):
+    """The detector's options a record was read with: the user's (or the sweep's notch), and
+    the quantity its file's value unit says when the user gave none."""
+
+    model_config = ConfigDict(extra="ignore")
+
+    quantity: Literal["displacement", "velocity", "acceleration"] | None = None
+    start: float | None = None
+    notch: list[float] | None = None
+    exclude: bool = False
+
+
 class LiveUpdate(BaseModel):
     """The warning after one more record of a live sweep.
 
@@ -118,6 +130,8 @@ class LiveUpdate(BaseModel):
         default=None, description="The record's name: the one the client gave, else its file's "
         "(a stored signal: the name it was uploaded with).")  # fmt: skip
     control: float
+    record_options: RecordOptions = Field(
+        default_factory=RecordOptions, description="The options the record was read with.")
     record_flags: list[Flag] = Field(
         default_factory=list,
         description="out_of_order, repeated_control, past_safe_value, no_mode (the record is "

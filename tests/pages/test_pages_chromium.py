@@ -381,3 +381,72 @@ def test_user_text_is_escaped_in_pages_and_charts(browser: Browser, site: Site) 
     assert evil in tab.evaluate("document.querySelector('[data-key=name]').textContent")
     assert evil in tab.evaluate("document.querySelector('#fit-chart svg').textContent")
     tab.close()
+
+
+def test_sweep_pages_show_the_options_used(browser: Browser, site: Site, shots) -> None:
+    """The user's hand shown on the pages (issue 27 item 6): a batch sweep's band, notch and
+    per-record options (a record excluded by the user is listed as set aside by its name), and
+    a live sweep's band, notch, plan and each record's options, given in the multipart form."""
+    from _pages_site import lab_records
+
+    recs = lab_records()
+    band = [0.01, 1.0]  # rad/ms: around every record's fundamental (0.03-0.31 rad/ms)
+    with site.client(site.key_a) as c:
+        ms = [{"signal_id": i} for i in site.signals]
+        ms[2]["quantity"] = "displacement"
+        ms[3]["exclude"] = True
+        r = c.post("/v1/sweeps", json={"name": "with options", "measurements": ms,
+                                       "band": band})  # fmt: skip
+        assert r.status_code == 202, r.text
+        batch = r.json()["id"]
+        wait_job(c, batch)
+        api = c.get(f"/v1/sweeps/{batch}").json()["result"]
+        excluded = c.get(f"/v1/signals/{site.signals[3]}").json()["name"]
+        r = c.post("/v1/sweeps", json={"name": "live with options", "mode": "live",
+                                       "control": {"name": "theta", "unit": "deg"},
+                                       "band": band, "notch": [0.3],
+                                       "live": {"step": 5.0, "margin": 0.01}})  # fmt: skip
+        assert r.status_code == 201, r.text
+        live = r.json()["id"]
+        for k, (theta, dt, w) in enumerate(recs[:5]):
+            rows = (f"{j * dt!r},{float(x)!r}\n" for j, x in enumerate(w))
+            body = "t [ms],w [mm]\n" + "".join(rows)
+            form = {"control": repr(theta), "quantity": "displacement"}
+            if k == 1:
+                form["notch"] = "0.25, 0.35"
+            r = c.post(f"/v1/sweeps/{live}/records", data=form,
+                       files={"file": (f"rec_{k}.csv", body.encode())})  # fmt: skip
+            assert r.status_code == 201, r.text
+            assert r.json()["record_name"] == f"rec_{k}.csv"
+        ups = c.get(f"/v1/sweeps/{live}/records").json()["items"]
+    # the batch sweep: the options, each record's name and what it was read with
+    assert [a["name"] for a in api["set_aside"]] == [excluded]
+    assert excluded in " ".join(f["message"] for f in api["flags"])
+    tab = _open(browser, site, f"/sweeps/{batch}", site.key_a)
+    _assert_clean(tab)
+    v = _values(tab)
+    opt = {d["name"]: d["value"] for d in v["option"]}
+    assert opt["band"] == "[0.01, 1] rad per time unit"
+    assert opt["notch"].startswith("none given")
+    assert [d["value"] for d in v["record_name"]] == [d["record_name"] for d in api["detections"]]
+    names = {d["name"]: d["record_name"] for d in api["detections"]}  # signal id -> its name
+    assert names[site.signals[3]] == excluded
+    shown = {d["value"] for d in v["record_options"]}
+    assert "displacement; excluded by the user" in shown and "displacement" in shown
+    tab.close()
+    # the live sweep: its plan, band and notch, each record's name and options
+    tab = _open(browser, site, f"/sweeps/{live}", site.key_a)
+    _assert_clean(tab)
+    tab.screenshot(shots / "live-options.png")
+    v = _values(tab)
+    opt = {d["name"]: d["value"] for d in v["option"]}
+    assert opt["band"] == "[0.01, 1] rad per time unit"
+    assert opt["notch"] == "0.3 cycles per time unit"
+    assert opt["step"] == "5" and opt["margin"] == "0.01"
+    assert opt["target_width"].startswith("1e-6") and opt["method"] == "auto"
+    assert [d["value"] for d in v["record_name"]] == [f"rec_{k}.csv" for k in range(5)]
+    ro = [d["value"] for d in v["record_options"]]
+    assert ro[1] == "displacement; notch 0.25, 0.35" and ro[0] == "displacement; notch 0.3"
+    assert [u["record_options"]["notch"] for u in ups] == [[0.3], [0.25, 0.35], [0.3], [0.3],
+                                                           [0.3]]  # fmt: skip
+    tab.close()

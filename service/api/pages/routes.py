@@ -348,6 +348,7 @@ def _records(result: SweepResult | None) -> list[dict[str, Any]]:
                 "w_static": d.static_level,
                 "flags": d.flags,
                 "thumbnail": bool(d.name),
+                "record_name": getattr(d, "record_name", None),
             })  # fmt: skip
         return rows
     for k, m in enumerate(result.measurements):
@@ -364,6 +365,66 @@ def _records(result: SweepResult | None) -> list[dict[str, Any]]:
             "flags": m.flags,
             "thumbnail": False,
         })  # fmt: skip
+    return rows
+
+
+def _record_options(request: dict[str, Any], result: SweepResult | None,
+                    updates: list[Any]) -> list[str]:  # fmt: skip
+    """Per record (the rows of :func:`_records`) the options it was read with, as text: a live
+    record's stored options; a batch record's from its request entry (by its signal id) and
+    the sweep's notch; with the quantity the detection says."""
+    if result is None or not result.detections:
+        return []
+    given: dict[str, dict[str, Any]] = {}
+    for m in request.get("measurements") or []:
+        if isinstance(m, dict) and m.get("signal_id"):
+            given[m["signal_id"]] = m
+    out = []
+    for k, d in enumerate(result.detections):
+        if updates and k < len(updates):
+            o = updates[k].record_options.model_dump()
+        else:
+            o = dict(given.get(getattr(d, "name", None) or "", {}))
+            o.setdefault("notch", request.get("notch"))
+        parts = [str(o.get("quantity") or d.quantity)]
+        if o.get("start") is not None:
+            parts.append(f"start {o['start']:g}")
+        if o.get("notch"):
+            parts.append("notch " + ", ".join(f"{f:g}" for f in o["notch"]))
+        if o.get("exclude"):
+            parts.append("excluded by the user")
+        out.append("; ".join(parts))
+    return out
+
+
+def _sweep_options(request: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The sweep's options as (label, key, text): given ones, else what the default does
+    (none for a simulated sweep)."""
+    if request.get("simulate") is not None:
+        return []
+    band, notch = request.get("band"), request.get("notch")
+    rows = [
+        ("fundamental's band of sqrt|sigma^2|", "band",
+         f"[{band[0]:g}, {band[1]:g}] rad per time unit" if band
+         else "none given: the mode that softens continuously across the sweep"),
+        ("notch frequencies", "notch",
+         ", ".join(f"{f:g}" for f in notch) + " cycles per time unit" if notch
+         else "none given: lines before the kick or not decaying are found"),
+    ]  # fmt: skip
+    if request.get("mode") == "live":
+        live = request.get("live") or {}
+        defaults = {
+            "step": "the largest step between the records so far",
+            "margin": "0",
+            "target_width": "1e-6 of max(|mu*|, span of the controls)",
+            "control_resolution": "the decimals of the controls, at least 1e-4 of the step",
+            "budget": "none",
+            "method": "auto",
+        }
+        for key, default in defaults.items():
+            v = live.get(key)
+            text = default if v is None else (f"{v:g}" if isinstance(v, float) else str(v))
+            rows.append((key.replace("_", " "), key, text))
     return rows
 
 
@@ -392,6 +453,7 @@ def _live_result(updates: list[Any]) -> SweepResult | None:
         d.update(
             control=u.control,
             name=u.signal_id,
+            record_name=u.record_name,
             flags=[f.model_dump() for f in (*u.record_flags, *u.detection.flags)],
         )
         dets.append(d)
@@ -443,6 +505,8 @@ async def sweep_page(request: Request, sweep_id: str) -> Response:
             "job": _job_view(job),
             "units": units,
             "records": _records(result),
+            "record_options": _record_options(sweep.request or {}, result, updates),
+            "options": _sweep_options(sweep.request or {}),
             "chart": chart,
         }
         return _page(request, "sweep.html", ctx)

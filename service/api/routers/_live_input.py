@@ -35,7 +35,7 @@ RECORD_FORM_SCHEMA = {
         "start": {"type": "number", "description": "Time from the record's first sample where "
                   "its free response starts (default: the kick is located)."},
         "notch": {"type": "string", "description": "Frequencies of stationary lines, comma- or "
-                  "space-separated (cycles per time unit; default: found)."},
+                  "space-separated or a JSON list (cycles per time unit; default: found)."},
         "exclude": {"type": "boolean", "description": "Leave this record out of the sweep "
                     "(listed as set aside, 'excluded by the user')."},
     },
@@ -157,7 +157,7 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
 def _form_options(form: Any, quantity: str | None) -> dict[str, Any]:
     """The detector's lab options of a multipart record (the JSON record's fields of the same
     names): ``quantity`` (default: the file's value unit says), ``start``, ``notch`` (numbers
-    separated by commas or spaces) and ``exclude``."""
+    separated by commas or spaces, or a JSON list) and ``exclude``."""
     opts: dict[str, Any] = {}
     q = _form_text(form, "quantity", 20) or quantity
     if q is not None:
@@ -172,7 +172,8 @@ def _form_options(form: Any, quantity: str | None) -> dict[str, Any]:
         opts["start"] = v
     notch = _form_text(form, "notch", 400)
     if notch is not None:
-        freqs = [_finite_control(x, "notch") for x in notch.replace(",", " ").split()]
+        text = notch.strip().removeprefix("[").removesuffix("]")  # (the SDK sends a list)
+        freqs = [_finite_control(x, "notch") for x in text.replace(",", " ").split()]
         if not freqs or len(freqs) > 16 or not all(f > 0 for f in freqs):
             raise invalid("notch", notch, "must be 1 to 16 positive frequencies")
         opts["notch"] = freqs

@@ -54,6 +54,12 @@ async def create_live(req: Any, state: AppState, caller: Caller) -> JSONResponse
     if req.measurements is not None or req.simulate is not None:
         raise invalid("mode", "live", "a live sweep takes no 'measurements' nor 'simulate'")
     opts = req.live.model_dump() if req.live is not None else {}
+    # the user's hand on the detector, as in a batch sweep: the fundamental's band for every
+    # record, and the notch frequencies of records that give none of their own
+    if req.band is not None:
+        opts["band"] = [float(v) for v in req.band]
+    if req.notch is not None:
+        opts["notch"] = [float(v) for v in req.notch]
     control = req.control.model_dump() if req.control is not None else {"name": "mu"}
     _plan(opts)  # validated once here (the options' own checks)
     sweep, job, _ = await to_thread.run_sync(
@@ -79,9 +85,11 @@ def _plan(opts: dict[str, Any]) -> numerics.LivePlan:
             target_width=opts.get("target_width"),
             control_resolution=opts.get("control_resolution"),
             method=opts.get("method") or "auto",
+            band=tuple(opts["band"]) if opts.get("band") else None,
         )
     except ValueError as exc:
-        raise invalid(f"live.{getattr(exc, 'parameter', 'options')}",
+        name = getattr(exc, "parameter", "options")
+        raise invalid(name if name == "band" else f"live.{name}",
                       getattr(exc, "value", None), str(exc)) from None  # fmt: skip
 
 
@@ -152,6 +160,9 @@ async def add_record(
             f"the sweep's control is in {st.row.control_unit!r}; give control in "
             f"{st.row.control_unit!r}",
         )  # fmt: skip
+    notch = st.row.options.get("notch")
+    if notch and "notch" not in (item.get("options") or {}):  # the sweep's, as in a batch
+        item["options"] = {**(item.get("options") or {}), "notch": list(notch)}
     stored = None
     if "recording" in item:  # its signal's row made while the numerics run; stored with it
         stored = asyncio.ensure_future(_live_input.signal_for(item, st.row, caller))
@@ -296,7 +307,8 @@ async def _append(
         finishing = budget is not None and len(st.records) + 1 >= int(budget)
         t0 = time.perf_counter()
         job = partial(_update, st.records, item if measured is None else None, measured,
-                      item["control"], plan, finishing, sweep_id, base)  # fmt: skip
+                      item["control"], plan, finishing, sweep_id, base,
+                      item.get("name") or item.get("signal_id"), item.get("options"))  # fmt: skip
         try:
             out = await state.run(job)
         except ValueError as exc:  # the detector's validation of the record
@@ -361,32 +373,33 @@ def _time_factor(records: list[numerics.LiveRecord], unit: str | None) -> tuple[
 def _update(
     previous: list[numerics.LiveRecord], item: dict[str, Any] | None, measured: Any,
     control: float, plan: numerics.LivePlan, finishing: bool, sweep_id: str,
-    time_unit: str | None = None,
+    time_unit: str | None = None, name: str | None = None,
+    options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """One update in the analysis pool: detect the record (unless ``measured`` already holds
     its detection), assess the sweep with it, and build the wire document, the stored record
-    and, when the record spends the budget, the final sweep document. Each stage's (wall, CPU)
-    seconds are returned under ``timing``."""
+    and, when the record spends the budget, the final sweep document. ``name`` and
+    ``options``: the record's name and the detector's options it is read with. Each stage's
+    (wall, CPU) seconds are returned under ``timing``."""
     timing: dict[str, tuple[float, float]] = {}
     if measured is None:
         t = _clock()
         measured = numerics.measure(item["w"], dt=item["dt"], control=control,
-                                    method=plan.method, options=item.get("options"),
-                                    name=item.get("name") or item.get("signal_id"))  # fmt: skip
+                                    method=plan.method, options=options, name=name)  # fmt: skip
         timing["detect"] = _since(t)
     det, meas, dflags = measured
     split: dict[str, float] = {}
     t = _clock()
     u = numerics.assess(previous, det, meas, control, plan=plan, detection_flags=dflags,
-                        timings=split, time_unit=time_unit,
-                        name=(item or {}).get("name"))  # fmt: skip
+                        timings=split, time_unit=time_unit, name=name)  # fmt: skip
     whole = _since(t)
     pred = split.get("predict", (0.0, 0.0))
     timing["classify_predict"] = pred
     timing["policy"] = (whole[0] - pred[0], whole[1] - pred[1])
     t = _clock()
     doc = convert.live_update(u, sweep_id=sweep_id, created_at=as_utc(utcnow()),
-                              finished=finishing).model_dump(mode="json")  # fmt: skip
+                              finished=finishing, options=options,
+                              ).model_dump(mode="json")  # fmt: skip
     final = None
     if finishing:  # the final document reuses this update's prediction (no second fit)
         r = numerics.finish([*previous, u.record], plan=plan, stopped="budget",
