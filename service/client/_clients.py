@@ -327,8 +327,9 @@ class Client(Api):
         sweep_id: str | None = None, **options: Any,
     ) -> LiveSweep:  # fmt: skip
         """Open a live sweep (``POST /v1/sweeps``, mode live; ``margin=``, ``step=``,
-        ``budget=``, ``target_width=``), or attach to ``sweep_id``: ``add``, ``events``,
-        ``close``."""
+        ``budget=``, ``target_width=``, ``control_resolution=``, ``method=``, and the
+        detector's ``band=`` and ``notch=`` for every record), or attach to ``sweep_id``:
+        ``add``, ``events``, ``close``."""
         call = live.open_or_attach(name, control, unit, sweep_id, options)
         return LiveSweep(self, self._run(call))
 

@@ -41,10 +41,18 @@ def create_live_sweep(
     budget: int | None = None,
     target_width: float | None = None,
     method: str | None = None,
+    control_resolution: float | None = None,
+    band: tuple[float, float] | None = None,
+    notch: list[float] | None = None,
 ) -> core.Call:
     live = {k: v for k, v in (("margin", margin), ("step", step), ("budget", budget),
-            ("target_width", target_width), ("method", method)) if v is not None}  # fmt: skip
+            ("target_width", target_width), ("method", method),
+            ("control_resolution", control_resolution)) if v is not None}  # fmt: skip
     doc: dict[str, Any] = {"mode": "live", "control": {"name": control}, "live": live}
+    if band is not None:  # the detector's options of every record, as in a batch sweep
+        doc["band"] = [float(v) for v in band]
+    if notch is not None:
+        doc["notch"] = [float(v) for v in notch]
     if unit is not None:
         doc["control"]["unit"] = unit
     if name is not None:
