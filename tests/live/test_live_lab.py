@@ -46,10 +46,16 @@ def run_lab(client: Client, actuation: str) -> tuple[list, object]:
     return updates, live.close()
 
 
-_SYMMETRIC_TYPE = (
-    "on main's imperfect-pitchfork engine the symmetric beam's converged sweep (live and warn "
-    "alike: 31 records, mu* 1.99999999995) is named 'pitchfork' (p = 1.0, flag "
-    "imperfection_possible: sub- or supercritical withheld); the truth is subcritical")
+#: The types main's engine does not name (live and warn alike; the predictor's and the policy's)
+_TYPE_WITHHELD = {
+    "symmetric": "the symmetric beam's converged sweep (live and warn alike: 32 records, mu* "
+    "error 4e-11) is named 'pitchfork' (p = 1.0, flag imperfection_possible: sub- or "
+    "supercritical withheld); the truth is subcritical",
+    "antisymmetric": "since the policy converges on two narrow intervals in a row (0e5d5df) "
+    "the antisymmetric beam's sweep (live and warn alike: 31 records, mu* error -1e-10) ends "
+    "'undetermined' (p(supercritical) = 1.0 withheld: flags static_misfit, law_misfit, "
+    "w_noise_underestimated, imperfection_possible); the truth is supercritical",
+}
 
 
 @pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
@@ -89,6 +95,6 @@ def test_lab_loop_reaches_warn_accuracy(server, actuation: str, request) -> None
           f"{truth.mu_star:.8f}")
     # the type last: live and warn agree on it (above); whether it is the truth is the
     # predictor's (a strict xfail where it is not, applied only once all else held)
-    if actuation == "symmetric":
-        request.applymarker(pytest.mark.xfail(strict=True, reason=_SYMMETRIC_TYPE))
+    if actuation in _TYPE_WITHHELD:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=_TYPE_WITHHELD[actuation]))
     assert last.transition == truth.transition
