@@ -142,6 +142,40 @@ def test_model_values_matches_reference() -> None:
     np.testing.assert_allclose(out, ref, rtol=0, atol=tol * np.max(np.abs(ref)))
 
 
+def _scalar_model_values(p: np.ndarray, q: np.ndarray, c: np.ndarray, n: int) -> np.ndarray:
+    """The model one mode at a time, in Python floats (IEEE doubles, no fused multiply-add):
+    the order of operations of the kernel, whose paired loop must not change one bit."""
+    from service.analysis.detect._kernels import _mode_coeffs
+
+    out = [float(c[0])] * n
+    for k in range(p.size):
+        co = _mode_coeffs(float(p[k]), float(q[k]))
+        A, B, c1, c2 = float(co[0]), float(co[1]), float(c[1 + 2 * k]), float(c[2 + 2 * k])
+        out[0] += c1
+        if n < 2:
+            continue
+        a0, b0, a1, b1 = 1.0, 0.0, float(co[5]), float(co[6])
+        out[1] += c1 * a1 + c2 * b1
+        for i in range(2, n):
+            a2 = A * a1 + B * a0
+            b2 = A * b1 + B * b0
+            out[i] += c1 * a2 + c2 * b2
+            a0, a1, b0, b1 = a1, a2, b1, b2
+    return np.asarray(out)
+
+
+@pytest.mark.parametrize("K", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("n", [1, 2, 3, 600])
+def test_model_values_bit_exact(K: int, n: int) -> None:
+    rng = np.random.default_rng(10 * K + n)
+    p = rng.uniform(-1e-3, 2e-2, K)
+    q = rng.uniform(-1e-4, 0.5, K)
+    c = rng.standard_normal(2 * K + 1)
+    out = np.empty(n)
+    model_values(p, q, c, out)
+    assert np.array_equal(out, _scalar_model_values(p, q, c, n))
+
+
 @pytest.mark.parametrize(("L", "stride"), [(2, 1), (8, 1), (12, 3), (5, 40)])
 def test_hankel_gram_matches_explicit_product(L: int, stride: int) -> None:
     x = np.random.default_rng(L).standard_normal(1000)

@@ -253,13 +253,35 @@ def _mode_coeffs(pk: float, qk: float) -> np.ndarray:
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
 def _accumulate(buf: np.ndarray, nrows: int, ncols: int, G: np.ndarray) -> None:
-    """``G += buf[:nrows, :ncols].T @ buf[:nrows, :ncols]`` (upper triangle), F-order ``buf``."""
+    """``G += buf[:nrows, :ncols].T @ buf[:nrows, :ncols]`` (upper triangle), F-order ``buf``.
+
+    Four columns ``b`` per pass over column ``a`` (five loads for four products instead of
+    eight): each sum is still formed alone, in the same order, so ``G`` is bit for bit the
+    one-dot-product-at-a-time result (checked in ``tests/analysis/test_detect_kernels.py``)."""
     for a in range(ncols):
-        for b in range(a, ncols):
+        b = a
+        while b + 4 <= ncols:
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            s3 = 0.0
+            for i in range(nrows):
+                x = buf[i, a]
+                s0 += x * buf[i, b]
+                s1 += x * buf[i, b + 1]
+                s2 += x * buf[i, b + 2]
+                s3 += x * buf[i, b + 3]
+            G[a, b] += s0
+            G[a, b + 1] += s1
+            G[a, b + 2] += s2
+            G[a, b + 3] += s3
+            b += 4
+        while b < ncols:
             s = 0.0
             for i in range(nrows):
                 s += buf[i, a] * buf[i, b]
             G[a, b] += s
+            b += 1
 
 
 @njit(cache=True)
@@ -268,6 +290,49 @@ def _symmetrize(G: np.ndarray) -> None:
     for a in range(m):
         for b in range(a):
             G[a, b] = G[b, a]
+
+
+@njit(cache=True)
+def _pair_block(buf: np.ndarray, nr: int, co: np.ndarray, st: np.ndarray, k: int, ia: int) -> None:
+    """Basis columns of modes ``k`` and ``k + 1`` (columns ``ia .. ia + 3``) over one block
+    after the first, their recurrences interleaved; state in ``st`` as in :func:`model_gram`."""
+    A = co[k, 0]
+    B = co[k, 1]
+    A_ = co[k + 1, 0]
+    B_ = co[k + 1, 1]
+    a0 = st[k, 0]
+    a1 = st[k, 1]
+    b0 = st[k, 2]
+    b1 = st[k, 3]
+    a0_ = st[k + 1, 0]
+    a1_ = st[k + 1, 1]
+    b0_ = st[k + 1, 2]
+    b1_ = st[k + 1, 3]
+    for i in range(nr):
+        a2 = A * a1 + B * a0
+        b2 = A * b1 + B * b0
+        a2_ = A_ * a1_ + B_ * a0_
+        b2_ = A_ * b1_ + B_ * b0_
+        buf[i, ia] = a2
+        buf[i, ia + 1] = b2
+        buf[i, ia + 2] = a2_
+        buf[i, ia + 3] = b2_
+        a0 = a1
+        a1 = a2
+        b0 = b1
+        b1 = b2
+        a0_ = a1_
+        a1_ = a2_
+        b0_ = b1_
+        b1_ = b2_
+    st[k, 0] = a0
+    st[k, 1] = a1
+    st[k, 2] = b0
+    st[k, 3] = b1
+    st[k + 1, 0] = a0_
+    st[k + 1, 1] = a1_
+    st[k + 1, 2] = b0_
+    st[k + 1, 3] = b1_
 
 
 @njit(cache=True)
@@ -323,7 +388,8 @@ def model_gram(
         for a in range(nth):
             for i in range(nr):
                 buf[i, a] = 0.0
-        for k in range(K):
+        k = 0
+        while k < K:
             A = co[k, 0]
             B = co[k, 1]
             Ap = co[k, 2]
@@ -331,6 +397,12 @@ def model_gram(
             Bp = co[k, 4]
             ia = nth + 1 + 2 * k
             ib = ia + 1
+            if not jacobian and n0 > 0 and k + 1 < K:
+                # two modes' recurrences interleaved (each alone is bound by the latency of
+                # its multiply-add chain); every value is formed exactly as one at a time
+                _pair_block(buf, nr, co, st, k, ia)
+                k += 2
+                continue
             if not jacobian:
                 a0 = st[k, 0]
                 a1 = st[k, 1]
@@ -432,6 +504,7 @@ def model_gram(
                 st[k, 9] = b1p
                 st[k, 10] = b0q
                 st[k, 11] = b1q
+            k += 1
         _accumulate(buf, nr, m, G)
         n0 += nr
     _symmetrize(G)
@@ -553,15 +626,24 @@ def model_values(p: np.ndarray, q: np.ndarray, c: np.ndarray, out: np.ndarray) -
     K = p.shape[0]
     for n in range(N):
         out[n] = c[0]
-    for k in range(K):
+    k = 0
+    while k < K:
         co = _mode_coeffs(p[k], q[k])
         A = co[0]
         B = co[1]
         c1 = c[1 + 2 * k]
         c2 = c[2 + 2 * k]
+        if k + 1 < K and N >= 2:
+            # two modes at once (each recurrence alone is latency-bound); each sample still
+            # receives mode k's term, then mode k + 1's
+            _pair_values(co, _mode_coeffs(p[k + 1], q[k + 1]), c1, c2, c[3 + 2 * k],
+                         c[4 + 2 * k], out)  # fmt: skip
+            k += 2
+            continue
         a0 = 1.0
         b0 = 0.0
         out[0] += c1
+        k += 1
         if N < 2:
             continue
         a1 = co[5]
@@ -575,6 +657,46 @@ def model_values(p: np.ndarray, q: np.ndarray, c: np.ndarray, out: np.ndarray) -
             a1 = a2
             b0 = b1
             b1 = b2
+
+
+@njit(cache=True)
+def _pair_values(
+    co: np.ndarray, co_: np.ndarray, c1: float, c2: float, c1_: float, c2_: float,
+    out: np.ndarray,
+) -> None:  # fmt: skip
+    """Add two modes' terms to ``out`` (``len(out) >= 2``), their recurrences interleaved."""
+    N = out.shape[0]
+    A = co[0]
+    B = co[1]
+    A_ = co_[0]
+    B_ = co_[1]
+    out[0] += c1
+    out[0] += c1_
+    a0 = 1.0
+    b0 = 0.0
+    a1 = co[5]
+    b1 = co[6]
+    a0_ = 1.0
+    b0_ = 0.0
+    a1_ = co_[5]
+    b1_ = co_[6]
+    out[1] += c1 * a1 + c2 * b1
+    out[1] += c1_ * a1_ + c2_ * b1_
+    for n in range(2, N):
+        a2 = A * a1 + B * a0
+        b2 = A * b1 + B * b0
+        a2_ = A_ * a1_ + B_ * a0_
+        b2_ = A_ * b1_ + B_ * b0_
+        out[n] += c1 * a2 + c2 * b2
+        out[n] += c1_ * a2_ + c2_ * b2_
+        a0 = a1
+        a1 = a2
+        b0 = b1
+        b1 = b2
+        a0_ = a1_
+        a1_ = a2_
+        b0_ = b1_
+        b1_ = b2_
 
 
 @njit(cache=True)
