@@ -12,8 +12,8 @@ plan's step, else the largest step between its records) and ``span`` the control
 level         rank  when (and what to do)
 ============  ====  =====================================================================
 insufficient  0     no prediction yet, or its interval is wider than ``span`` with its
-                    lower end more than 4 steps ahead: too little evidence to judge; step
-                    by the advice (the model-free bound guards)
+                    lower end more than 4 steps ahead or not ahead of ``mu``: too little
+                    evidence to judge; step by the advice (the model-free bound guards)
 clear         1     ``gap > 4 step``, or the type is ``none`` (no loss of stability): go on
 watch         2     ``2 step < gap <= 4 step``: the interval is a few steps ahead; the
                     advice now shortens the steps
@@ -24,8 +24,8 @@ critical      4     ``gap <= step`` (the next step would reach the interval), or
 
 The width decides whether there is evidence (``insufficient``); danger is counted in the lab's
 steps, so a wide interval alone never raises the top level: an interval wider than ``span``
-whose lower end lies within 4 steps is ``watch`` or ``warning`` by the steps to that end (its
-lower end is still a bound the lab must respect), never ``critical``. ``T/T0`` (``T =
+whose lower end lies ahead within 4 steps is ``watch`` or ``warning`` by the steps to that end
+(its lower end is still a bound the lab must respect), never ``critical``. ``T/T0`` (``T =
 1/sqrt|sigma^2|``, ``T0`` at the first point) is kept in the alarm as information.
 
 The next measurement (:func:`next_measurement`) advances a fraction of the way to the safe
@@ -184,10 +184,11 @@ def alarm_for(
     if math.isfinite(span) and width > span:
         wide = (f"the interval [{_num(lo, 0.5 * width)}, {_num(hi, 0.5 * width)}] is wider "
                 f"({_num(width)}) than the controls travelled ({_num(span)})")  # fmt: skip
-        if not (math.isfinite(steps_left) and steps_left <= WATCH_STEPS):
+        if not (math.isfinite(steps_left) and 0 < steps_left <= WATCH_STEPS):
             return make("insufficient", f"{wide}: too little evidence to judge")
-        # its lower end is still a bound the lab must respect: danger by the steps to it, but
-        # never the top level on a wide interval
+        # its lower end, ahead of the records, is still a bound the lab must respect: danger by
+        # the steps to it, but never the top level on a wide interval (one that reaches down to
+        # the last record bounds nothing the records do not show: insufficient)
         level = "warning" if steps_left <= WARNING_STEPS else "watch"
         return make(level, f"{wide}, but its lower end is {steps_left:.3g} {unit} above the "
                     f"last control: {level} (never critical on so wide an interval)")  # fmt: skip

@@ -638,7 +638,9 @@ def evaluate(
     converged = False
     # an interval of no width, or one reaching down to the last record, is no convergence: the
     # data say mu* may lie right there (a record read wrongly, or the lab at the transition)
-    if trusted and interval is not None and interval[1] > interval[0] > last.mu:
+    # ... nor is a newest record set aside: it added no evidence (the same interval again)
+    newest_used = bool(recs) and any(r.seq == recs[-1].seq for r in usable)
+    if trusted and newest_used and interval is not None and interval[1] > interval[0] > last.mu:
         width = plan.target_width
         if width is None:
             width = TARGET_OF_SPAN * (ms[-1].mu - ms[0].mu)

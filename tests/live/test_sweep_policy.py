@@ -46,6 +46,8 @@ def test_the_scale_counts_danger_in_lab_steps_and_evidence_in_widths() -> None:
     assert alarm_for(22.5, 1.5, 50.0, (30.0, 600.0), step=2.5, span=22.5).level == "watch"
     assert alarm_for(22.5, 1.5, 50.0, (33.0, 600.0), step=2.5, span=22.5).level == "insufficient"
     assert alarm_for(22.5, 1.5, 50.0, (23.0, 600.0), span=22.5).level == "insufficient"
+    # one that reaches down to the last record bounds nothing the records do not show
+    assert alarm_for(22.5, 1.5, 50.0, (22.5, 600.0), step=2.5, span=22.5).level == "insufficient"
     for lo, level in ((40.0, "clear"), (30.5, "watch"), (27.0, "warning"), (24.0, "critical")):
         a = alarm_for(22.5, 1.5, lo + 1.0, (lo, lo + 2.0), step=2.5, span=22.5)
         assert a.level == level, (lo, a)
