@@ -39,7 +39,7 @@ def _pow(x, e):
     return x**e
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _dot(A, ja, jb, i0, n):
     """``sum(A[ja, i0:n] * A[jb, i0:n])`` in four interleaved partial sums (a small window's
     fits are bound by the latency of one running sum; four halve their time)."""
@@ -57,7 +57,7 @@ def _dot(A, ja, jb, i0, n):
     return (s0 + s1) + (s2 + s3)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _comp_nll(ms, u, D, E, M, c, x_last, WK, RK):
     """-2 log L of component ``c`` at transition point ``ms`` and fold parameter ``u``.
 
