@@ -36,6 +36,7 @@ from service.analysis.predictor._kernels.cusp import (
     profile_g,
     profile_scan,
 )
+from service.analysis.predictor.interval import _RICHARDSON
 from service.analysis.predictor.sweep import Sweep
 
 __all__ = ["CuspFit", "Imperfection", "Verdict", "assess", "decide"]
@@ -282,7 +283,10 @@ def _joined(
     more = _fit(mu, y, wt, scale, K + 1, f.law == "imperfect-softening", level)
     if not math.isfinite(more.lo):
         return f
-    return replace(f, lo=min(f.lo, more.lo), hi=max(f.hi, more.hi))
+    # the truncation's bias beyond the two statistical intervals: twice the change of the
+    # point (as the perfect laws' neighbours, interval._RICHARDSON)
+    bias = _RICHARDSON * abs(more.mu_p - f.mu_p) if math.isfinite(more.mu_p) else 0.0
+    return replace(f, lo=min(f.lo, more.lo, f.mu_p - bias), hi=max(f.hi, more.hi, f.mu_p + bias))
 
 
 def assess(sw: Sweep, level: float = 0.95) -> Imperfection | None:
