@@ -334,6 +334,8 @@ def sweep_text(doc: Any, name: str = "mu", unit: str | None = None) -> str:
         lines.append(f"next safe {name}: {fmt_below(nxt, half)}{u}")
     else:
         lines.append(f"next safe {name}: none (no safe step left)")
+    for x in getattr(doc, "set_aside", None) or ():  # each by its file, with the reason
+        lines.append(f"set aside: {x.reason}")
     return "\n".join(lines)
 
 

@@ -52,6 +52,16 @@ def register(sub: Any) -> None:
     p.add_argument("--budget", type=int, help="stop after this many records")
     p.add_argument("--idle", type=finite, help="stop after this many seconds without a record")
     p.add_argument("--dt", type=finite, help="sample step of files without a time column")
+    p.add_argument("--target-width", type=finite,
+                   help="'converged' once the trusted interval is narrower (control units)")
+    p.add_argument("--control-resolution", type=finite,
+                   help="the finest control step the lab can set (control units)")
+    from service.cli.analysis_cmds import _band, _lab_flags  # (the sweep's own flags)
+
+    _lab_flags(p, start=False)
+    p.add_argument("--band", type=_band, default=None, metavar="LO,HI",
+                   help="the fundamental's band of sqrt|sigma2| (rad per time unit) in every "
+                   "record (default: the mode that softens continuously across the sweep)")
     p.add_argument(
         "--skip-existing", action="store_true",
         help="ignore the matching files already in DIR (default: add them first, by control)",
@@ -80,9 +90,12 @@ class InProcess:
     def __init__(self, args: argparse.Namespace) -> None:
         from service.analysis.live import LivePlan
 
-        self.plan = LivePlan(step=args.step, margin=args.margin)
+        self.plan = LivePlan(step=args.step, margin=args.margin, band=args.band,
+                             target_width=args.target_width,
+                             control_resolution=args.control_resolution)  # fmt: skip
         self.records: list[Any] = []
         self.dt = args.dt
+        self.quantity, self.notch = args.quantity, args.notch
 
     def add(self, path: Path, control: float) -> Any:
         from service import convert
@@ -92,7 +105,11 @@ class InProcess:
         rec = read_file(path, dt=self.dt)
         # the record as the service's live door reads an uploaded file: named by its file,
         # the quantity its value unit says
-        opts = {"quantity": rec.quantity} if rec.quantity else {}
+        opts: dict[str, Any] = {}
+        if self.quantity or rec.quantity:
+            opts["quantity"] = self.quantity or rec.quantity
+        if self.notch:
+            opts["notch"] = list(self.notch)
         u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan,
                    options=opts, name=path.name, time_unit=rec.unit)  # fmt: skip
         self.records.append(u.record)
@@ -110,16 +127,19 @@ class Remote:
 
         self.client = Client(args.server, api_key=args.api_key, timeout=300.0)
         opts = {k: v for k, v in (("step", args.step), ("margin", args.margin),
-                                  ("budget", args.budget)) if v is not None}  # fmt: skip
+                                  ("budget", args.budget), ("band", args.band),
+                                  ("notch", args.notch), ("target_width", args.target_width),
+                                  ("control_resolution", args.control_resolution))
+                if v is not None}  # fmt: skip
         self.live = self.client.live_sweep(
             args.name or Path(args.dir).resolve().name, control=args.control_name,
             unit=args.unit, **opts,
         )  # fmt: skip
-        self.dt = args.dt
+        self.dt, self.quantity = args.dt, args.quantity
         sys.stderr.write(f"live sweep {self.live.id} on {args.server}\n")
 
     def add(self, path: Path, control: float) -> Any:
-        return self.live.add(path, control=control, dt=self.dt)
+        return self.live.add(path, control=control, dt=self.dt, quantity=self.quantity)
 
     def close(self) -> None:
         try:

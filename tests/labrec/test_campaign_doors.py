@@ -133,8 +133,13 @@ def _cli(truth: F.CampaignTruth) -> dict[str, Any]:
     if rc != 0:
         return _answer("cli", f"exit {rc}: {err.strip()[-200:]}", None, None, doc)
     p = doc["prediction"]
-    return _answer("cli", p["transition"], p["mu_star"], p["mu_star_interval"], doc,
-                   doc["alarm"][-1], p["next_safe_mu"])  # fmt: skip
+    ans = _answer("cli", p["transition"], p["mu_star"], p["mu_star_interval"], doc,
+                  doc["alarm"][-1], p["next_safe_mu"])  # fmt: skip
+    # the plain output lists every record set aside, by its file, as the document does
+    _, text, _ = run_cli("sweep", str(truth.manifest), "--no-progress")
+    shown = [x.removeprefix("set aside: ") for x in text.splitlines() if x.startswith("set aside")]
+    ans["text_set_aside"] = (shown, [a["reason"] for a in doc["set_aside"]])
+    return ans
 
 
 def _files(truth: F.CampaignTruth) -> list[tuple[Path, float]]:
@@ -218,6 +223,8 @@ def test_a_lab_campaign_gets_one_right_answer_through_every_door(campaign, answe
     truth: F.CampaignTruth = campaign
     problems = {a["door"]: _check(a, truth) for a in answers if _check(a, truth)}
     assert not problems, problems
+    shown, listed = answers[0]["text_set_aside"]
+    assert shown == listed and listed, (shown, listed)
     first = answers[0]
     for a in answers[1:]:
         assert a["transition"] == first["transition"], (a["door"], a["transition"])

@@ -152,3 +152,27 @@ def test_text_line_of_each_stage() -> None:
     assert "mu*=1.8" in lines[2] and "alarm=watch" in lines[2]
     # [1.62, 2.32] is evidence (no wider than the 1.2 travelled): its lower end bounds the step
     assert "mu*=1.8" in lines[4] and "(interval)" in lines[4] and "alarm=warning" in lines[4]
+
+
+def test_watch_takes_the_users_hand(tmp_path: Path) -> None:
+    """``--quantity``, ``--notch`` and ``--band`` reach every record (each update says what its
+    record was read with and names it by its file); a band with no mode of the records in it
+    sets each aside by its file, with the band in the reason."""
+    for mu in CONTROLS[:3]:
+        write_record(tmp_path, mu)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")
+    cmd = [*SNAPWARN, "watch", str(tmp_path), "--control", r"mu_([-+0-9.]+)\.csv", "--json",
+           "--budget", "3", "--idle", "60", "--quantity", "displacement", "--notch", "0.1",
+           "--band", "1,2"]  # fmt: skip
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    out = [json.loads(x) for x in r.stdout.splitlines()]
+    names = [f"mu_{mu:.3f}.csv" for mu in CONTROLS[:3]]
+    assert [d["record_name"] for d in out] == names
+    for d in out:
+        assert d["record_options"] == {"quantity": "displacement", "start": None,
+                                       "notch": [0.1], "exclude": False}  # fmt: skip
+    last = out[-1]
+    assert [a["name"] for a in last["set_aside"]] == names
+    assert all("band [1, 2]" in a["reason"] for a in last["set_aside"])
+    assert last["mu_star"] is None
