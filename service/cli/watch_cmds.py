@@ -103,6 +103,7 @@ class InProcess:
         from service.recordings import read_file
 
         rec = read_file(path, dt=self.dt)
+        dt, unit = rec.dt * self._factor(rec.unit), self._unit(rec.unit)
         # the record as the service's live door reads an uploaded file: named by its file,
         # the quantity its value unit says
         opts: dict[str, Any] = {}
@@ -110,10 +111,28 @@ class InProcess:
             opts["quantity"] = self.quantity or rec.quantity
         if self.notch:
             opts["notch"] = list(self.notch)
-        u = update(self.records, rec.w, dt=rec.dt, control=control, plan=self.plan,
-                   options=opts, name=path.name, time_unit=rec.unit)  # fmt: skip
+        u = update(self.records, rec.w, dt=dt, control=control, plan=self.plan,
+                   options=opts, name=path.name, time_unit=unit)  # fmt: skip
         self.records.append(u.record)
         return convert.live_update(u, options=opts)
+
+    def _unit(self, unit: str | None) -> str | None:
+        """The sweep's time unit: its first record's (as the service's live door)."""
+        return self.records[0].time_unit if self.records else unit
+
+    def _factor(self, unit: str | None) -> float:
+        """A record's step in the sweep's time unit (a file in ms after one in s is converted;
+        unknown or missing units that differ are refused, as by the service)."""
+        from service.recordings import seconds_per
+
+        base = self._unit(unit)
+        if unit == base:
+            return 1.0
+        a, b = seconds_per(unit), seconds_per(base)
+        if a is None or b is None:
+            raise bad("unit", unit, f"is not the time unit of the sweep's records "
+                      f"({base or 'none given'}) and one of them is unknown")  # fmt: skip
+        return a / b
 
     def close(self) -> None:
         pass

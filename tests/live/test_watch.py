@@ -176,3 +176,29 @@ def test_watch_takes_the_users_hand(tmp_path: Path) -> None:
     assert [a["name"] for a in last["set_aside"]] == names
     assert all("band [1, 2]" in a["reason"] for a in last["set_aside"])
     assert last["mu_star"] is None
+
+
+def test_watch_in_process_brings_records_to_the_first_ones_time_unit(tmp_path: Path) -> None:
+    """A file in seconds after one in milliseconds is read in the sweep's unit (ms), as the
+    service's live door does; one without a known unit is skipped with the reason."""
+    import argparse
+
+    from service.cli._common import CliError
+    from service.cli.watch_cmds import InProcess
+
+    write_record(tmp_path, 0.0)  # time [ms]
+    t, w = record(0.3, n=3000)
+    rows = "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, w))
+    (tmp_path / "mu_0.300.csv").write_text("time [s],deflection\n" + rows)
+    (tmp_path / "mu_0.600.csv").write_text("time [fortnights],deflection\n" + rows)
+    args = argparse.Namespace(step=0.3, margin=0.0, band=None, target_width=None, dt=None,
+                              control_resolution=None, quantity=None, notch=None)  # fmt: skip
+    src = InProcess(args)
+    first = src.add(tmp_path / "mu_0.000.csv", 0.0)
+    second = src.add(tmp_path / "mu_0.300.csv", 0.3)
+    assert src.records[1].time_unit == "ms" and second.detection.time_unit is None
+    s2 = second.detection.fundamental.sigma2
+    assert s2 == pytest.approx(sigma2_of(0.3) * 1e-6, rel=1e-4)  # 1/ms^2, not 1/s^2
+    assert first.detection.fundamental.sigma2 == pytest.approx(sigma2_of(0.0) * 1e-6, rel=1e-4)
+    with pytest.raises(CliError, match="fortnights"):
+        src.add(tmp_path / "mu_0.600.csv", 0.6)
