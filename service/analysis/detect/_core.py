@@ -509,8 +509,11 @@ def _result(
         r = raw / u - out.static
         for m in out.modes:
             r = r - _waveform(m, n, dt)
+        peak = float(np.max(np.abs(raw / u - out.static))) if raw.size else 0.0
+        peak = max(peak, abs(float(out.static)))
         moved = _lab.baseline_drift(r, out.noise_std, out.static, out.static_std,
-                                    None if lead is None else lead / u, len(drift))  # fmt: skip
+                                    None if lead is None else lead / u, len(drift),
+                                    peak)  # fmt: skip
     if moved is not None:
         flags.append(
             Flag(

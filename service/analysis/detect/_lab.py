@@ -690,13 +690,16 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
 #: The baseline drifts (flag ``baseline_drift``, static level NaN) when the block means of the
 #: residual over the window (DRIFT_BLOCKS blocks) scatter with a chi^2 above DRIFT_CHI2 (the
 #: 1e-6 false-alarm point of chi^2 with 15 degrees of freedom), or the quiet lead-in's level
-#: differs from the fitted static level by more than DRIFT_Z standard errors.
-DRIFT_BLOCKS, DRIFT_CHI2, DRIFT_Z = 16, 56.5, 5.0
+#: differs from the fitted static level by more than DRIFT_Z standard errors; either only where
+#: the movement also exceeds DRIFT_FLOOR of the larger of the window's largest deviation and the
+#: static level (below it, on near-noiseless records, a model's own misfit is "significant",
+#: and no sensor's drift of that size moves the static level appreciably).
+DRIFT_BLOCKS, DRIFT_CHI2, DRIFT_Z, DRIFT_FLOOR = 16, 56.5, 5.0, 1e-3
 
 
 def baseline_drift(
     residual: np.ndarray, noise_std: float, static: float, static_std: float,
-    lead: np.ndarray | None, drift_modes: int,
+    lead: np.ndarray | None, drift_modes: int, peak: float = 0.0,
 ) -> str | None:  # fmt: skip
     """Why the static level of a lab record cannot be trusted (None: nothing says so).
 
@@ -704,7 +707,10 @@ def baseline_drift(
     the fit removed left in; ``lead``: the lead-in before the kick (the structure at rest);
     ``drift_modes``: the number of components set aside as drift. A sensor's offset, ramp or
     wobble is not the structure's equilibrium, and a constant offset cannot be told from it at
-    all: where the baseline is seen to move, the level it has is not reported as static."""
+    all: where the baseline is seen to move, the level it has is not reported as static.
+    ``peak``: the larger of the window's largest deviation from the static level and that
+    level's magnitude (the floor's scale)."""
+    floor = DRIFT_FLOOR * peak if math.isfinite(peak) else 0.0
     why = []
     if drift_modes:
         why.append(f"{drift_modes} slow component(s) set aside as drift")
@@ -713,14 +719,14 @@ def baseline_drift(
     if B >= 8 and noise_std > 0 and math.isfinite(noise_std):
         bm = residual[: DRIFT_BLOCKS * B].reshape(DRIFT_BLOCKS, B).mean(axis=1)
         chi2 = float(np.sum((bm - bm.mean()) ** 2)) / (noise_std**2 / B)
-        if chi2 > DRIFT_CHI2:
+        if chi2 > DRIFT_CHI2 and float(np.ptp(bm)) > floor:
             why.append(f"the residual's baseline moves by {float(np.ptp(bm)):.3g} over the "
                        f"window (chi^2 {chi2:.3g}, {DRIFT_BLOCKS - 1} degrees of freedom)")
     if lead is not None and lead.size >= 64:
         sd = math.hypot(float(np.std(lead)) / math.sqrt(lead.size),
                         static_std if math.isfinite(static_std) else 0.0)  # fmt: skip
         diff = float(np.mean(lead)) - static
-        if sd > 0 and abs(diff) > DRIFT_Z * sd:
+        if sd > 0 and abs(diff) > DRIFT_Z * sd and abs(diff) > floor:
             why.append(f"the level at rest before the kick differs from it by {diff:.3g} "
                        f"({abs(diff) / sd:.3g} standard errors)")  # fmt: skip
     return "; ".join(why) or None
