@@ -212,7 +212,7 @@ def test_equivariant_under_units(seed: int, noise: bool, log_k: float, log_c: fl
     assert b.noise_std == pytest.approx(a.noise_std * k, rel=1e-3)
 
 
-@pytest.mark.parametrize("k", [1e300, 1e-300, 2.0**1000, 1.7e308 / 2])
+@pytest.mark.parametrize("k", [1e300, 1e-300, 2.0**1000, 1.7e308 / 2, 1.7e308])
 def test_no_overflow_at_extreme_magnitudes(k: float) -> None:
     w, dt = _record(7, True)
     w = w / np.max(np.abs(w))

@@ -160,7 +160,7 @@ def _prepare(arr: np.ndarray, kind: str, max_modes: int) -> Record | None:
     peak = max(float(arr.max()), -float(arr.min()))
     unit = 1.0
     if peak > 0 and not _SAFE[0] < peak < _SAFE[1]:
-        unit = math.ldexp(1.0, math.frexp(peak)[1])
+        unit = math.ldexp(1.0, math.frexp(peak)[1] - 1)  # 2^1023 at most: never inf
     a = arr / unit if unit != 1.0 else arr
     N0 = a.size
     mean = float(np.mean(a))
