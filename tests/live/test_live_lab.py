@@ -48,12 +48,9 @@ def run_lab(client: Client, actuation: str) -> tuple[list, object]:
 
 #: The types main's engine does not name (live and warn alike; the predictor's and the policy's)
 _TYPE_WITHHELD = {
-    "symmetric": "the symmetric beam's converged sweep (live and warn alike: 32 records, mu* "
-    "error 4e-11) is named 'pitchfork' (p = 1.0, flag imperfection_possible: sub- or "
-    "supercritical withheld); the truth is subcritical",
-    "antisymmetric": "since the policy converges on two narrow intervals in a row (0e5d5df) "
-    "the antisymmetric beam's sweep (live and warn alike: 31 records, mu* error -1e-10) ends "
-    "'undetermined' (p(supercritical) = 1.0 withheld: flags static_misfit, law_misfit, "
+    "antisymmetric": "the antisymmetric beam's sweep (live and warn alike: 31 records, mu* "
+    "error -1e-10) ends 'undetermined' (p(supercritical) = 1.0 withheld by the rule "
+    "static_misfit: flags static_misfit, law_misfit, "
     "w_noise_underestimated, imperfection_possible); the truth is supercritical",
 }
 
