@@ -145,17 +145,8 @@ def test_sweep_rejects_a_bad_manifest(tmp_path, capsys) -> None:
     assert "path,control" in capsys.readouterr().err
 
 
-_CONVERGED_EARLY = pytest.mark.xfail(strict=True, reason=(
-    "antisymmetric normal form: since the policy converges on two narrow intervals in a row "
-    "(26-27 records instead of 30), seeds 2 and 3 end with upper ends 3e-11 and 9e-11 below "
-    "mu* = 2 (errors -1.7e-10 and -1.9e-10, std 9e-8 and 1.3e-7: intervals whose upper end "
-    "hugs the estimate); covered 1 of 3"))
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "actuation", ["asymmetric", "symmetric", pytest.param("antisymmetric", marks=_CONVERGED_EARLY)]
-)
+@pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
 def test_normal_form_warn_intervals_cover_its_mu_star(actuation: str) -> None:
     """The normal-form records are nonlinear: with a constant response amplitude the kicked
     records' frequency shift biased mu* by -2e-6 (7-11 standard errors, 3 seeds of 3 missed);
