@@ -73,6 +73,9 @@ def test_plain_detect_imports_no_wire_models_and_no_scipy_modules(files: dict[st
     assert "service.analysis.detect" in loaded
     assert _absent(loaded, ("pydantic", "service.convert", "scipy.fft", "scipy.ndimage",
                             "scipy.linalg", "scipy.special")) == []  # fmt: skip
+    # nor scipy and yaml themselves: numba's __init__ imports them for a version check and an
+    # optional config file only (service.analysis._numba_load.import_numba keeps them out)
+    assert _absent(loaded, ("scipy", "yaml")) == []
 
 
 def test_predict_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:

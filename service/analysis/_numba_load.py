@@ -12,11 +12,61 @@ when the registries are built.
 :func:`install` is called by the kernel modules (``import numba`` is already paid there). It
 applies only to the numba versions it was checked against (:data:`CHECKED`); elsewhere, or
 with ``SNAPWARN_NUMBA_FULL_REFRESH=1``, numba is left as it is.
+
+numba is imported (:func:`import_numba`; ``njit`` here is numba's, imported so) without
+the two imports numba's ``__init__`` makes for features no kernel here uses: ``scipy`` (only to
+check its version; numba's linear algebra imports scipy's LAPACK itself when it compiles) and
+``yaml`` (only to read a ``.numba_config.yaml`` in the working directory, so it is imported
+whenever that file is there). ~35 ms CPU of a command that loads no scipy otherwise (``snapwarn
+detect``). Should a numba version need either at import, it is imported again the plain way.
 """
 
 from __future__ import annotations
 
 import os
+import sys
+from types import ModuleType
+
+#: modules numba's ``__init__`` imports for a version check and an optional config file only
+OPTIONAL_AT_IMPORT = ("scipy", "yaml")
+_CONFIG_FILE = ".numba_config.yaml"  # numba's own name (numba.core.config._config_fname)
+
+
+def import_numba(without: tuple[str, ...] = OPTIONAL_AT_IMPORT) -> ModuleType:
+    """``import numba``, keeping the modules ``without`` out of numba's own import.
+
+    While numba's package imports, each of ``without`` not yet loaded is marked absent in
+    ``sys.modules`` (``import`` raises ImportError, which numba catches for both); afterwards they
+    import normally. ``yaml`` is not kept out when numba's config file is in the working
+    directory. Should numba fail to import without them, its partly imported modules are dropped
+    and it is imported the plain way. Returns the numba module.
+    """
+    if "numba" in sys.modules:
+        return sys.modules["numba"]
+    kept_out = [m for m in without if m not in sys.modules]
+    if "yaml" in kept_out and os.path.isfile(_CONFIG_FILE):
+        kept_out.remove("yaml")
+    for m in kept_out:
+        sys.modules[m] = None  # type: ignore[assignment]  # import raises ImportError
+    try:
+        import numba
+    except ImportError:
+        for m in [m for m in sys.modules if m == "numba" or m.startswith("numba.")]:
+            del sys.modules[m]
+        numba = None
+    finally:
+        for m in kept_out:
+            if m in sys.modules and sys.modules[m] is None:
+                del sys.modules[m]
+    if numba is None:
+        import numba
+    return numba
+
+
+def __getattr__(name: str):  # noqa: ANN202 - module attribute
+    if name == "njit":  # numba's, imported by import_numba() at first use
+        return import_numba().njit
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 #: numba versions whose ``Cache.load_overload`` this replaces (its body is unchanged from 0.49 to
 #: 0.68, the version installed when this was written)
@@ -32,7 +82,7 @@ def install() -> bool:
         return True
     if os.environ.get("SNAPWARN_NUMBA_FULL_REFRESH", "") not in ("", "0"):
         return False
-    import numba
+    numba = import_numba()
     from numba.core import caching
     from numba.core.runtime import nrt
 

@@ -95,3 +95,59 @@ def test_detect_is_the_same_with_numbas_full_refresh() -> None:
     assert fast.pop("hits") >= 2  # read from the cache by the fast loader
     full.pop("hits")
     assert fast == full  # bit for bit (json floats round-trip)
+
+
+_IMPORT = """
+import json, sys
+from service.analysis import _numba_load
+numba = _numba_load.import_numba()
+before = {m: m in sys.modules for m in ("scipy", "yaml")}
+import scipy, yaml  # import normally afterwards
+from numba.core import config
+print(json.dumps({"before": before, "same": numba is _numba_load.import_numba(),
+                  "njit": _numba_load.njit is numba.njit, "scipy": scipy.__version__,
+                  "perf_warnings_off": config.DISABLE_PERFORMANCE_WARNINGS}))
+"""
+
+
+def test_numba_imports_without_scipy_and_yaml_which_import_normally_after(
+    tmp_path: Path,
+) -> None:
+    out = subprocess.run([sys.executable, "-c", _IMPORT], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["before"] == {"scipy": False, "yaml": False}
+    assert r["same"] and r["njit"] and r["scipy"]
+    assert r["perf_warnings_off"] == 0
+
+
+def test_numbas_config_file_is_still_read(tmp_path: Path) -> None:
+    """With ``.numba_config.yaml`` in the working directory yaml is imported, and the file
+    applies (here: a setting whose default is 0)."""
+    (tmp_path / ".numba_config.yaml").write_text("disable_performance_warnings: 1\n")
+    out = subprocess.run([sys.executable, "-c", _IMPORT], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["before"] == {"scipy": False, "yaml": True}
+    assert r["perf_warnings_off"] == 1
+
+
+_NEEDS = """
+import json, sys
+from service.analysis._numba_load import import_numba
+assert "numpy" not in sys.modules and "numba" not in sys.modules
+numba = import_numba(without=("numpy",))  # numba cannot import without numpy: the plain way
+import numpy
+from numba import njit
+f = njit(lambda x: x + 1)
+print(json.dumps({"numba": numba is sys.modules["numba"], "f": f(numpy.float64(1.5))}))
+"""
+
+
+def test_a_numba_that_needs_a_kept_out_module_is_imported_the_plain_way() -> None:
+    out = subprocess.run([sys.executable, "-c", _NEEDS], capture_output=True, text=True,
+                         timeout=600)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {"numba": True, "f": 2.5}

@@ -26,9 +26,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from service.analysis._numba_load import install as _fast_cache_load
+from service.analysis._numba_load import njit  # numba without its optional imports
 
 _fast_cache_load()
 
