@@ -54,19 +54,8 @@ def test_warn_asymmetric_never_crosses_mu_star_and_finds_it() -> None:
     assert res.alarm[-1] == res.prediction.alarm  # one alarm per document
 
 
-_STATIC_MISFIT = pytest.mark.xfail(strict=True, reason=(
-    "the antisymmetric strip (seed 3, error 7e-11) is 'undetermined': the rule static_misfit "
-    "withholds a supercritical pitchfork whenever the static records scatter beyond their "
-    "given std about the static law, and the detector's w_static_std (1e-8 of the level) is "
-    "1.2e3 times below the static law's truncation on the beam and even on the exact normal "
-    "form; a criterion on the eigenvalues' misfit let imperfect softening columns be named "
-    "supercritical again (tests/structures), so the rule stays until one separates them"))
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "actuation", ["asymmetric", "symmetric", pytest.param("antisymmetric", marks=_STATIC_MISFIT)]
-)
+@pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
 def test_warn_meets_the_accuracy_target(actuation: str) -> None:
     """Issue target: |mu* error| <= 1e-5 from at most 30 impulse responses at 40 dB."""
     res = warn(actuation, seed=3, max_measurements=30)

@@ -46,17 +46,8 @@ def run_lab(client: Client, actuation: str) -> tuple[list, object]:
     return updates, live.close()
 
 
-#: The types main's engine does not name (live and warn alike; the predictor's and the policy's)
-_TYPE_WITHHELD = {
-    "antisymmetric": "the antisymmetric beam's sweep (live and warn alike: 31 records, mu* "
-    "error -1e-10) ends 'undetermined' (p(supercritical) = 1.0 withheld by the rule "
-    "static_misfit: flags static_misfit, law_misfit, "
-    "w_noise_underestimated, imperfection_possible); the truth is supercritical",
-}
-
-
 @pytest.mark.parametrize("actuation", ["asymmetric", "symmetric", "antisymmetric"])
-def test_lab_loop_reaches_warn_accuracy(server, actuation: str, request) -> None:  # noqa: ANN001
+def test_lab_loop_reaches_warn_accuracy(server, actuation: str) -> None:  # noqa: ANN001
     truth = bifurcation(actuation)
     with Client(server.url, timeout=300.0) as c:
         updates, closed = run_lab(c, actuation)
@@ -90,8 +81,5 @@ def test_lab_loop_reaches_warn_accuracy(server, actuation: str, request) -> None
     print(f"{actuation}: {len(updates)} records, mu* error {err:.2e} (warn {ref.truth['error']:.2e}"
           f", {len(ref.measurements)} measurements), max control {max(controls):.8f} < mu* "
           f"{truth.mu_star:.8f}")
-    # the type last: live and warn agree on it (above); whether it is the truth is the
-    # predictor's (a strict xfail where it is not, applied only once all else held)
-    if actuation in _TYPE_WITHHELD:
-        request.applymarker(pytest.mark.xfail(strict=True, reason=_TYPE_WITHHELD[actuation]))
+    # the type last: live and warn agree on it (above) and it is the truth
     assert last.transition == truth.transition

@@ -18,11 +18,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from service.analysis.common import Flag
+from service.analysis.predictor._dist import chi2_ppf
 from service.analysis.predictor.compare import ModelFit, fold_rival_gap, secondary_fold
 from service.analysis.predictor.likelihood import U_MAX as FOLD_U_MAX
+from service.analysis.predictor.likelihood import _Comp, _profile, _sigma_comp, _w_exps
 from service.analysis.predictor.sweep import Sweep
 
-__all__ = ["DECISIVE", "FOLD_U_SEEN", "MIN_T_RATIO", "RULES", "Evidence", "Rule", "withhold"]
+__all__ = [
+    "DECISIVE",
+    "FOLD_U_SEEN",
+    "MIN_T_RATIO",
+    "RULES",
+    "STATIC_ALPHA",
+    "STATIC_POINTS",
+    "Evidence",
+    "Rule",
+    "static_consistency",
+    "withhold",
+]
 
 #: T/T0 below which the type is never named (ledger: "slowdown_not_reached")
 MIN_T_RATIO = 2.75
@@ -36,6 +49,12 @@ FOLD_U_SEEN = 1.0
 DECISIVE = 2 * math.log(1e6)
 #: least probability of the other exponent that withholds the type of a prediction
 RIVAL_EXPONENT = 0.05
+#: nearest static records the static law must fit at a mu* the eigenvalues allow (as many as
+#: the engine's over-dispersion test of the static noise reads), and the level of that test
+#: (ledger: "static_misfit")
+STATIC_POINTS = 8
+STATIC_ALPHA = 1e-3
+_XATOL = 1e-12  # tolerance on log(mu* - mu_last): static records resolve mu* to ~1e-14
 
 
 @dataclass(frozen=True)
@@ -150,17 +169,49 @@ def _rival_exponent(transition: str, ev: Evidence) -> str | None:
     return None
 
 
+def static_consistency(sw: Sweep, w_sd: np.ndarray, fit: ModelFit) -> tuple[float, int]:
+    """How far the static records stray from the static law at a mu* the eigenvalues allow.
+
+    The likelihood ratio ``D = min_mu* [chi2_sigma(mu*) + chi2_w(mu*)] - min_mu* chi2_sigma(mu*)``
+    of ``fit``'s eigenvalue law (its corrections, on its ``n`` nearest points, noise as used)
+    and the widest static series ``w = w* + sum_j g_j x^(j/2)``, ``j = 1..4`` (the b = 1/2 law
+    with four corrections; it holds the smooth b = 1 law too) on the nearest ``STATIC_POINTS``
+    records with their given noise ``w_sd``: under the law ``D`` is chi-square with
+    ``STATIC_POINTS - 5`` degrees of freedom (returned with ``D``; ``(nan, 0)`` with too few
+    records). ``mu*`` is shared, not fixed at the eigenvalues' estimate: static records are
+    often far more precise than that estimate near mu* (the detector's static level to 1e-13
+    where ``w - w*`` is 1e-3), so misfit read at a fixed mu* measures the eigenvalues' own error
+    (ledger: "static_misfit")."""
+    N = sw.mu.size
+    m = min(N, STATIC_POINTS)
+    dof = m - 5
+    if sw.w is None or dof < 1 or N < fit.n:
+        return math.nan, 0
+    idx = slice(N - fit.n, N)
+    idx_w = slice(N - m, N)
+    scale = float(sw.mu[-1] - sw.mu[0])
+    comp = _sigma_comp(sw, idx, 2 * fit.a, fit.h, fit.K, fit.conformal)
+    cw = _Comp(sw.w[idx_w], 1.0 / w_sd[idx_w], _w_exps(0.5, 4), True, False, 0, False,
+               sw.mu[idx_w])  # fmt: skip
+    alone = _profile(sw.mu[idx], [comp], scale, with_interval=False, xatol=_XATOL).nll
+    joint = _profile(sw.mu[idx], [comp, cw], scale, with_interval=False, xatol=_XATOL).nll
+    return max(joint - alone, 0.0), dof
+
+
 def _static_misfit(transition: str, ev: Evidence) -> str | None:
     sw, sw0 = ev.sw, ev.sw0
-    if transition != "supercritical-pitchfork" or sw.w_sd is None or sw0.w_sd is None:
+    if transition != "supercritical-pitchfork" or sw.w is None or sw0.w_sd is None:
         return None
-    ratio = float(np.max(sw.w_sd / sw0.w_sd))
-    if ratio > 1.0 + 1e-9:
+    fit = next(f for f in ev.fits if f.name == transition)
+    d, dof = static_consistency(sw, sw0.w_sd, fit)
+    if dof and d > chi2_ppf(1 - STATIC_ALPHA, dof):
         return (
             "only the static deflection tells a supercritical pitchfork (b = 1/2) from a "
-            f"subcritical one, but the static records scatter {ratio:.3g} times more than "
-            "their noise about the static law: the static exponent does not decide (an "
-            "imperfect column's records far from its fold look alike); the type is not named"
+            f"subcritical one, but the nearest {dof + 5} static records miss the static law at "
+            f"every mu* the eigenvalues allow (chi^2 = {d:.3g} for {dof} degrees of freedom, "
+            f"beyond its {100 * (1 - STATIC_ALPHA):g} % quantile): the static exponent does not "
+            "decide (an imperfect column's records far from its fold look alike); the type is "
+            "not named"
         )
     return None
 
@@ -187,9 +238,8 @@ RULES: tuple[Rule, ...] = (
          _exponent_off),
     Rule("static_misfit", "classification",
          "a supercritical pitchfork is told by its static exponent alone: not where the "
-         "static records scatter beyond their noise about the static law",
-         "tests/structures/test_predict_imperfect.py::test_imperfect_softening_never_"
-         "supercritical_smooth_nor_late", _static_misfit),
+         "nearest static records miss the static law at every mu* the eigenvalues allow",
+         "tests/structures/test_static_law_consistency.py", _static_misfit),
     Rule("type_withheld", "prediction",
          "the other exponent keeps >= 5 %: the type is not decided at the interval's 95 %",
          "tests/analysis/test_predict_lab.py::test_no_type_named_while_the_other_exponent_keeps_"
