@@ -28,6 +28,9 @@ from service.analysis.predictor._kernels.laws import _total, _work
 _U_TOL = 1e-6
 _U_COARSE = 1e-3  # the tolerance of a refinement across a grid step, before the narrow one
 _U_NARROW = 4e-3  # half-width of the narrow bracket
+# A constant integer argument is passed as ``np.int64(...)`` here and in ._kernels.profile and
+# ._kernels.laws: numba types a literal ``-1`` or ``0`` as ``Literal[int]`` and compiles the
+# callee (and what it calls) once more for it, besides its ``int64`` version.
 
 
 
@@ -183,7 +186,7 @@ def _descend_u(ms, D, E, M, x_last, logu, WK, RK, j0):
 @njit(cache=True, error_model="numpy")
 def _profile_u(ms, D, E, M, mu_last, logu, WK, RK, refine):
     """min over the fold parameter u (0 and exp(logu) grid, refined) at one mu*."""
-    v, u, _, _ = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, -1)
+    v, u, _, _ = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, refine, np.int64(-1))
     return v, u
 
 

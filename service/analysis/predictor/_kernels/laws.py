@@ -101,7 +101,7 @@ def _comp_nll(ms, u, D, E, M, c, x_last, WK, RK):
         if abs(bi) > bmax:
             bmax = abs(bi)
     for j in range(k):
-        s = math.sqrt(_dot(WK, j, j, 0, n))
+        s = math.sqrt(_dot(WK, j, j, np.int64(0), n))
         if s == 0.0 or not math.isfinite(s):
             s = 1.0 if s == 0.0 else s
         inv = 1.0 / s
@@ -234,4 +234,4 @@ def poly_rss(mu, y, wt, degree):
     hi = mu.max()
     span = max(hi - mu.min(), 1e-300)
     WK, RK = _work(D, M)
-    return _comp_nll(hi + span, 0.0, D, E, M, 0, span, WK, RK)
+    return _comp_nll(hi + span, 0.0, D, E, M, np.int64(0), span, WK, RK)

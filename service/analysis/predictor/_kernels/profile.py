@@ -60,7 +60,7 @@ def _row_exact(ms, P, mu_last, logu, W, cf, S, j):
         return _row(ms, P, mu_last, logu, W, False, True)
     D, E, M = P
     WK, RK = W
-    v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, -1)
+    v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, np.int64(-1))
     S[0, j] = jb
     S[1, j] = lu
     return v if math.isfinite(v) else BIG
@@ -79,7 +79,7 @@ def _row_near(ms, P, mu_last, logu, W, cf, H, L):
     D, E, M = P
     WK, RK = W
     if H[0] < 0:
-        v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, -1)
+        v, _, jb, lu = _profile_u_from(ms, D, E, M, mu_last, logu, WK, RK, True, np.int64(-1))
     else:
         v, _, jb, lu = _profile_u_warm(ms, D, E, M, mu_last, logu, WK, RK, H[0], L[0])
     H[0] = jb
@@ -190,7 +190,7 @@ def _scan(t, P, mu_last, logu, W, cf, f, exact, S):
         return
     D, E, M = P
     WK, RK = W
-    jb = -1
+    jb = np.int64(-1)  # not the literal -1: numba would compile the walk for it too
     for j in range(G):
         v, jb = _profile_u_walk(mu_last + math.exp(t[j]), D, E, M, mu_last, logu, WK, RK, jb)
         f[j] = v if math.isfinite(v) else BIG
@@ -198,7 +198,7 @@ def _scan(t, P, mu_last, logu, W, cf, f, exact, S):
     order = np.argsort(f)
     for r in range(min(5, G)):
         j = order[r]
-        f[j] = _row_exact(mu_last + math.exp(t[j]), P, mu_last, logu, W, True, S, j)
+        f[j] = _row_exact(mu_last + math.exp(t[j]), P, mu_last, logu, W, cf, S, j)  # cf: True
         exact[j] = True
 
 
