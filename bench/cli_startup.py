@@ -8,7 +8,8 @@ Each command runs in a fresh interpreter (``subprocess``); its CPU time is the c
 ``getrusage`` difference, so the figure is the work done whatever else runs on the machine (the
 load average is printed). With ``--baseline REV`` the revision's ``service`` and ``sim`` are
 extracted to a temporary directory and put first on ``PYTHONPATH``; one untimed run fills its
-numba cache, then the two trees alternate run by run. Targets (issue 31): detect <= 0.5 s,
+numba cache, then the two trees alternate run by run. Both trees get their bytecode written
+first (``compileall``, as ``make setup`` does). Targets (issue 31): detect <= 0.5 s,
 ``--help`` <= 0.3 s. Writes bench/results/cli_startup.json.
 """
 
@@ -56,7 +57,15 @@ def extract(rev: str, where: Path) -> Path:
                           capture_output=True, check=True).stdout  # fmt: skip
     with tarfile.open(fileobj=io.BytesIO(data)) as tar:
         tar.extractall(where, filter="data")
+    compile_bytecode(where)
     return where
+
+
+def compile_bytecode(tree: Path) -> None:
+    """Python's bytecode of ``tree``'s ``service`` and ``sim``, as ``make setup`` writes it (where
+    PYTHONDONTWRITEBYTECODE is set, a tree without it compiles every module on every run)."""
+    subprocess.run([sys.executable, "-m", "compileall", "-q", "service", "sim"], cwd=tree,
+                   capture_output=True, check=True)  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -69,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         rec = tmpd / "r.csv"
         record(rec)
         trees = {"this tree": ROOT}
+        compile_bytecode(ROOT)
         if args.baseline:
             trees[args.baseline] = extract(args.baseline, tmpd / "base")
         commands = {"--help": ["--help"], "detect r.csv": ["detect", str(rec)]}

@@ -119,3 +119,37 @@ def test_a_commands_run_builds_only_its_modules_parser(files: dict[str, Path]) -
     loaded = _loaded("detect", str(files["record"]))
     assert _absent(loaded, ("service.cli.sim_cmds", "service.cli.service_cmds",
                             "service.cli.atlas_cmds", "service.cli.watch_cmds")) == []  # fmt: skip
+
+
+_THREADS = """
+import json, os, sys
+from service.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+sys.stderr.write("\\nENV " + json.dumps({v: os.environ.get(v) for v in
+    ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}) + "\\n")
+"""
+
+
+def _env_after(*argv: str, **env: str) -> dict:
+    import os
+
+    r = subprocess.run([sys.executable, "-c", _THREADS, *argv], capture_output=True, text=True,
+                       timeout=600, env={k: v for k, v in os.environ.items()
+                                         if not k.endswith("_NUM_THREADS")} | env)  # fmt: skip
+    line = [s for s in r.stderr.splitlines() if s.startswith("ENV ")]
+    assert line, r.stderr
+    return json.loads(line[-1][4:])
+
+
+def test_detect_runs_one_blas_thread_as_the_api_workers_unless_the_user_says(
+    files: dict[str, Path],
+) -> None:
+    """As the API's analysis workers (service.api.executor), unless the user set it."""
+    assert _env_after("detect", str(files["record"])) == dict.fromkeys(
+        ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"), "1")
+    assert _env_after("detect", str(files["record"]), OPENBLAS_NUM_THREADS="2")[
+        "OPENBLAS_NUM_THREADS"] == "2"
+    assert _env_after("--help")["OPENBLAS_NUM_THREADS"] is None

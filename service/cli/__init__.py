@@ -8,6 +8,7 @@ every command prints exactly one JSON document on stdout; progress goes to stder
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -57,8 +58,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: Commands over one record or one table, whose numerics run as the API's analysis workers do:
+#: one BLAS thread (a record's matrices are small; starting and spinning threads cost ~20 ms
+#: CPU of a ``detect``). The user's own setting wins; set before numpy is imported.
+ONE_BLAS_THREAD = ("detect", "predict")
+_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ONE_BLAS_THREAD and "numpy" not in sys.modules:
+        for var in _BLAS_THREADS:
+            os.environ.setdefault(var, "1")
     parser = build_parser(argv[0] if argv else None)
     try:
         args = parser.parse_args(argv)
