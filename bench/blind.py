@@ -1,0 +1,168 @@
+"""Blind trials: the product on structures and labs nobody on the team tuned it on.
+
+    python bench/blind.py --seeds 2                 # every family x plan, 2 campaigns each
+    python bench/blind.py --families arch_fold --plans lab --seeds 1   # one cell, a smoke run
+    python bench/blind.py --seeds 2 --out bench/results/blind
+
+Campaigns come from tests/blind (``_blind_sweeps.campaign(family, plan, seed)``: shallow
+arches perfect and imperfect, a column on an elastic foundation, a three-link column; lab
+records at 500 Hz - 20 kHz with a double-exponential hammer, a geophone or a laser in inches or
+degrees, 60 Hz hum, a 12-bit ADC, mid-ring starts; uneven steps with a repeat, sweeps that stop
+at ``T/T0 = 1.6`` and sweeps with one record past the transition). Each is written to a
+temporary folder and run through ``snapwarn sweep MANIFEST --json`` (a subprocess, one at a
+time unless ``--jobs``), then judged by ``_blind_trials.judge``.
+
+Prints, per family and plan: campaigns, right type / withheld / named early / wrong type,
+intervals covering the truth, confident errors (a wrong type, or a miss with no caution flag),
+records set aside or flagged wrongly, detector misreads, median |error| in interval widths.
+Writes ``OUT.md`` (the table and every failure with its reproduction) and ``OUT.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "blind"))
+
+import _blind_sweeps as S  # noqa: E402
+import _blind_trials as T  # noqa: E402
+
+
+def _one(family: str, plan: str, seed: int, folder: Path) -> dict:
+    camp = S.campaign(family, plan, seed)
+    truth = camp.write(folder / f"{family}_{plan}_{seed}")
+    ans = T.cli_sweep(truth.manifest)
+    v = T.judge(ans, truth)
+    # the predictor alone on the exact measurements (0.1 % noise, static levels given)
+    pa = T.cli_predict(truth.write_table(truth.manifest.parent / "table.csv"))
+    pv = T.judge(pa, truth)
+    row = {
+        "family": family, "plan": plan, "seed": seed, "truth_kind": truth.kind,
+        "mu_star": truth.mu_star, "t_ratio_last": truth.t_ratio_last,
+        "n_records": len(truth.names), "said": ans.transition if ans.ok else f"ERROR {ans.error}",
+        "mu_star_said": ans.mu_star, "lo": None if ans.interval is None else ans.interval[0],
+        "hi": None if ans.interval is None else ans.interval[1], "verdict": v.type,
+        "covered": v.covered, "err_widths": v.err_widths, "confident": v.confident,
+        "flags": " ".join(ans.flags), "problems": " | ".join(v.problems),
+        "detector": " | ".join(v.bad_records), "seconds": round(ans.seconds, 1),
+        "predict_said": pa.transition if pa.ok else f"ERROR {pa.error}",
+        "predict_lo": None if pa.interval is None else pa.interval[0],
+        "predict_hi": None if pa.interval is None else pa.interval[1],
+        "predict_verdict": pv.type, "predict_covered": pv.covered,
+        "predict_confident": pv.confident, "predict_flags": " ".join(pa.flags),
+        "params": repr(truth.params),
+        "repro": (f"python tests/blind/_blind_sweeps.py {family} {plan} {seed} "
+                  f"/tmp/blind/{family}_{plan}_{seed} && snapwarn sweep "
+                  f"/tmp/blind/{family}_{plan}_{seed}/manifest.csv --json"),
+    }  # fmt: skip
+    _print(row)
+    return row
+
+
+def _print(r: dict) -> None:
+    flag = "CONFIDENT " if r["confident"] else ""
+    print(f"{r['family']}/{r['plan']}/{r['seed']}: {flag}{r['verdict']} said {r['said']} "
+          f"[{r['lo']}, {r['hi']}] truth {r['truth_kind']} {r['mu_star']:.8g} "
+          f"T/T0={r['t_ratio_last']:.2f} ({r['seconds']} s) {r['problems']} {r['detector']}; "
+          f"predictor alone: {r['predict_verdict']} {r['predict_said']} "
+          f"[{r['predict_lo']}, {r['predict_hi']}] covered={r['predict_covered']}",
+          flush=True)  # fmt: skip
+
+
+def _table(rows: list[dict]) -> str:
+    head = ("| family | plan | n | right | withheld | early | wrong | covered | confident "
+            "errors | record problems | detector misreads | median abs err (widths) | "
+            "predictor alone: right/withheld/wrong | predictor alone: covered |")
+    out = [head, "|" + "---|" * 14]
+    keys = sorted({(r["family"], r["plan"]) for r in rows},
+                  key=lambda k: (S.FAMILIES.index(k[0]), S.PLANS.index(k[1])))  # fmt: skip
+    tot = {k: 0 for k in ("n", "right", "withheld", "early", "wrong", "no-answer", "cov", "conf",
+                          "rec", "det")}  # fmt: skip
+    for fam, plan in keys:
+        rs = [r for r in rows if r["family"] == fam and r["plan"] == plan]
+        c = {k: sum(r["verdict"] == k for r in rs) for k in ("right", "withheld", "early",
+                                                            "wrong", "no-answer")}  # fmt: skip
+        cov = sum(bool(r["covered"]) for r in rs)
+        conf = sum(bool(r["confident"]) for r in rs)
+        rec = sum(("set aside" in r["problems"] or "past_transition" in r["problems"])
+                  for r in rs)  # fmt: skip
+        det = sum(bool(r["detector"]) for r in rs)
+        errs = [abs(r["err_widths"]) for r in rs if r["err_widths"] is not None
+                and math.isfinite(r["err_widths"])]  # fmt: skip
+        med = f"{statistics.median(errs):.2f}" if errs else "-"
+        wrong = c["wrong"] + c["no-answer"]
+        pr = sum(r["predict_verdict"] == "right" for r in rs)
+        pw = sum(r["predict_verdict"] == "withheld" for r in rs)
+        px = len(rs) - pr - pw
+        pc = sum(bool(r["predict_covered"]) for r in rs)
+        out.append(f"| {fam} | {plan} | {len(rs)} | {c['right']} | {c['withheld']} | "
+                   f"{c['early']} | {wrong} | {cov}/{len(rs)} | {conf} | {rec} | {det} | {med} | "
+                   f"{pr}/{pw}/{px} | {pc}/{len(rs)} |")
+        for k in ("right", "withheld", "early", "wrong", "no-answer"):
+            tot[k] += c[k]
+        tot["n"] += len(rs)
+        tot["cov"] += cov
+        tot["conf"] += conf
+        tot["rec"] += rec
+        tot["det"] += det
+    out.append(f"| **all** | | {tot['n']} | {tot['right']} | {tot['withheld']} | {tot['early']} | "
+               f"{tot['wrong'] + tot['no-answer']} | {tot['cov']}/{tot['n']} | {tot['conf']} | "
+               f"{tot['rec']} | {tot['det']} | | | |")
+    return "\n".join(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--families", default=",".join(S.FAMILIES))
+    ap.add_argument("--plans", default=",".join(S.PLANS))
+    ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--seed0", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--out", default=None, help="write OUT.md and OUT.csv")
+    a = ap.parse_args()
+    cells = [(f, p, s) for f in a.families.split(",") for p in a.plans.split(",")
+             for s in range(a.seed0, a.seed0 + a.seeds)]  # fmt: skip
+    t0 = time.time()
+    with tempfile.TemporaryDirectory(prefix="blind-") as tmp:
+        with ThreadPoolExecutor(a.jobs) as ex:
+            rows = list(ex.map(lambda c: _one(*c, Path(tmp)), cells))
+    table = _table(rows)
+    print(table)
+    print(f"({len(rows)} campaigns, {time.time() - t0:.0f} s wall)")
+    if a.out:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                                capture_output=True, text=True).stdout.strip()  # fmt: skip
+        out = Path(a.out)
+        with open(out.with_suffix(".csv"), "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+        fails = [r for r in rows if r["verdict"] in ("wrong", "early", "no-answer")
+                 or not r["covered"] or r["problems"]]  # fmt: skip
+        lines = [f"# Blind trials (commit {commit})", "",
+                 f"`python bench/blind.py --seeds {a.seeds} --seed0 {a.seed0} --families "
+                 f"{a.families} --plans {a.plans}`: {len(rows)} campaigns through `snapwarn "
+                 f"sweep --json`, {time.time() - t0:.0f} s wall.", "", table, "",
+                 "## Failures (each reproducible)", ""]  # fmt: skip
+        for r in fails:
+            lines += [f"- **{r['family']}/{r['plan']}/seed {r['seed']}** ({r['params']}): said "
+                      f"`{r['said']}` mu* {r['mu_star_said']} [{r['lo']}, {r['hi']}], flags "
+                      f"`{r['flags']}`; truth {r['truth_kind']} {r['mu_star']!r} (T/T0 at the "
+                      f"last stable record {r['t_ratio_last']:.2f}). Problems: {r['problems']}. "
+                      f"Detector: {r['detector'] or 'every usable record on the critical mode'}."
+                      f" Reproduce: `{r['repro']}`"]  # fmt: skip
+        out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,184 @@
+"""Blind trials through the product's doors (slow): campaigns from tests/blind judged against
+their exact truths.
+
+Each case is one campaign (``_blind_sweeps.campaign(family, plan, seed)``) run through
+``snapwarn sweep MANIFEST --json``. A case passes when the answer is never confidently wrong:
+the right type or an honest withholding (a sweep that stops at ``T/T0 = 1.6`` must withhold),
+an interval that holds the true mu*, every untrusted record (snapped branch, growing) set aside
+by its file's name or reported as past the transition, and every record set aside named.
+The cases that pass today guard against regressions; the ones that fail are strict xfails whose
+reason is what was measured (the product's answer, the truth, the component at fault), so a fix
+shows up as an XPASS to be turned into a guard. The HTTP door (a real ``snapwarn serve`` on a
+free port, driven by the SDK) must give the CLI's answer and never a 5xx; a record with dropped
+samples must be refused with a 4xx naming it, never a 5xx.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import _blind_sweeps as S  # noqa: E402
+import _blind_trials as T  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+#: (family, plan, seed) -> None (passes today) or the measured failure (strict xfail)
+CASES: dict[tuple[str, str, int], str | None] = {
+    ("arch_fold", "lab", 0): None,
+    ("arch_fold", "far", 0): None,
+    ("arch_fold", "past", 0): None,
+    ("arch_pitchfork", "lab", 0): None,
+    ("arch_pitchfork", "far", 0): None,
+    ("arch_pitchfork", "past", 0): (
+        "detector: the 4 nearest records read as 0.3 Hz combs (sigma2 -4..-5 for -99..-138: the "
+        "10 % pre-trigger not recognised at 27 dB, fitted across the kick); sweep says pitchfork "
+        "[1239.28, 1248.48] lbf, truth 1315.65 (7 widths early, flags interval_huge, "
+        "imperfection_possible)"),
+    ("arch_crossing", "lab", 0): None,
+    ("arch_crossing", "far", 0): None,
+    ("arch_crossing", "past", 0): (
+        "detector (2 % 60 Hz hum hides the pre-trigger: spurious lines below the real ones) then "
+        "predictor: saddle-node [189.954, 190.294] N named for a subcritical pitchfork at "
+        "195.997 N (17 widths early)"),
+    ("arch_imperfect", "lab", 0): (
+        "type `none` (no loss of stability) for an arch that snaps at a fold at 1150.164 lbf: "
+        "the 5 nearest records read as combs (sigma2 -9..-17 for -43..-107, pre-trigger not "
+        "recognised at 29 dB); interval [1067.9, 1135.1] misses; the predictor alone on the "
+        "exact table says saddle-node [1146.5, 1152.4]"),
+    ("arch_imperfect", "far", 0): None,
+    ("arch_imperfect", "past", 0): None,
+    ("foundation", "lab", 0): None,
+    ("foundation", "far", 0): None,
+    ("foundation", "past", 0): None,
+    ("threelink", "lab", 0): None,
+    ("threelink", "far", 0): None,
+    ("threelink", "past", 0): None,
+}
+
+
+def _params(cases: dict) -> list:
+    out = []
+    for key, why in cases.items():
+        marks = [pytest.mark.xfail(strict=True, reason=why)] if why else []
+        out.append(pytest.param(*key, marks=marks, id="-".join(map(str, key))))
+    return out
+
+
+def _failures(ans: T.Answer, truth: S.Truth) -> list[str]:
+    v = T.judge(ans, truth)
+    bad = list(v.problems)
+    if v.type not in ("right", "withheld"):
+        bad.append(f"type verdict {v.type}")
+    if ans.interval is None and truth.plan != "far":
+        bad.append("no interval")
+    return bad
+
+
+@pytest.mark.parametrize("family,plan,seed", _params(CASES))
+def test_blind_campaign_through_the_cli(family: str, plan: str, seed: int, tmp_path: Path):
+    truth = S.campaign(family, plan, seed).write(tmp_path / "c")
+    ans = T.cli_sweep(truth.manifest)
+    v = T.judge(ans, truth)
+    assert not _failures(ans, truth), T.describe(truth, ans, v)
+
+
+#: the predictor alone on each family's exact measurements (0.1 % noise, static levels given)
+PREDICT_CASES: dict[tuple[str, str, int], str | None] = {
+    (f, "lab", 0): None for f in S.FAMILIES
+}
+
+
+@pytest.mark.parametrize("family,plan,seed", _params(PREDICT_CASES))
+def test_blind_exact_measurements_through_predict(family: str, plan: str, seed: int,
+                                                  tmp_path: Path):  # fmt: skip
+    camp = S.campaign(family, plan, seed, duration_s=0.2, rate_hz=500.0)  # records unused
+    truth = camp.write(tmp_path / "c")
+    ans = T.cli_predict(truth.write_table(tmp_path / "table.csv"))
+    v = T.judge(ans, truth)
+    assert v.type in ("right", "withheld") and v.covered and not v.confident, \
+        T.describe(truth, ans, v)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "policy/recordings: one file with 5 NaN samples refuses the whole sweep (exit 2, 422 "
+    "naming the file and w[2416]) instead of setting that record aside by name and answering "
+    "from the other 12"))  # fmt: skip
+def test_a_record_with_dropped_samples_does_not_sink_the_sweep(tmp_path: Path):
+    """One file with NaN gaps (a logger's dropped samples) among good ones: the sweep must
+    answer from the others and name the bad file as set aside."""
+    camp = replace(S.campaign("threelink", "lab", 0), spoil={4: {"nan_gaps": 2}})
+    truth = camp.write(tmp_path / "c")
+    ans = T.cli_sweep(truth.manifest)
+    assert ans.ok, ans.error
+    assert ans.transition is not None, ans.error
+    assert any("rec04" in m for m in ans.set_aside), ans.set_aside
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory):
+    s = T.Server(tmp_path_factory.mktemp("blind-serve"))
+    yield s
+    s.stop()
+
+
+def test_http_door_gives_the_cli_answer_and_no_5xx(server, tmp_path: Path):
+    truth = S.campaign("threelink", "lab", 0).write(tmp_path / "c")
+    cli = T.cli_sweep(truth.manifest)
+    http = T.http_sweep(server.url, truth.manifest, truth.control_unit)
+    assert http.ok and cli.ok, (http.error, cli.error)
+    assert http.transition == cli.transition
+    assert http.mu_star == pytest.approx(cli.mu_star, rel=1e-9)
+    assert np.allclose(http.interval, cli.interval, rtol=1e-9)
+    v = T.judge(http, truth)
+    assert v.type in ("right", "withheld") and v.covered, T.describe(truth, http, v)
+    assert not server.server_errors()
+
+
+def test_http_upload_of_a_record_with_dropped_samples_is_a_4xx_naming_it(server, tmp_path):
+    from service.client import Client
+    from service.client.errors import ApiError
+
+    camp = replace(S.campaign("threelink", "lab", 0), spoil={1: {"nan_gaps": 1}})
+    truth = camp.write(tmp_path / "c")
+    bad = truth.manifest.parent / truth.names[1]
+    with Client(server.url, timeout=120.0) as sdk:
+        with pytest.raises(ApiError) as err:
+            sdk.upload_file(bad, control_value=truth.controls[1], control_unit="N")
+    status = getattr(err.value, "status", None) or getattr(err.value, "status_code", None)
+    assert status is not None and 400 <= int(status) < 500, err.value
+    assert "finite" in str(err.value) or "NaN" in str(err.value) or "w[" in str(err.value)
+    assert not server.server_errors()
+
+
+def test_cli_detect_json_on_blind_records_never_crashes(tmp_path: Path):
+    """Every recording style of the blind lab read by ``snapwarn detect --json``: exit 0 (or a
+    clear refusal for the NaN record), a JSON document, a time unit and a value unit."""
+    styles = {
+        "geophone_V": dict(sensor="geophone", unit="V", rate_hz=20000.0, duration_s=1.0),
+        "accel_g": dict(sensor="accel", unit="g", rate_hz=5000.0, duration_s=1.0),
+        "laser_in_ms": dict(unit="in", time_unit="ms", rate_hz=500.0, duration_s=2.0),
+        "bounce": dict(second_hit=(0.4, 0.6), duration_s=2.0),
+        "adc12": dict(adc_bits=12, duration_s=2.0),
+    }
+    for name, over in styles.items():
+        camp = replace(S.campaign("threelink", "lab", 0, **over), adaptive_length=False)
+        camp = replace(camp, controls=camp.controls[:1])
+        truth = camp.write(tmp_path / name)
+        exe = T.ROOT / ".venv/bin/snapwarn"
+        r = subprocess.run([str(exe), "detect", str(truth.manifest.parent / truth.names[0]),
+                            "--json"], capture_output=True, text=True, timeout=600)  # fmt: skip
+        assert r.returncode == 0, (name, r.stderr[-500:])
+        doc = json.loads(r.stdout)
+        assert doc["time_unit"] in ("s", "ms"), (name, doc["time_unit"])
+        fu = doc.get("fundamental")
+        assert fu is None or math.isfinite(fu["sigma2"]), name
