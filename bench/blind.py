@@ -21,6 +21,7 @@ Writes ``OUT.md`` (the table and every failure with its reproduction) and ``OUT.
 from __future__ import annotations
 
 import argparse
+import ast
 import csv
 import math
 import statistics
@@ -37,9 +38,11 @@ sys.path.insert(0, str(ROOT / "tests" / "blind"))
 import _blind_sweeps as S  # noqa: E402
 import _blind_trials as T  # noqa: E402
 
+OVER: dict = {}  # --over key=value: the lab's recording (or damping) for every campaign
+
 
 def _one(family: str, plan: str, seed: int, folder: Path) -> dict:
-    camp = S.campaign(family, plan, seed)
+    camp = S.campaign(family, plan, seed, **OVER)
     truth = camp.write(folder / f"{family}_{plan}_{seed}")
     ans = T.cli_sweep(truth.manifest)
     v = T.judge(ans, truth)
@@ -62,11 +65,15 @@ def _one(family: str, plan: str, seed: int, folder: Path) -> dict:
         "predict_confident": pv.confident, "predict_flags": " ".join(pa.flags),
         "params": repr(truth.params),
         "repro": (f"python tests/blind/_blind_sweeps.py {family} {plan} {seed} "
-                  f"/tmp/blind/{family}_{plan}_{seed} && snapwarn sweep "
+                  f"/tmp/blind/{family}_{plan}_{seed} {_over_args()} && snapwarn sweep "
                   f"/tmp/blind/{family}_{plan}_{seed}/manifest.csv --json"),
     }  # fmt: skip
     _print(row)
     return row
+
+
+def _over_args() -> str:
+    return " ".join(f"'{k}={v!r}'" for k, v in OVER.items())
 
 
 def _print(r: dict) -> None:
@@ -129,7 +136,13 @@ def main() -> None:
     ap.add_argument("--seed0", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=None, help="write OUT.md and OUT.csv")
+    ap.add_argument("--over", action="append", default=[], metavar="KEY=VALUE",
+                    help="override the lab's recording for every campaign (a Python literal: "
+                         "damping=0.3, second_hit=(0.25,0.5), sensor='accel', unit='g')")
     a = ap.parse_args()
+    for kv in a.over:
+        k, v = kv.split("=", 1)
+        OVER[k] = ast.literal_eval(v)
     cells = [(f, p, s) for f in a.families.split(",") for p in a.plans.split(",")
              for s in range(a.seed0, a.seed0 + a.seeds)]  # fmt: skip
     t0 = time.time()
@@ -151,7 +164,9 @@ def main() -> None:
                  or not r["covered"] or r["problems"]]  # fmt: skip
         lines = [f"# Blind trials (commit {commit})", "",
                  f"`python bench/blind.py --seeds {a.seeds} --seed0 {a.seed0} --families "
-                 f"{a.families} --plans {a.plans}`: {len(rows)} campaigns through `snapwarn "
+                 f"{a.families} --plans {a.plans}"
+                 + "".join(f" --over {k}={v!r}" for k, v in OVER.items())
+                 + f"`: {len(rows)} campaigns through `snapwarn "
                  f"sweep --json`, {time.time() - t0:.0f} s wall.", "", table, "",
                  "## Failures (each reproducible)", ""]  # fmt: skip
         for r in fails:
