@@ -378,7 +378,11 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
     else:
         # over-dispersion of the static data (e.g. the mean of a kicked, nonlinear record is
         # shifted by ~ amplitude^2 / |sigma^2|, far above a detector's stated offset error):
-        # scale the given noise by the reduced chi-square of the widest static series
+        # scale the given noise by the reduced chi-square of the widest static series. It is
+        # read at the eigenvalues' mu*, so it also holds the series' truncation and that mu*'s
+        # own error seen through records more precise than it (the simulator's, 1e-13 near
+        # mu*): a quasi-likelihood for the fits, not proof that the records scatter (rule
+        # static_misfit reads the static law at a shared mu* instead)
         m = min(N, max(8, n))
         if m - 5 >= _MIN_NOISE_DOF:
             idx = slice(N - m, N)
@@ -389,8 +393,10 @@ def _static_window(sw: Sweep, n: int, mu_star: float) -> tuple[Sweep, int, list[
                 flags.append(
                     Flag(
                         "w_noise_underestimated",
-                        f"the static deflections scatter {math.sqrt(phi):.3g} times more than "
-                        "w_static_std: that noise was scaled up by this factor",
+                        f"the static deflections miss the static law at the eigenvalues' mu* "
+                        f"by {math.sqrt(phi):.3g} times w_static_std (a scatter beyond it, the "
+                        "law's truncation or that mu*'s own error): that noise was scaled up "
+                        "by this factor for the fits",
                     )
                 )
     best_n = n
