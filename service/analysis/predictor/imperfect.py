@@ -152,7 +152,7 @@ def _perfect(mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, K: int
         return math.inf, math.nan
     lo, hi = _TS[max(i - 1, 0)], _TS[min(i + 1, _TS.size - 1)]
     r = optimize.minimize_scalar(
-        lambda t: profile_g(mu, y, wt, scale, t, empty, True, K, 0.0)[0], bounds=(lo, hi),
+        lambda t: profile_g(mu, y, wt, scale, t, empty, True, K, 0.0, True)[0], bounds=(lo, hi),
         method="bounded", options={"xatol": 1e-7},
     )  # fmt: skip
     return (float(r.fun), float(r.x)) if r.fun < f[i] else (float(f[i]), float(_TS[i]))
@@ -169,7 +169,7 @@ def _fit(
     name = "imperfect-softening" if soft else "imperfect-stiffening"
 
     def prof(t: float) -> float:
-        return profile_g(mu, y, wt, scale, t, _GS, soft, K, shift)[0]
+        return profile_g(mu, y, wt, scale, t, _GS, soft, K, shift, True)[0]
 
     f, _ = profile_scan(mu, y, wt, scale, _TS, _GS, soft, K, shift, False)
     i = int(np.argmin(f))
@@ -182,7 +182,7 @@ def _fit(
     t0, f0 = (float(r.x), float(r.fun)) if r.fun <= f[i] else (float(_TS[i]), float(f[i]))
     thr = f0 + float(chi2_ppf(level, 1))
     last = float(mu[-1])
-    _, g0 = profile_g(mu, y, wt, scale, t0, _GS, soft, K, shift)
+    _, g0 = profile_g(mu, y, wt, scale, t0, _GS, soft, K, shift, True)
     G = scale * math.exp(g0) if g0 > -700 else 0.0
 
     def point(t: float) -> float:
@@ -198,8 +198,8 @@ def _fit(
     lo_t = _end(prof, f, t0, i, thr, -1)
     hi_t = _end(prof, f, t0, i, thr, +1)
     # the ends move G too (profiled): each end's own shift
-    lo_g = profile_g(mu, y, wt, scale, lo_t, _GS, soft, K, shift)[1]
-    hi_g = profile_g(mu, y, wt, scale, hi_t, _GS, soft, K, shift)[1]
+    lo_g = profile_g(mu, y, wt, scale, lo_t, _GS, soft, K, shift, True)[1]
+    hi_g = profile_g(mu, y, wt, scale, hi_t, _GS, soft, K, shift, True)[1]
     lo = last + scale * math.exp(lo_t) - shift * (scale * math.exp(lo_g) if lo_g > -700 else 0)
     hi = last + scale * math.exp(hi_t) - shift * (scale * math.exp(hi_g) if hi_g > -700 else 0)
     mu_p = point(t0)
