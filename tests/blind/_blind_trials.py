@@ -12,7 +12,8 @@ Judgement (:func:`judge`), per campaign:
   that stops at ``T/T0 < 2``, where the type must be withheld) or ``wrong``;
 * ``covered``: the 95 % interval holds the true mu*; ``err_widths``: (mu* - truth) / width;
 * ``confident``: a wrong type named, or an interval that misses the truth with no flag that
-  says the interval may be off (:data:`CAUTION`): the product's worst failure;
+  says the interval may be off (:data:`CAUTION`): the product's worst failure; ``late``: the
+  whole interval lies beyond the truth (a lab told to go on would snap);
 * records: every record that cannot be trusted (snapped branch, growing) set aside by name or
   flagged as past the transition; every record set aside named by its file;
 * detector: records whose fundamental's ``sigma2`` is off the truth by more than 10 % and not
@@ -63,6 +64,7 @@ class Verdict:
     confident: bool
     problems: list[str]
     bad_records: list[str]  # detector: records read off the critical mode, not set aside
+    late: bool = False  # the whole interval lies beyond the truth (the dangerous side)
 
 
 def _set_aside_messages(doc: Any) -> list[str]:
@@ -203,8 +205,10 @@ def judge(ans: Answer, truth: Any) -> Verdict:
         problems.append(f"type {t} (truth {truth.kind})")
     if vt == "early":
         problems.append(f"type {t} named at T/T0 = {truth.t_ratio_last:.2f} < 2")
+    late = ans.interval is not None and ans.interval[0] > truth.mu_star
     if ans.interval is not None and not covered:
         problems.append(f"interval {ans.interval} misses mu* = {truth.mu_star!r}"
+                        + (" LATE (wholly beyond the truth)" if late else " (early)")
                         + (f" (flags {sorted(caution)})" if caution else " with no caution flag"))
     # untrusted records: set aside by name, or the sweep says it is past the transition
     text = " ".join(ans.set_aside)
@@ -229,7 +233,7 @@ def judge(ans: Answer, truth: Any) -> Verdict:
             s2t = sum(by_c[c]) / len(by_c[c])
             if abs(s2 - s2t) > 0.1 * abs(s2t):
                 bad.append(f"control {c:g}: sigma2 {s2:.5g} vs truth {s2t:.5g}")
-    return Verdict(vt, covered, err, confident, problems, bad)
+    return Verdict(vt, covered, err, confident, problems, bad, late)
 
 
 def _family_ok(t: str, truth: Any) -> bool:
