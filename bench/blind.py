@@ -38,6 +38,43 @@ sys.path.insert(0, str(ROOT / "tests" / "blind"))
 import _blind_sweeps as S  # noqa: E402
 import _blind_trials as T  # noqa: E402
 
+
+def _detector_table(n: int, out: Path | None) -> None:
+    rows = []
+    for row in T.DETECTOR_ROWS:
+        for i in range(n):
+            rows.append(T.detect_one(row, i))
+            r = rows[-1]
+            print(f"{row}/{i} {r['family']}: {r['outcome']} f_true {r['f_true_hz']:.4g} Hz "
+                  f"f_det {r.get('f_det_hz', float('nan')):.4g} Hz ({r['samples']} samples) "
+                  f"{r['flags']}", flush=True)  # fmt: skip
+    lines = ["| row | n | right | withheld | wrong, flagged | wrong, SILENT | error |",
+             "|---|---|---|---|---|---|---|"]
+    for row in T.DETECTOR_ROWS:
+        rs = [r for r in rows if r["row"] == row]
+        c = {k: sum(r["outcome"] == k for r in rs) for k in ("right", "withheld", "flagged",
+                                                            "silent", "error")}  # fmt: skip
+        lines.append(f"| {row} | {len(rs)} | {c['right']} | {c['withheld']} | {c['flagged']} | "
+                     f"{c['silent']} | {c['error']} |")
+    table = "\n".join(lines)
+    print(table)
+    if out is not None:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                                capture_output=True, text=True).stdout.strip()  # fmt: skip
+        with open(out.with_suffix(".csv"), "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=sorted({k for r in rows for k in r}))
+            w.writeheader()
+            w.writerows(rows)
+        out.with_suffix(".md").write_text(
+            f"# Blind records through the detector (commit {commit})\n\n"
+            f"`python bench/blind.py --detector {n} --out {out}`: per row, {n} records of the "
+            "blind lab (families " + ", ".join(T.DETECTOR_FAMILIES) + ", whose critical mode is "
+            "the lowest line; a random control of a lab sweep; a 10 % pre-trigger unless "
+            "`midring`), `service.analysis.detect.detect(y, dt)`. right: the fundamental's "
+            "sqrt|sigma2| within 1 % of the critical mode's; wrong, flagged: with one of "
+            "`WARNING_FLAGS`; wrong, SILENT: without.\n\n" + table + "\n")
+
+
 OVER: dict = {}  # --over key=value: the lab's recording (or damping) for every campaign
 
 
@@ -159,6 +196,8 @@ def main() -> None:
     ap.add_argument("--seed0", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=None, help="write OUT.md and OUT.csv")
+    ap.add_argument("--detector", type=int, default=0, metavar="N",
+                    help="instead: N records per impairment row through the detector alone")
     ap.add_argument("--table-from", default=None, metavar="CSV",
                     help="only print (and with --out write) the table of a previous run's CSV")
     ap.add_argument("--over", action="append", default=[], metavar="KEY=VALUE",
@@ -168,6 +207,10 @@ def main() -> None:
     for kv in a.over:
         k, v = kv.split("=", 1)
         OVER[k] = ast.literal_eval(v)
+    if a.detector:
+        sys.path.insert(0, str(ROOT))
+        _detector_table(a.detector, Path(a.out) if a.out else None)
+        return
     if a.table_from:
         rows = _from_csv(Path(a.table_from))
         print(_table(rows))

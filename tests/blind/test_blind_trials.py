@@ -187,3 +187,58 @@ def test_cli_detect_json_on_blind_records_never_crashes(tmp_path: Path):
         assert doc["time_unit"] in ("s", "ms"), (name, doc["time_unit"])
         fu = doc.get("fundamental")
         assert fu is None or math.isfinite(fu["sigma2"]), name
+
+
+def test_live_door_gives_the_cli_answer(server, tmp_path: Path):
+    """The same campaign fed record by record to a live sweep (SDK) ends on the CLI's answer."""
+    from service.client import Client
+
+    truth = S.campaign("threelink", "lab", 0).write(tmp_path / "c")
+    cli = T.cli_sweep(truth.manifest)
+    docs = []
+    with Client(server.url, timeout=600.0) as sdk:
+        live = sdk.live_sweep("blind threelink lab 0", control="P", unit=truth.control_unit)
+        for name, c in zip(truth.names, truth.controls, strict=True):
+            docs.append(live.add(file=truth.manifest.parent / name, control=c)
+                        .model_dump(mode="json"))  # fmt: skip
+        live.close()
+    last = docs[-1]
+    assert last["transition"] == cli.transition, (last["transition"], cli.transition)
+    assert last["mu_star"] == pytest.approx(cli.mu_star, rel=1e-9)
+    assert np.allclose(last["mu_star_interval"], cli.interval, rtol=1e-9)
+    assert not server.server_errors()
+
+
+#: detector rows (``_blind_trials.DETECTOR_ROWS``), the records tried, and None (no record is
+#: silently wrong today) or the measured failure (strict xfail)
+DETECTOR_CASES: dict[str, tuple[range, str | None]] = {
+    "clean_45dB": (range(4), None),
+    "midring_30dB": (range(4), None),
+    "hum_2pct_45dB": (range(4), None),
+    "hum_10pct_45dB": (range(4), None),
+    "rate_500Hz": (range(4), None),
+    "rate_20kHz": (range(4), None),
+    "geophone": (range(4), None),
+    "accel_g": (range(4), None),
+    "adc_12bit": (range(4), None),
+    "bounce": (range(4), None),
+    "noise_30dB": (range(4), (
+        "detector: with a 10 % pre-trigger and a per-sample SNR of 30 dB the lead-in is not "
+        "recognised (no `pretrigger` flag), the fit runs across the kick and a spurious slower "
+        "line is the fundamental with no flag: 3 of these 4 (7 of 8 in bench/blind.py "
+        "--detector 8), e.g. 1.501 Hz for 1.903, 0.324 Hz for 1.797; mid-ring at 30 dB: 8/8")),
+    "noise_25dB": (range(4, 8), (
+        "detector: as at 30 dB, 3 of these 4 records silently wrong (pre-trigger not found)")),
+    "rig_mode": (range(4), (
+        "detector/reconcile: a rig mode at a fixed 0.6 Hz (a suspended sensor, half the "
+        "response's peak) is the fundamental with no flag in 2 of these 4 (5 of 8)")),
+}
+
+
+@pytest.mark.parametrize("row", [
+    pytest.param(r, marks=[pytest.mark.xfail(strict=True, reason=why)] if why else [], id=r)
+    for r, (_, why) in DETECTOR_CASES.items()])  # fmt: skip
+def test_blind_records_are_never_silently_wrong_in_the_detector(row: str):
+    out = [T.detect_one(row, i) for i in DETECTOR_CASES[row][0]]
+    bad = [o for o in out if o["outcome"] in ("silent", "error")]
+    assert not bad, bad
