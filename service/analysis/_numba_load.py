@@ -38,12 +38,16 @@ def import_numba(without: tuple[str, ...] = OPTIONAL_AT_IMPORT) -> ModuleType:
     While numba's package imports, each of ``without`` not yet loaded is marked absent in
     ``sys.modules`` (``import`` raises ImportError, which numba catches for both); afterwards they
     import normally. ``yaml`` is not kept out when numba's config file is in the working
-    directory. Should numba fail to import without them, its partly imported modules are dropped
-    and it is imported the plain way. Returns the numba module.
+    directory, and nothing is kept out while other threads run (a server's thread pool: one of
+    them could import scipy meanwhile). Should numba fail to import without them, its partly
+    imported modules are dropped and it is imported the plain way. Returns the numba module.
     """
     if "numba" in sys.modules:
         return sys.modules["numba"]
     kept_out = [m for m in without if m not in sys.modules]
+    threading = sys.modules.get("threading")
+    if threading is not None and threading.active_count() > 1:
+        kept_out = []  # another thread could import one of them meanwhile and fail
     if "yaml" in kept_out and os.path.isfile(_CONFIG_FILE):
         kept_out.remove("yaml")
     for m in kept_out:

@@ -151,3 +151,23 @@ def test_a_numba_that_needs_a_kept_out_module_is_imported_the_plain_way() -> Non
                          timeout=600)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == {"numba": True, "f": 2.5}
+
+
+_THREADED = """
+import json, sys, threading, time
+from service.analysis import _numba_load
+stop = threading.Event()
+t = threading.Thread(target=stop.wait, daemon=True)
+t.start()
+_numba_load.import_numba()
+print(json.dumps({m: m in sys.modules for m in ("scipy", "yaml")}))
+stop.set()
+"""
+
+
+def test_nothing_is_kept_out_while_other_threads_run(tmp_path: Path) -> None:
+    """Another thread could import scipy while it is marked absent: then numba imports plainly."""
+    out = subprocess.run([sys.executable, "-c", _THREADED], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {"scipy": True, "yaml": True}
