@@ -19,9 +19,12 @@ The branch: the records sorted by control, the fundamental's ``r = sqrt|sigma^2|
 between two others lies (within :data:`BRANCH_TOL`) between theirs, or is no further from the
 line through them (in ``log r`` against the control) than :data:`BRANCH_TOL`; an end record does
 not go against the sweep's trend by more than that (the record nearest the transition may
-drop: the slowdown). The worst record off the branch is treated first: another mode of it on
-the branch becomes its fundamental (flag ``fundamental_reconciled``), else it is set aside;
-then the next, until every record is on the branch or :data:`MAX_OFF` of them were treated.
+drop: the slowdown). A record off the branch is treated: another mode of it on the branch
+becomes its fundamental (flag ``fundamental_reconciled``), else it is set aside; first the one
+whose treatment leaves the fewest records off the branch (so the repeats at one control that
+agree define the branch against a single record beside them), a record whose detector doubts
+its fundamental (flag ``fundamental_ambiguous``) before one it does not; then the next, until
+every record is on the branch or :data:`MAX_OFF` of them were treated.
 """
 
 from __future__ import annotations
@@ -184,16 +187,25 @@ def _r(m: Mode) -> float:
     return math.sqrt(abs(m.sigma2))
 
 
+def _spread(m: Mode) -> float:
+    """The part of a mode's branch tolerance its own uncertainty gives: 4 standard errors of
+    ``log r`` (``r = sqrt|sigma^2|``)."""
+    if m.sigma2 == 0 or not math.isfinite(m.sigma2_std):
+        return 0.0
+    return 4.0 * 0.5 * m.sigma2_std / abs(m.sigma2)
+
+
 def _tol(m: Mode) -> float:
     """The branch tolerance of a mode, in ``log r``."""
-    rel = 0.5 * m.sigma2_std / abs(m.sigma2) if m.sigma2 != 0 and math.isfinite(m.sigma2_std) else 0
-    return math.log1p(BRANCH_TOL) + 4.0 * rel
+    return math.log1p(BRANCH_TOL) + _spread(m)
 
 
-def _expected(i: int, idx: list[int], c: np.ndarray, logr: dict[int, float], trend: float
-              ) -> tuple[float, float] | None:  # fmt: skip
+def _expected(i: int, idx: list[int], c: np.ndarray, logr: dict[int, float], trend: float,
+              spread: dict[int, float] | None = None) -> tuple[float, float] | None:  # fmt: skip
     """The range of ``log r`` the branch allows at record ``idx[i]`` from its active neighbours
-    (None: an end record whose trend allows anything on its side)."""
+    (None: an end record whose trend allows anything on its side), widened by the neighbours'
+    own uncertainty (``spread``: a neighbour read with a 150 % error constrains nothing)."""
+    sp = spread or {}
     k = idx[i]
     left = [j for j in idx[:i] if c[j] < c[k]]
     right = [j for j in idx[i + 1 :] if c[j] > c[k]]
@@ -201,41 +213,70 @@ def _expected(i: int, idx: list[int], c: np.ndarray, logr: dict[int, float], tre
         a, b = left[-1], right[0]
         t = (c[k] - c[a]) / (c[b] - c[a])
         line = logr[a] + t * (logr[b] - logr[a])
-        lo = min(logr[a], logr[b], line)
-        hi = max(logr[a], logr[b], line)
+        u = max(sp.get(a, 0.0), sp.get(b, 0.0))
+        lo = min(logr[a], logr[b], line) - u
+        hi = max(logr[a], logr[b], line) + u
         return lo, hi
     if left:  # the last record: it may drop along the trend, not go against it
         a = left[-1]
-        return (-math.inf, logr[a]) if trend < 0 else (logr[a], math.inf)
+        u = sp.get(a, 0.0)
+        return (-math.inf, logr[a] + u) if trend < 0 else (logr[a] - u, math.inf)
     if right:  # the first record
         b = right[0]
-        return (logr[b], math.inf) if trend < 0 else (-math.inf, logr[b])
+        u = sp.get(b, 0.0)
+        return (logr[b] - u, math.inf) if trend < 0 else (-math.inf, logr[b] + u)
     return None
 
 
+def _offs(out: list[Detection], idx: list[int], c: np.ndarray
+          ) -> dict[int, tuple[float, tuple[float, float]]]:  # fmt: skip
+    """Each record of ``idx`` (usable, sorted by control) off the branch: how far (in ``log r``,
+    beyond its tolerance) and the range its neighbours allow."""
+    if len(idx) < 3:
+        return {}
+    logr = {k: math.log(_r(out[k].fundamental.mode)) for k in idx}
+    spread = {k: _spread(out[k].fundamental.mode) for k in idx}
+    trend = _trend(idx, c, logr)
+    offs = {}
+    for i, k in enumerate(idx):
+        e = _expected(i, idx, c, logr, trend, spread)
+        if e is None:
+            continue
+        tol = _tol(out[k].fundamental.mode)
+        off = max(e[0] - tol - logr[k], logr[k] - e[1] - tol, 0.0)
+        if off > 0:
+            offs[k] = (off, e)
+    return offs
+
+
 def _branch(dets: list[Detection], c: np.ndarray, names: Sequence[str]) -> list[Detection]:
-    """The branch test (module docstring) on the usable records of ``dets``."""
+    """The branch test (module docstring) on the usable records of ``dets``.
+
+    Of the records off the branch, the one treated first is the one whose treatment (another
+    mode of it, or setting it aside) leaves the fewest records off the branch: one wrong
+    record makes its neighbours look off too, and repeats at one control that agree outvote a
+    single record beside them (the majority defines the branch). Ties go to a record whose
+    detector doubts its fundamental (flag ``fundamental_ambiguous``), then to one with another
+    mode on the branch (no record lost), then to the farthest off."""
     out = list(dets)
     idx = [k for k in np.argsort(c, kind="stable") if _usable(out[k])]
     budget = int(MAX_OFF * len(idx))
-    while len(idx) >= 3 and budget > 0:
-        logr = {k: math.log(_r(out[k].fundamental.mode)) for k in idx}
-        trend = _trend(idx, c, logr)
-        worst, wi, rng = 0.0, -1, (0.0, 0.0)
-        for i, k in enumerate(idx):
-            e = _expected(i, idx, c, logr, trend)
-            if e is None:
-                continue
-            tol = _tol(out[k].fundamental.mode)
-            off = max(e[0] - tol - logr[k], logr[k] - e[1] - tol, 0.0)
-            if off > worst:
-                worst, wi, rng = off, i, e
-        if wi < 0:
+    while budget > 0:
+        offs = _offs(out, idx, c)
+        if not offs:
             break
-        k = idx[wi]
-        out[k] = _rechoose(out[k], names[k], rng)
-        if not _usable(out[k]):
-            idx.pop(wi)
+        best, choice = None, None
+        for k, (off, rng) in offs.items():
+            new = _rechoose(out[k], names[k], rng)
+            trial = [*out[:k], new, *out[k + 1 :]]
+            kept = idx if _usable(new) else [j for j in idx if j != k]
+            left = len(_offs(trial, kept, c))
+            ambiguous = any(f.code == "fundamental_ambiguous" for f in out[k].flags)
+            key = (left, not ambiguous, not _usable(new), -off)
+            if best is None or key < best:
+                best, choice = key, (k, new, kept)
+        assert choice is not None
+        k, out[k], idx = choice
         budget -= 1
     return out
 

@@ -170,3 +170,65 @@ def test_one_outlier_does_not_move_the_prediction():
     raw = predict(mu, np.array([d.fundamental.sigma2 for d in bad]),
                   sigma2_std=np.array([d.fundamental.sigma2_std for d in bad]))  # fmt: skip
     assert not lo <= raw.mu_star <= hi
+
+
+def _repeats_after_a_wrong_record(wrong: Detection, n_repeats: int) -> tuple[list, np.ndarray]:
+    """A pitchfork sweep whose record at 0.6 reads ``wrong``, then ``n_repeats`` records at
+    0.7 that all read the branch."""
+    mu = np.array([0.0, 0.15, 0.3, 0.45, 0.6, 0.7])
+    roots = [50.0 * (1.0 - m) ** 0.5 for m in mu]
+    dets = [_det(r, 200.0) for r in roots[:4]] + [wrong]
+    dets += [_det(roots[5], 200.0) for _ in range(n_repeats)]
+    controls = np.array([*mu[:5], *([mu[5]] * n_repeats)])
+    return dets, controls
+
+
+@pytest.mark.parametrize("n_repeats", [2, 3, 6])
+def test_repeats_at_one_control_outvote_the_record_beside_them(n_repeats: int):
+    """Repeats at one control that agree define the branch: the single record before them that
+    read too slow a mode is set aside, not the repeats one after the other (the lab then
+    spends its records repeating that control)."""
+    roots6 = 50.0 * 0.4**0.5
+    dets, c = _repeats_after_a_wrong_record(_det(0.45 * roots6, 200.0), n_repeats)
+    names = [f"rec_{i:02d}.csv" for i in range(c.size)]
+    out = reconcile(dets, c, names=names)
+    aside = [names[k] for k, d in enumerate(out) if _aside(d)]
+    assert aside == ["rec_04.csv"], aside
+
+
+def test_the_record_beside_repeats_takes_its_branch_mode():
+    """... and when that record has a mode on the branch, it becomes its fundamental (no record
+    is lost)."""
+    roots6 = 50.0 * 0.4**0.5
+    dets, c = _repeats_after_a_wrong_record(_det(0.45 * roots6, roots6, 200.0), 3)
+    out = reconcile(dets, c, names=[f"r{i}" for i in range(c.size)])
+    assert not any(_aside(d) for d in out)
+    assert out[4].fundamental.index == 1 and "fundamental_reconciled" in out[4].flag_codes
+    assert all(out[k] == dets[k] for k in range(c.size) if k != 4)
+
+
+def test_a_neighbour_read_with_a_large_error_sets_no_record_aside():
+    """A record whose fundamental carries a 150 % error stays within its own tolerance; it
+    must not put the precise records beside it off the branch either."""
+    mu, roots = _sweep(n=8, law=1.0)
+    dets = [_det(r, 200.0) for r in roots]
+    m = replace(_mode(0.5 * roots[6]), sigma2_std=1.5 * (0.5 * roots[6]) ** 2)
+    dets[6] = replace(dets[6], modes=(m, *dets[6].modes[1:]), fundamental=Fundamental(m, 0))
+    out = reconcile(dets, mu, names=[f"r{i}" for i in range(mu.size)])
+    assert not any(_aside(d) for d in out)
+
+
+def test_an_ambiguous_record_is_treated_before_its_neighbour():
+    """The last two records contradict each other and either alone would be on the branch (the
+    one before reads too slow a mode, or the last goes against the trend): the one whose
+    detector doubts its fundamental (flag fundamental_ambiguous) is set aside, whichever it
+    is."""
+    mu, roots = _sweep(n=8, law=1.0)
+    base = [_det(r, 200.0) for r in roots]
+    base[6] = _det(0.45 * roots[6], 200.0)
+    flag = Flag("fundamental_ambiguous", "test")
+    for doubted in (6, 7):
+        dets = list(base)
+        dets[doubted] = replace(dets[doubted], flags=(*dets[doubted].flags, flag))
+        out = reconcile(dets, mu, names=[f"r{i}" for i in range(mu.size)])
+        assert [k for k, d in enumerate(out) if _aside(d)] == [doubted], doubted
