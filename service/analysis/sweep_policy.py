@@ -600,6 +600,7 @@ def evaluate(
         flags.append(Flag("record_set_aside", f"{len(aside)} record(s) set aside: "
                           + "; ".join(a.reason for a in aside)))  # fmt: skip
     pred, unconfirmed = _growth(pred, ms, past, len(beyond), n_grew, flags)
+    pred = _resolution_floor(pred, ms, plan)
     if len(ms) < MIN_RECORDS:
         flags.append(Flag(
             "too_few_records",
@@ -612,13 +613,7 @@ def evaluate(
     interval = tuple(pred.mu_star_interval) if has_pred else None
     step = lab_step(ms, plan)
     last_mu = last.mu if last is not None else (records[-1].control if records else math.nan)
-    alarm = alarm_for(
-        last_mu, t_ratio,
-        pred.mu_star if has_pred else math.nan, interval or (math.nan, math.nan),
-        step=step, span=(last.mu - ms[0].mu) if last is not None else math.nan,
-        transition=pred.transition if pred is not None else None,
-        past=past if math.isfinite(past) else math.nan,
-    )  # fmt: skip
+    alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
     trusted = bool(
         has_pred and last is not None and previous_interval is not None
         and interval_trusted(interval, previous_interval, last.mu, t_ratio)
@@ -650,6 +645,13 @@ def evaluate(
         narrow = interval[1] - interval[0] < width and previous_interval is not None and (
             previous_interval[1] - previous_interval[0] < width)  # fmt: skip
         converged = bool(narrow or small)
+        if narrow and not unconfirmed:
+            # the sweep stops on this answer: it must not rest on the newest record alone
+            hull = _without_newest(recs, usable, past, plan, interval, last.mu, flags)
+            if hull != interval:
+                pred = replace(pred, mu_star_interval=hull)
+                alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
+                nxt = _advise(ms, pred, trusted, past, plan)
     duration, dt, why = _record_advice(last, nxt, pred)
     if pred is not None:
         flags.extend(pred.flags)
@@ -665,6 +667,71 @@ def evaluate(
         trusted=trusted, converged=converged, record_duration=duration, record_dt=dt,
         record_advice=why, flags=tuple(unique_flags(flags)),
     )  # fmt: skip
+
+
+def _alarm(
+    ms: Sequence[Measurement], pred: Prediction | None, last_mu: float, t_ratio: float,
+    step: float, past: float,
+) -> Alarm:  # fmt: skip
+    """The alarm of :func:`service.analysis.alarm.alarm_for` for the prediction so far."""
+    has_pred = pred is not None and math.isfinite(pred.mu_star)
+    return alarm_for(
+        last_mu, t_ratio,
+        pred.mu_star if has_pred else math.nan,
+        tuple(pred.mu_star_interval) if has_pred else (math.nan, math.nan),
+        step=step, span=(ms[-1].mu - ms[0].mu) if ms else math.nan,
+        transition=pred.transition if pred is not None else None,
+        past=past if math.isfinite(past) else math.nan,
+    )  # fmt: skip
+
+
+def _resolution_floor(
+    pred: Prediction | None, ms: Sequence[Measurement], plan: SweepPlan
+) -> Prediction | None:
+    """The prediction with each side of its interval at least half the lab's
+    ``control_resolution`` (when the lab gave one) from mu*: a lab that sets its control to
+    that resolution knows each control only to half of it, and so mu* (never below the last
+    stable control)."""
+    res = plan.control_resolution
+    if res is None or pred is None or not math.isfinite(pred.mu_star) or not ms:
+        return pred
+    lo, hi = pred.mu_star_interval
+    m, half = pred.mu_star, 0.5 * float(res)
+    new = (max(min(lo, m - half), min(lo, ms[-1].mu)), max(hi, m + half))
+    return pred if new == (lo, hi) else replace(pred, mu_star_interval=new)
+
+
+def _without_newest(
+    recs: Sequence[SweepRecord], usable: Sequence[SweepRecord], past: float, plan: SweepPlan,
+    interval: tuple[float, float], last_mu: float, flags: list[Flag],
+) -> tuple[float, float]:  # fmt: skip
+    """The converged interval: the hull of ``interval`` and the interval of the same usable
+    records without the newest one (above the last stable control).
+
+    The nearest record decides an extrapolated mu* almost alone (its leverage is close to 1):
+    one record read a few standard errors off moves the answer by a few half-widths, and the
+    sweep stops on that answer (docs/lab-guide.md, "The advice rule": measured on the 60
+    sessions of bench/lab_session.py's lab)."""
+    newest = recs[-1].seq if recs else None
+    rest = [r for r in usable if r.seq != newest]
+    ms = fit_points(rest)
+    if len(ms) < MIN_RECORDS:
+        return interval
+    pred, _ = _predict(ms, plan.level)
+    if pred is None or not math.isfinite(pred.mu_star):
+        return interval
+    lo, hi = bounded_by(pred, past).mu_star_interval
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return interval
+    hull = (max(min(interval[0], lo), last_mu), max(interval[1], hi))
+    if hull != interval:
+        flags.append(Flag(
+            "converged_hull",
+            f"converged: the interval [{interval[0]:.6g}, {interval[1]:.6g}] joined with "
+            f"[{lo:.6g}, {hi:.6g}] from the records without the newest one, so that the answer "
+            "does not rest on one record alone",
+        ))  # fmt: skip
+    return hull
 
 
 class SweepPolicy:

@@ -80,20 +80,7 @@ def test_a_lab_following_the_advice(ready) -> None:  # noqa: ANN001
     sessions(ready, ("saddle-node",), (1,), bad_at=5)
 
 
-_SADDLE_3 = pytest.mark.xfail(strict=True, reason=(
-    "saddle-node seed 3 (mu* 28.6005959 deg): two intervals in a row narrower than the target "
-    "(1e-3 of the 28.4 deg travelled), [28.6005239, 28.6006161] then [28.6005186, "
-    "28.6005933], and the second misses mu* by 2.6e-6 deg (the predictor's saddle-node "
-    "interval too narrow for its bias, reported to the predictor); the 9 other seeds meet "
-    "every criterion"))
-_SUPERCRITICAL_5 = pytest.mark.xfail(strict=True, reason=(
-    "supercritical pitchfork seed 5 with the missed hammer (mu* 59.0241143 deg): 8 records at "
-    "56.9956 deg are set aside one after the other by the sweep-wide choice of the fundamental "
-    "(the record before them read too slow a mode), and the session ends at 30 records on "
-    "[58.9938226, 59.0241140], its upper end 3e-7 deg below mu* (the predictor's); the 9 other "
-    "seeds meet every criterion"))
-_KNOWN = {(KINDS[0], None): _SADDLE_3, (KINDS[2], 6): _SUPERCRITICAL_5}
-CELLS = [pytest.param(k, b, marks=_KNOWN.get((k, b), ())) for b in (None, 6) for k in KINDS]
+CELLS = [(k, b) for b in (None, 6) for k in KINDS]
 
 
 @pytest.mark.slow

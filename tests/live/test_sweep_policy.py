@@ -188,3 +188,45 @@ def test_the_cli_door_answers_as_the_live_door(tmp_path, capsys) -> None:  # noq
     assert text[2].startswith(f"alarm: {u.alarm.level} (rank {u.alarm.rank})")
     assert text[3].startswith("next safe theta: ") and text[3].endswith(" deg")
     assert float(text[3].split()[-2]) <= u.next_control
+
+
+def test_a_converged_interval_does_not_rest_on_the_newest_record() -> None:
+    """The sweep stops on its answer, and the nearest record decides an extrapolated mu* almost
+    alone: the converged interval joins the interval of the records without the newest one
+    (flag converged_hull); before convergence the interval is the records' own."""
+    from dataclasses import replace
+
+    from service.analysis.sweep_policy import SweepPolicy
+
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72]
+    plan = SweepPlan(step=0.3, target_width=0.2)
+    pol = SweepPolicy(plan)
+    for k, c in enumerate(controls):
+        m = point(c)
+        if k == len(controls) - 1:  # the newest record reads sigma^2 six standard errors soft
+            m = replace(m, sigma2=m.sigma2 + 6 * m.sigma2_std)
+        u = pol.add(SweepRecord(0, c, m, name=f"rec_{k:02d}.csv"))
+        if not u.converged:
+            assert "converged_hull" not in [f.code for f in u.flags]
+    assert u.converged and "converged_hull" in [f.code for f in u.flags]
+    own = evaluate(pol.records, plan).interval  # not converged without the previous interval
+    without = evaluate(pol.records[:-1], plan).interval
+    lo, hi = u.interval
+    assert own != (lo, hi)
+    assert lo == min(own[0], without[0]) and hi == max(own[1], without[1])
+    assert u.prediction.alarm.mu_star_interval == (lo, hi)  # one interval per document
+    assert lo <= MU_STAR <= hi
+
+
+def test_no_side_of_the_interval_is_finer_than_the_control_resolution() -> None:
+    """A lab that sets its control to 0.2 knows each control only to half of that: no side of
+    the interval is narrower than 0.1 (never below the last stable control, 1.76); without a
+    resolution given the interval is the records' own."""
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72, 1.76]
+    recs = [SweepRecord(k + 1, c, point(c)) for k, c in enumerate(controls)]
+    own = evaluate(recs, SweepPlan(step=0.3)).prediction
+    got = evaluate(recs, SweepPlan(step=0.3, control_resolution=0.2)).prediction
+    assert got.mu_star == own.mu_star
+    (lo0, hi0), (lo, hi) = own.mu_star_interval, got.mu_star_interval
+    assert hi0 - own.mu_star < 0.1 and hi == pytest.approx(own.mu_star + 0.1)
+    assert lo0 > 1.76 and lo == 1.76
