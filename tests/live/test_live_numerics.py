@@ -104,6 +104,29 @@ def test_record_roundtrip_and_finish() -> None:
     assert kept.measurements == fitted.measurements and kept.flags == fitted.flags
 
 
+def test_stored_records_keep_their_detection() -> None:
+    """Read back from the store (strict JSON: non-finite numbers as null), a record keeps its
+    detection, so the sweep-wide choice of the fundamental still sees every record (before: a
+    sweep read back from the store had no detections, and reconcile was skipped); a record
+    stored without one reads back without."""
+    import json
+
+    from service.analysis.sweep_policy import _reconciled
+    from service.api.storage.models import sanitize
+
+    recs, _ = sweep([0.0, 0.3, 0.6, 0.9, 1.2])
+    stored = [json.loads(json.dumps(sanitize(live_store.record_to_dict(r)))) for r in recs]
+    back = [live_store.record_from_dict(d) for d in stored]
+    for r, b in zip(recs, back, strict=True):
+        assert b.detection is not None
+        assert json.dumps(sanitize(live_store.detection_to_dict(b.detection))) == json.dumps(
+            sanitize(live_store.detection_to_dict(r.detection)))  # fmt: skip
+        assert b.detection.fundamental == r.detection.fundamental
+    assert [r.detection for r in _reconciled(back)] == [r.detection for r in back]
+    old = {k: v for k, v in stored[0].items() if k != "detection"}
+    assert live_store.record_from_dict(old).detection is None
+
+
 @pytest.mark.parametrize(
     "db", ["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)]
 )
