@@ -11,6 +11,12 @@ suggests, and stops when the sweep says converged, gives no safe step, or after 
 
 Writes bench/results/lab_session[_<kind>][_bad].csv and docs/figures/lab_session[...].png (the
 figure of docs/lab-guide.md).
+
+    python bench/lab_session.py --ten-labs [--seeds 1-10]
+
+runs the ten-lab sessions instead (each type, each seed, clean and with a missed hammer at
+record 6: the cells of tests/live/test_lab_in_the_loop.py, in process), prints one line a
+session and the criteria met per cell, and writes bench/results/lab_sessions.csv.
 """
 
 from __future__ import annotations
@@ -92,13 +98,64 @@ def figure(rows: list[dict], camp: LL.F.Campaign, path: Path, bad_at: int | None
     plt.close(fig)
 
 
+def ten_labs(seeds: list[int], bad_at: int = 6) -> list[dict]:
+    """The ten-lab sessions: per type, per seed, clean and with a missed hammer at ``bad_at``;
+    one row a session with the issue's criteria (never at or past mu*, covered, narrower than
+    1 % of the distance travelled, within the budget)."""
+    out = []
+    for kind in LL.KINDS:
+        for bad in (None, bad_at):
+            for seed in seeds:
+                camp = campaign(kind, seed)
+                rows = session(camp, bad)
+                ctr = [r["control"] for r in rows]
+                last, travelled = rows[-1], max(ctr) - ctr[0]
+                covered = bool(last["lo"] <= camp.mu_star <= last["hi"])
+                width = last["hi"] - last["lo"]
+                ok = (max(ctr) < camp.mu_star and covered and width < 0.01 * travelled
+                      and len(rows) <= LL.BUDGET)  # fmt: skip
+                out.append({"kind": kind, "bad_at": bad, "seed": seed, "mu_star": camp.mu_star,
+                            "records": len(rows), "lo": last["lo"], "hi": last["hi"],
+                            "covered": covered, "width_of_travel": width / travelled,
+                            "converged": last["converged"], "ok": ok})  # fmt: skip
+                r = out[-1]
+                print(f"{kind:24s} bad={bad!s:4s} seed={seed:2d} records={len(rows):2d} "
+                      f"[{r['lo']:.7f}, {r['hi']:.7f}] mu*={camp.mu_star:.7f} "
+                      f"width/travel={r['width_of_travel']:.2e} ok={ok}", flush=True)
+    for kind in LL.KINDS:
+        for bad in (None, bad_at):
+            cell = [r for r in out if r["kind"] == kind and r["bad_at"] == bad]
+            n = [r["records"] for r in cell]
+            print(f"{kind:24s} {'clean' if bad is None else 'bad':5s} criteria met "
+                  f"{sum(r['ok'] for r in cell)}/{len(cell)}, records median "
+                  f"{float(np.median(n)):.1f} max {max(n)}")
+    print(f"total {sum(r['ok'] for r in out)}/{len(out)}")
+    return out
+
+
+def _seeds(text: str) -> list[int]:
+    a, _, b = text.partition("-")
+    return list(range(int(a), int(b) + 1)) if b else [int(v) for v in text.split(",")]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--kind", default="saddle-node",
                     choices=["saddle-node", "subcritical-pitchfork", "supercritical-pitchfork"])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--bad-at", type=int, default=None)
+    ap.add_argument("--ten-labs", action="store_true")
+    ap.add_argument("--seeds", default="1-10", help="the ten-lab seeds: 1-10 or 1,3,5")
     args = ap.parse_args()
+    if args.ten_labs:
+        out = ten_labs(_seeds(args.seeds))
+        OUT.mkdir(parents=True, exist_ok=True)
+        with open(OUT / "lab_sessions.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(out[0]))
+            w.writeheader()
+            w.writerows(out)
+        print(f"wrote {OUT / 'lab_sessions.csv'}")
+        return 0
     camp = campaign(args.kind, args.seed)
     rows = session(camp, args.bad_at)
     stem = "lab_session" + ("" if args.kind == "saddle-node" else f"_{args.kind}")
