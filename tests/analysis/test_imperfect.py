@@ -3,7 +3,10 @@
 The compiled amplitude and stiffness (``service.analysis.predictor._kernels.cusp``) against
 numpy's polynomial roots of the equilibrium ``eps + lambda x -+ c x^3 = 0`` and its derivative;
 the fold and the least stiffness against their closed forms (Koiter's two-thirds law); the
-eigenvalue misfit against numpy's least squares; and the fit recovering an exact law's fold.
+eigenvalue misfit against numpy's least squares (the cusp's and the perfect fold's); the joint
+minimum (compiled Nelder-Mead), the profile at a point and the grid scan against scipy's
+Nelder-Mead, a fine brute-force grid and a Python loop; and the fit recovering an exact law's
+fold and least stiffness.
 """
 
 from __future__ import annotations
@@ -12,16 +15,23 @@ import math
 
 import numpy as np
 import pytest
+from scipy import optimize
 
 from service.analysis.predictor._kernels.cusp import (
     K_MIN,
     R_FOLD,
     R_MIN,
+    _at,
     amplitude,
     cusp_nll,
+    fold_nll,
+    nll_point,
+    polish,
+    profile_point,
+    scan2,
     stiffness,
 )
-from service.analysis.predictor.imperfect import _fit
+from service.analysis.predictor.imperfect import _GS, _TS, _fit, _joint
 
 
 def _branch_x(lam: float, eps: float, c: float, soft: bool) -> float:
@@ -96,6 +106,78 @@ def test_misfit_equals_numpy_least_squares() -> None:
             ref = float(np.sum((wt * (y - X @ coef)) ** 2))
             got = cusp_nll(mu, y, wt, scale, mu_star, G, soft, K)
             assert got == pytest.approx(ref, rel=1e-8, abs=1e-12)
+
+
+def test_fold_misfit_equals_numpy_least_squares() -> None:
+    rng = np.random.default_rng(4)
+    mu = np.linspace(0.5, 0.97, 12)
+    for K in (0, 1, 2):
+        mu_f, scale = 1.0, 0.47
+        y = rng.uniform(0.5, 1.5, mu.size) * np.sqrt(1.0 - mu)
+        wt = rng.uniform(1.0, 3.0, mu.size)
+        lam = mu_f - mu
+        X = np.sqrt(lam)[:, None] * (lam[:, None] / scale) ** np.arange(K + 1)
+        coef, *_ = np.linalg.lstsq(X * wt[:, None], y * wt, rcond=None)
+        ref = float(np.sum((wt * (y - X @ coef)) ** 2))
+        assert fold_nll(mu, y, wt, scale, mu_f, K) == pytest.approx(ref, rel=1e-8, abs=1e-12)
+    assert fold_nll(mu, y, wt, 0.47, 0.9, 1) == math.inf  # a point past the fold
+
+
+def _column_like(soft: bool, noise: float = 3e-5):  # noqa: ANN202
+    """Cusp eigenvalues with one correction and relative noise: ``(mu, y, wt, scale)``."""
+    rng = np.random.default_rng(11)
+    mu_star, G = 100.0, 1.5
+    mu_p = mu_star - (R_FOLD if soft else R_MIN) * G
+    mu = np.linspace(mu_p - 12.0, mu_p - 0.3, 9)
+    lam = mu_star - mu
+    y = 2.0 * np.array([stiffness(float(v), G, soft) for v in lam]) * (1 + 0.002 * lam)
+    y = y * (1 + noise * rng.standard_normal(mu.size))
+    return mu, y, 1.0 / (noise * y), float(mu[-1] - mu[0])
+
+
+@pytest.mark.parametrize("soft", [True, False])
+def test_scan_and_polish_against_a_python_loop_and_scipy(soft: bool) -> None:
+    mu, y, wt, scale = _column_like(soft)
+    shift = 0.0 if soft else 3.0
+    ts, gs = _TS[::4], _GS[::5]
+    F = scan2(mu, y, wt, scale, ts, gs, soft, 1, shift)
+    ref = np.array([[_at(mu, y, wt, scale, t, g, soft, 1, shift) for g in gs] for t in ts])
+    np.testing.assert_array_equal(F, ref)
+    # the joint minimum: a brute-force grid 200 x 200 over the box, then the compiled simplex
+    # and scipy's (the same box) from its best point agree, and the engine's joint search
+    # (coarse grids, several starts) finds it too
+    box = np.array([_TS[0], _TS[-1], _GS[0], _GS[-1]])
+
+    def boxed(x: np.ndarray) -> float:
+        inside = box[0] <= x[0] <= box[1] and box[2] <= x[1] <= box[3]
+        return _at(mu, y, wt, scale, x[0], x[1], soft, 1, shift) if inside else math.inf
+
+    tf, gf = np.linspace(box[0], box[1], 200), np.linspace(box[2], box[3], 200)
+    B = scan2(mu, y, wt, scale, tf, gf, soft, 1, shift)
+    i, j = np.unravel_index(np.argmin(np.where(np.isfinite(B), B, np.inf)), B.shape)
+    got = polish(mu, y, wt, scale, float(tf[i]), float(gf[j]), soft, 1, shift, 0.05, 1e-10,
+                 4000, box)  # fmt: skip
+    sp = optimize.minimize(boxed, [tf[i], gf[j]], method="Nelder-Mead",
+                           options={"xatol": 1e-10, "fatol": 1e-10, "maxfev": 20000})  # fmt: skip
+    assert got[0] == pytest.approx(sp.fun, rel=1e-4, abs=1e-4)
+    f0, t0, g0, _ = _joint(mu, y, wt, scale, 1, soft, shift, _TS, _GS)
+    assert f0 <= min(got[0], sp.fun) + 1e-3
+    assert f0 < 20.0  # the noise's (9 points, 4 parameters), not the grid's valley
+
+
+@pytest.mark.parametrize("soft", [True, False])
+def test_profile_at_a_point_against_a_brute_force_grid(soft: bool) -> None:
+    mu, y, wt, scale = _column_like(soft)
+    shift = 0.0 if soft else 3.0
+    f0, t0, g0, _ = _joint(mu, y, wt, scale, 1, soft, shift, _TS, _GS)
+    G0 = scale * math.exp(g0)
+    m0 = mu[-1] + scale * math.exp(t0) - shift * G0
+    for dm in (0.0, 2e-3, -2e-3):
+        got, g = profile_point(mu, y, wt, scale, m0 + dm, soft, 1, shift, g0, 0.7, _GS[-1])
+        fine = np.linspace(g0 - 0.7, min(g0 + 0.7, _GS[-1]), 20001)
+        ref = min(nll_point(mu, y, wt, scale, m0 + dm, float(v), soft, 1, shift) for v in fine)
+        assert got <= ref + 1e-6 * max(ref, 1.0)
+        assert got == pytest.approx(nll_point(mu, y, wt, scale, m0 + dm, g, soft, 1, shift))
 
 
 @pytest.mark.parametrize("soft", [True, False])

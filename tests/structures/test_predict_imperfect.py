@@ -7,11 +7,10 @@ The default suite runs a few fixed plans per kind (each plan's own guarantees: n
 snap where there is none, imperfect softening columns never named supercritical or smooth nor
 warned of too late, mu* inside its interval, no flag denying it); the slow suite runs 40 plans
 per kind: perfect columns and trusses no worse than before issue 28's engine, imperfect
-softening columns never supercritical nor smooth and their fold covered in >= 90 %, mu* inside
-its interval and no flag denying it in every plan. The issue's checks the engine does not pass
-yet are strict xfails with their figures: softening intervals never wholly later than the fold,
-stiffening columns never a confident snap and "no transition" in >= 90 % of the plans within
-1 % of ``P_c``. The records door (impulse records detected, then predicted) passes.
+softening columns never supercritical nor smooth, their fold covered in >= 90 % and never
+wholly earlier than their interval, stiffening columns never a confident snap and "no
+transition" in >= 90 % of the plans within 1 % of ``P_c``, mu* inside its interval and no flag
+denying it in every plan. The records door (impulse records detected, then predicted) passes.
 """
 
 from __future__ import annotations
@@ -203,31 +202,18 @@ def test_imperfect_softening_never_supercritical_nor_smooth_and_the_fold_covered
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "1 of 80 intervals wholly later than the fold: plan 89, a saddle-node the perfect fold law "
-    "names at p = 1.0 with no misfit flag, [97.36211, 97.43507] for the fold 97.33359 (covered "
-    "39/40 and 38/40)"))
 def test_imperfect_softening_interval_never_wholly_later_than_the_fold() -> None:
     for p, r in _of(_slow(), *SOFT):
         _check_softening(p, r)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "stiffening columns named a snap at p >= 0.9 in 4 of 40 plans (130, 143, 147, 159) and "
-    "coupled ones in 1 of 40 (318): the perfect fold law wins where the stiffening law is not "
-    "told"))
 def test_imperfect_stiffening_never_a_confident_snap_slow() -> None:
     for p, r in _of(_slow(), *STIFF):
         _check_stiffening(p, r)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "'no transition' said in 6 of 12 (single) and 5 of 13 (coupled) plans within 1 % of P_c "
-    "(needs >= 90 %): where no law holds on the window the imperfect laws' gain over the plain "
-    "pitchfork is not evidence (the beam's antisymmetric plans show the same), so 'none' is "
-    "not said there"))
 def test_imperfect_stiffening_says_no_transition() -> None:
     res = _of(_slow(), *STIFF)
     near = [(p, r) for p, r in res if p.stop <= 0.01]

@@ -217,3 +217,203 @@ def profile_scan(
     for i in range(ts.size):
         f[i], g[i] = profile_g(mu, y, wt, scale, ts[i], gs, soft, K, shift, refine)
     return f, g
+
+
+@njit(cache=True)
+def _boxed(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, t: float, g: float,
+    soft: bool, K: int, shift: float, box: np.ndarray,
+) -> float:
+    """:func:`_at` inside ``box = (t_lo, t_hi, g_lo, g_hi)``, ``inf`` outside (far from the
+    records, with ``G`` beyond the window's span, the normal equations lose every digit and
+    ``-2 log L`` reads 0)."""
+    if not (box[0] <= t <= box[1] and box[2] <= g <= box[3]):
+        return math.inf
+    return _at(mu, y, wt, scale, t, g, soft, K, shift)
+
+
+@njit(cache=True)
+def polish(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, t0: float, g0: float,
+    soft: bool, K: int, shift: float, step: float, tol: float, max_eval: int,
+    box: np.ndarray,
+) -> tuple[float, float, float]:
+    """The joint minimum of :func:`_at` over ``(t, g)`` from ``(t0, g0)``: Nelder-Mead's
+    simplex (reflection 1, expansion 2, contraction 1/2, shrink 1/2), first steps ``step``,
+    inside ``box`` (``t_lo, t_hi, g_lo, g_hi``), until the simplex spans less than ``tol`` in
+    both variables or ``max_eval`` evaluations.
+
+    The scan over ``t`` with ``g`` profiled on a grid (:func:`profile_scan`) only brackets the
+    minimum: the law's valley in ``(t, g)`` is narrower than either grid (a stiffening column's
+    records, 6 points, noise 7e-5: the scan's best ``-2 log L`` 1.8e5, the joint minimum 0.2).
+    Returns ``(nll, t, g)``."""
+    xs = np.empty((3, 2))
+    fs = np.empty(3)
+    xs[0, 0], xs[0, 1] = t0, g0
+    xs[1, 0], xs[1, 1] = t0 + step, g0
+    xs[2, 0], xs[2, 1] = t0, g0 + step
+    for i in range(3):
+        fs[i] = _boxed(mu, y, wt, scale, xs[i, 0], xs[i, 1], soft, K, shift, box)
+    n_eval = 3
+    while n_eval < max_eval:
+        # order: best 0, worst 2
+        for i in range(2):
+            for j in range(2 - i):
+                if fs[j + 1] < fs[j] or (not fs[j] == fs[j]):
+                    fs[j], fs[j + 1] = fs[j + 1], fs[j]
+                    for c in range(2):
+                        xs[j, c], xs[j + 1, c] = xs[j + 1, c], xs[j, c]
+        span = 0.0
+        for i in range(1, 3):
+            for c in range(2):
+                span = max(span, abs(xs[i, c] - xs[0, c]))
+        if span < tol:
+            break
+        cx = 0.5 * (xs[0, 0] + xs[1, 0])
+        cy = 0.5 * (xs[0, 1] + xs[1, 1])
+        rx = cx + (cx - xs[2, 0])
+        ry = cy + (cy - xs[2, 1])
+        fr = _boxed(mu, y, wt, scale, rx, ry, soft, K, shift, box)
+        n_eval += 1
+        if fr < fs[0]:
+            ex = cx + 2.0 * (cx - xs[2, 0])
+            ey = cy + 2.0 * (cy - xs[2, 1])
+            fe = _boxed(mu, y, wt, scale, ex, ey, soft, K, shift, box)
+            n_eval += 1
+            if fe < fr:
+                xs[2, 0], xs[2, 1], fs[2] = ex, ey, fe
+            else:
+                xs[2, 0], xs[2, 1], fs[2] = rx, ry, fr
+            continue
+        if fr < fs[1]:
+            xs[2, 0], xs[2, 1], fs[2] = rx, ry, fr
+            continue
+        if fr < fs[2]:  # outside contraction
+            kx = cx + 0.5 * (rx - cx)
+            ky = cy + 0.5 * (ry - cy)
+        else:  # inside contraction
+            kx = cx + 0.5 * (xs[2, 0] - cx)
+            ky = cy + 0.5 * (xs[2, 1] - cy)
+        fk = _boxed(mu, y, wt, scale, kx, ky, soft, K, shift, box)
+        n_eval += 1
+        if fk < min(fr, fs[2]):
+            xs[2, 0], xs[2, 1], fs[2] = kx, ky, fk
+            continue
+        for i in range(1, 3):  # shrink toward the best
+            xs[i, 0] = xs[0, 0] + 0.5 * (xs[i, 0] - xs[0, 0])
+            xs[i, 1] = xs[0, 1] + 0.5 * (xs[i, 1] - xs[0, 1])
+            fs[i] = _boxed(mu, y, wt, scale, xs[i, 0], xs[i, 1], soft, K, shift, box)
+            n_eval += 1
+    ib = 0
+    for i in range(1, 3):
+        if fs[i] < fs[ib]:
+            ib = i
+    return fs[ib], xs[ib, 0], xs[ib, 1]
+
+
+@njit(cache=True)
+def scan2(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, ts: np.ndarray,
+    gs: np.ndarray, soft: bool, K: int, shift: float,
+) -> np.ndarray:
+    """:func:`_at` on the grid ``ts x gs``, shape ``(ts.size, gs.size)``: the starts of
+    :func:`polish`."""
+    F = np.empty((ts.size, gs.size))
+    for i in range(ts.size):
+        for j in range(gs.size):
+            F[i, j] = _at(mu, y, wt, scale, ts[i], gs[j], soft, K, shift)
+    return F
+
+
+@njit(cache=True)
+def nll_point(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, mu_p: float, g: float,
+    soft: bool, K: int, shift: float,
+) -> float:
+    """:func:`cusp_nll` at the point the law predicts, ``mu_p`` (the fold, softening; the
+    least stiffness, stiffening), and ``G = scale exp(g)``; ``inf`` where ``mu_p`` lies more
+    than ``shift G`` before the last point (the search's domain, as :func:`_at`'s)."""
+    G = scale * math.exp(g) if g > -700 else 0.0
+    if not mu_p - mu[-1] + shift * G > 0:
+        return math.inf
+    mu_star = mu_p + (R_FOLD if soft else R_MIN) * G
+    return cusp_nll(mu, y, wt, scale, mu_star, G, soft, K)
+
+
+@njit(cache=True)
+def profile_point(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, mu_p: float, soft: bool,
+    K: int, shift: float, gc: float, width: float, g_max: float,
+) -> tuple[float, float]:
+    """The profile over ``g`` at the point ``mu_p``: golden-section search over ``[gc -
+    width, min(gc + width, g_max)]`` (continued from a neighbouring point's ``gc``: at a fixed
+    point the valley in ``g`` is narrow but single, at a fixed ``t`` it is not), the perfect
+    law and ``gc`` itself. Returns ``(nll, g)``."""
+    best = nll_point(mu, y, wt, scale, mu_p, gc, soft, K, shift)
+    gb = gc
+    f = nll_point(mu, y, wt, scale, mu_p, -math.inf, soft, K, shift)
+    if f < best:
+        best, gb = f, -math.inf
+    a = gc - width
+    c = min(gc + width, g_max)
+    gr = 0.5 * (math.sqrt(5.0) - 1.0)
+    x1 = c - gr * (c - a)
+    x2 = a + gr * (c - a)
+    f1 = nll_point(mu, y, wt, scale, mu_p, x1, soft, K, shift)
+    f2 = nll_point(mu, y, wt, scale, mu_p, x2, soft, K, shift)
+    for _ in range(90):
+        if f1 < f2:
+            c, x2, f2 = x2, x1, f1
+            x1 = c - gr * (c - a)
+            f1 = nll_point(mu, y, wt, scale, mu_p, x1, soft, K, shift)
+        else:
+            a, x1, f1 = x1, x2, f2
+            x2 = a + gr * (c - a)
+            f2 = nll_point(mu, y, wt, scale, mu_p, x2, soft, K, shift)
+        if c - a < 1e-10:
+            break
+    if f1 < best:
+        best, gb = f1, x1
+    if f2 < best:
+        best, gb = f2, x2
+    return best, gb
+
+
+@njit(cache=True)
+def fold_nll(
+    mu: np.ndarray, y: np.ndarray, wt: np.ndarray, scale: float, mu_f: float, K: int,
+) -> float:
+    """``-2 log L`` of the perfect fold's eigenvalue law ``|sigma^2| = (mu_f - mu)^(1/2) sum_j
+    alpha_j ((mu_f - mu)/scale)^j`` (``j <= K``, the ``alpha_j`` profiled), the comparator of
+    a softening cusp's fold: ``inf`` where a point lies at or past ``mu_f``."""
+    n = mu.size
+    m = K + 1
+    A = np.zeros((m, m))
+    b = np.zeros(m)
+    basis = np.empty(m)
+    yy = 0.0
+    for i in range(n):
+        lam = mu_f - mu[i]
+        if not lam > 0:
+            return math.inf
+        q = lam / scale
+        p = math.sqrt(lam) * wt[i]
+        for j in range(m):
+            basis[j] = p
+            p *= q
+        yi = y[i] * wt[i]
+        yy += yi * yi
+        for j in range(m):
+            b[j] += basis[j] * yi
+            for l in range(j + 1):
+                A[j, l] += basis[j] * basis[l]
+    for j in range(m):
+        for l in range(j + 1, m):
+            A[j, l] = A[l, j]
+    rhs = b.copy()
+    if not _solve(A, rhs, m):
+        return math.inf
+    fit = 0.0
+    for j in range(m):
+        fit += rhs[j] * b[j]
+    return max(yy - fit, 0.0)
