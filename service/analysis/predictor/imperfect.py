@@ -293,7 +293,7 @@ def _end(
 
         if not excess(inner) < 0:  # (the profile's search lost the valley: the wider end)
             return float(m)
-        u = optimize.brentq(excess, inner, d, xtol=1e-14, rtol=1e-4)
+        u = optimize.brentq(excess, inner, d, xtol=1e-13 * scale, rtol=1e-10)
         return float(m0 + side * u)
     return float(min(m0 + side * d, last + 3.0 * scale) if side > 0 else m0 - inner)
 
