@@ -37,6 +37,11 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("arch_fold", "lab", 0): None,
     ("arch_fold", "far", 0): None,
     ("arch_fold", "past", 0): None,
+    ("arch_fold", "past", 2): (
+        "detector (3 % hum at 500 Hz, 3 s records: the last stable record at 114.207 N read "
+        "sigma2 -9.6 for -142.5) then predictor/policy: saddle-node named with the interval "
+        "[114.2070, 114.2101] N, 500 widths below the fold at 115.7495 (flags interval_huge, "
+        "law_misfit); the predictor alone on the exact table: saddle-node [115.732, 115.793]"),
     ("arch_pitchfork", "lab", 0): None,
     ("arch_pitchfork", "far", 0): None,
     ("arch_pitchfork", "past", 0): (
