@@ -65,6 +65,12 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("foundation", "lab", 0): None,
     ("foundation", "far", 0): None,
     ("foundation", "past", 0): None,
+    ("foundation", "past", 2): (
+        "detector then policy: the record past mu* (6.870 N, truth 6.8224; growing e^6 over the "
+        "record, read through a geophone at 20 kHz) is read as a stable overdamped mode "
+        "(sigma2 -1000, flags repeated_kick, few_periods: the growth taken for a second kick), "
+        "not `unstable`: the interval [6.897, 242.5] N starts beyond a record that grew and the "
+        "advice (6.8836) is above mu*"),
     ("threelink", "lab", 0): None,
     ("threelink", "far", 0): None,
     ("threelink", "past", 0): None,
