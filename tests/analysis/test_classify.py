@@ -101,7 +101,8 @@ def overdamped_rates(
 @pytest.mark.parametrize("kind", KINDS)
 def test_classifies_each_transition_with_static_data(kind: str) -> None:
     d = sweep(kind, seed=1)
-    c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"])
+    c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"],
+                 w_static_std=1e-6)
     assert isinstance(c, Classification)
     assert c.transition == kind
     assert c.probabilities[kind] > 0.99
@@ -136,9 +137,28 @@ def test_half_integer_corrections_matter_near_a_fold() -> None:
     assert c.probabilities["pitchfork"] < 1e-6
 
 
+def test_supercritical_named_a_pitchfork_without_the_static_noise() -> None:
+    """Static records without their noise (a plain table): a supercritical pitchfork's are
+    told from a saddle-node's, not from an imperfect softening structure's (which snaps): named
+    ``pitchfork`` with the flag ``static_noise_unknown``; the same records with their noise are
+    named supercritical (the other types are unaffected)."""
+    d = sweep("supercritical-pitchfork", seed=4)
+    c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"])
+    assert c.transition == "pitchfork"
+    assert any(f.code == "static_noise_unknown" for f in c.flags)
+    c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"],
+                 w_static_std=1e-6)
+    assert c.transition == "supercritical-pitchfork"
+    assert not any(f.code == "static_noise_unknown" for f in c.flags)
+    for kind in ("saddle-node", "subcritical-pitchfork"):
+        d = sweep(kind, seed=4)
+        c = classify(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"])
+        assert c.transition == kind
+
+
 def test_noise_estimated_when_not_given() -> None:
     d = sweep("supercritical-pitchfork", rel=1e-3, seed=4)
-    c = classify(d["mu"], d["sigma2"], w_static=d["w_static"])
+    c = classify(d["mu"], d["sigma2"], w_static=d["w_static"], w_static_std=1e-6)
     assert c.transition == "supercritical-pitchfork"
     flag = next(f for f in c.flags if f.code == "noise_estimated")
     assert isinstance(flag, Flag) and "relative noise" in flag.message
@@ -228,7 +248,8 @@ def test_overdamped_layer_omega_data_saddle_node() -> None:
 def test_overdamped_layer_omega_data_pitchforks(kind: str, xi: float) -> None:
     d = overdamped_rates(kind, xi=xi, seed=0)
     assert d["overdamped"].sum() >= 4
-    c = classify(d["mu"], omega=d["omega"], omega_std=d["omega_std"], w_static=d["w_static"])
+    c = classify(d["mu"], omega=d["omega"], omega_std=d["omega_std"], w_static=d["w_static"],
+                 w_static_std=1e-6)
     assert c.transition == kind
     assert c.regime == "overdamped"
     assert abs(c.a - 1.0) < 0.1
@@ -329,7 +350,7 @@ def test_beam_spectra_classified_and_mu_star(beam_sweeps: dict, act: str, rel: f
     sd = rel * np.abs(d["sigma2"])
     s2 = d["sigma2"] + sd * rng.standard_normal(sd.size)
     w = d["w"] + 1e-6 * rng.standard_normal(sd.size)
-    c = classify(d["mu"], s2, sigma2_std=sd, w_static=w)
+    c = classify(d["mu"], s2, sigma2_std=sd, w_static=w, w_static_std=1e-6)
     assert c.transition == BEAM_KIND[act]
     assert c.probabilities[BEAM_KIND[act]] > 0.99
     assert abs(c.a - {"saddle-node": 0.25}.get(c.transition, 0.5)) < 0.01
@@ -349,5 +370,5 @@ def test_beam_classification_over_seeds(beam_sweeps: dict, act: str) -> None:
         sd = 1e-3 * np.abs(d["sigma2"])
         s2 = d["sigma2"] + sd * rng.standard_normal(sd.size)
         w = d["w"] + 1e-5 * rng.standard_normal(sd.size)
-        c = classify(d["mu"], s2, sigma2_std=sd, w_static=w)
+        c = classify(d["mu"], s2, sigma2_std=sd, w_static=w, w_static_std=1e-5)
         assert c.transition == BEAM_KIND[act], (seed, c.probabilities)

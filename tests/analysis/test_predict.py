@@ -103,7 +103,8 @@ def test_predict_given_law_beats_paper_rule(kind: str) -> None:
 @pytest.mark.parametrize("kind", KINDS)
 def test_predict_model_average_when_law_unknown(kind: str) -> None:
     d = sweep(kind, seed=11)
-    p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"])
+    p = predict(d["mu"], d["sigma2"], sigma2_std=d["sigma2_std"], w_static=d["w_static"],
+                w_static_std=1e-6)
     assert p.transition == kind
     assert p.classification is not None and p.classification.transition == kind
     assert p.a == pytest.approx({"saddle-node": 0.25}.get(kind, 0.5), abs=1e-6)
@@ -218,7 +219,7 @@ def test_beam_mu_star_10x_better_than_paper(beam_sweeps: dict, act: str) -> None
     sd = 1e-4 * np.abs(d["sigma2"])
     s2 = d["sigma2"] + sd * rng.standard_normal(sd.size)
     w = d["w"] + 1e-6 * rng.standard_normal(sd.size)
-    p = predict(d["mu"], s2, sigma2_std=sd, w_static=w)
+    p = predict(d["mu"], s2, sigma2_std=sd, w_static=w, w_static_std=1e-6)
     assert p.transition == BEAM_KIND[act]
     err = p.mu_star - d["mu_star"]
     lo, hi = p.mu_star_interval
@@ -244,7 +245,8 @@ def _sequential(act: str, ref: dict, seed: int, rel: float, budget: int = 30) ->
             s2s.append(s * (1 + rel * rng.standard_normal()))
             ws.append(equilibrium(act, m, "U_A").w_quarter + 1e-6 * rng.standard_normal())
         s2a = np.array(s2s)
-        p = predict(np.array(mus), s2a, sigma2_std=rel * np.abs(s2a), w_static=np.array(ws))
+        p = predict(np.array(mus), s2a, sigma2_std=rel * np.abs(s2a), w_static=np.array(ws),
+                    w_static_std=1e-6)
         lo, hi = p.mu_star_interval
         if len(mus) >= budget or not math.isfinite(p.next_safe_mu) or hi - lo < 2e-7:
             break  # budget spent, or the interval is narrow enough (100x below the target)

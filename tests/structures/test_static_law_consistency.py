@@ -122,16 +122,6 @@ def test_imperfect_columns_miss_the_static_law_at_any_common_mu_star() -> None:
 
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "without w_static_std the rule static_misfit cannot read the static law against a noise "
-    "(estimated from the scatter about the same law, it absorbs the misfit): coupled softening "
-    "columns 1 and 11 of these 12 plans are named supercritical (p 0.91, 1.00); "
-    "bench/structures.py seed 2028 without any std: 6 of 42 softening columns with static data "
-    "(plans 108, 245, 246, 251, 267, 269, p 0.96-1.00). Neither a local-cubic noise estimate "
-    "(3 of the 8 where a supercritical law led slip) nor an F test of the shared mu* (weak "
-    "at 8 points) separated them; naming 'pitchfork' whenever the static std is missing "
-    "would, but changes 9 tests that expect "
-    "supercritical from exact static data without std"))
 def test_without_the_static_noise_an_imperfect_column_is_never_named_supercritical() -> None:
     """A lab's plain table (mu, sigma2, w_static, no std) of imperfect softening columns: never
     named supercritical (a snap called smooth)."""

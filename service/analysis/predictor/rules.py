@@ -82,6 +82,9 @@ class Rule:
     reason: str
     pinned_by: str
     check: Callable[[str, Evidence], str | None]
+    #: what the type becomes when the rule fires (``"pitchfork"``: the exponent is decided, only
+    #: the criticality is not)
+    demote_to: str = "undetermined"
 
 
 def _slowdown(transition: str, ev: Evidence) -> str | None:
@@ -216,6 +219,19 @@ def _static_misfit(transition: str, ev: Evidence) -> str | None:
     return None
 
 
+def _static_noise_unknown(transition: str, ev: Evidence) -> str | None:
+    given = ev.sw0.w_sd is not None and ev.sw0.w_noise_given
+    if transition != "supercritical-pitchfork" or ev.sw.w is None or given:
+        return None
+    return (
+        "only the static deflection tells a supercritical pitchfork (b = 1/2) from a "
+        "subcritical one, and an imperfect softening structure (which snaps at a fold) from "
+        "both; the static records carry no noise level (give w_static_std), so their misfit "
+        "about the static law cannot be read (a noise estimated from the same records absorbs "
+        "it): named a pitchfork, its criticality not decided"
+    )
+
+
 RULES: tuple[Rule, ...] = (
     Rule("slowdown_not_reached", "classification",
          "far from mu* (T/T0 < 2.75) a fold and a pitchfork with a nearby secondary fold look "
@@ -240,6 +256,12 @@ RULES: tuple[Rule, ...] = (
          "a supercritical pitchfork is told by its static exponent alone: not where the "
          "nearest static records miss the static law at every mu* the eigenvalues allow",
          "tests/structures/test_static_law_consistency.py", _static_misfit),
+    Rule("static_noise_unknown", "classification",
+         "a supercritical pitchfork (no snap) is named only from static records with a noise "
+         "level: without one an imperfect softening structure's records pass the static law",
+         "tests/structures/test_static_law_consistency.py::test_without_the_static_noise_an_"
+         "imperfect_column_is_never_named_supercritical", _static_noise_unknown,
+         demote_to="pitchfork"),
     Rule("type_withheld", "prediction",
          "the other exponent keeps >= 5 %: the type is not decided at the interval's 95 %",
          "tests/analysis/test_predict_lab.py::test_no_type_named_while_the_other_exponent_keeps_"
@@ -248,13 +270,14 @@ RULES: tuple[Rule, ...] = (
 
 
 def withhold(transition: str, ev: Evidence, stage: str, flags: list[Flag]) -> str:
-    """``transition``, or ``"undetermined"`` when a rule of ``stage`` withholds it (each rule
-    that fires appends its flag, in the table's order)."""
+    """``transition``, or what a rule of ``stage`` that withholds it demotes it to
+    (``"undetermined"``, or ``"pitchfork"`` where only the criticality is undecided); each rule
+    that fires appends its flag, in the table's order."""
     for rule in RULES:
         if rule.stage != stage:
             continue
         msg = rule.check(transition, ev)
         if msg is not None:
             flags.append(Flag(rule.code, msg))
-            transition = "undetermined"
+            transition = rule.demote_to
     return transition
