@@ -31,13 +31,14 @@ from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, paper_rule
-from service.analysis.reconcile import set_aside
+from service.analysis.reconcile import SET_ASIDE, set_aside
 from service.analysis.sampling import PERIODS
 from service.analysis.sweep_policy import (
     PolicyUpdate,
     SetAside,
     SweepPlan,
     SweepPolicy,
+    SweepRecord,
     record_of,
     reduce_detection,
 )
@@ -286,7 +287,10 @@ def sweep_from_signals(
     options : sequence of mapping, optional
         Per record (the order of ``records``), the detector's lab options (``quantity``,
         ``start``, ``notch``) and ``exclude`` (True: the user leaves the record out; it is
-        listed as set aside with that reason).
+        listed as set aside with that reason); ``unreadable`` (the reason a record's file could
+        not be read: its ``w`` is None, it is set aside with that reason). A record whose
+        samples the detector refuses (parameter ``w``: non-finite, too short, constant) is
+        set aside with the detector's reason; the sweep goes on with the others.
     """
     if options is not None and len(options) != len(records):
         raise ParameterError(
@@ -303,15 +307,27 @@ def sweep_from_signals(
     dets: list[tuple[Detection, float, str | None]] = []
     for i, j in enumerate(order):
         w, dt, control = records[j]
-        w = np.asarray(w, dtype=float)
         name = names[j] if names is not None else None
         opts = dict((options[j] or {}) if options is not None else {})
         exclude = bool(opts.pop("exclude", False))
-        try:
-            det = detect(w, dt=float(dt), method=method, **opts)
-        except ParameterError as exc:  # say which record
-            label = f"{name} (control {control!r})" if name else f"at control {control!r}"
-            raise ParameterError(exc.parameter, exc.value, f"record {label}: {exc}") from None
+        label = name or f"at control {control!r}"
+        why = opts.pop("unreadable", None)
+        if why is None:
+            w = np.asarray(w, dtype=float)
+            try:
+                det = detect(w, dt=float(dt), method=method, **opts)
+            except ParameterError as exc:  # say which record; its samples: set it aside
+                if exc.parameter != "w":
+                    where = f"{name} (control {control!r})" if name else label
+                    raise ParameterError(exc.parameter, exc.value,
+                                         f"record {where}: {exc}") from None  # fmt: skip
+                why = f"its samples cannot be analysed ({exc})"
+        if why is not None:
+            policy.append(SweepRecord(0, float(control), None, (Flag(
+                SET_ASIDE, f"record {label} set aside: {why}"),), name=name))  # fmt: skip
+            if progress is not None:
+                progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
+            continue
         if exclude:
             det = set_aside(det, name or f"at control {control!r}", "excluded by the user")
         dets.append((det, float(control), name))

@@ -276,22 +276,31 @@ def _reconciled(
     records: Sequence[SweepRecord], band: tuple[float, float] | None = None
 ) -> list[SweepRecord]:
     """The records with each fundamental chosen across the sweep
-    (:func:`service.analysis.reconcile.reconcile`), when it exists and every record kept its
-    detection; else the records as they are."""
+    (:func:`service.analysis.reconcile.reconcile`), when it exists and every record with a
+    measurement kept its detection (a record set aside before detection has none); else the
+    records as they are."""
     try:
         from service.analysis.reconcile import reconcile
     except ImportError:  # the sweep-wide choice has not landed: each record's own fundamental
         return list(records)
-    if not records or any(r.detection is None for r in records):
+    # a record without a detection (a file that could not be read, a record stored without
+    # it) keeps its own reading; the others are chosen together
+    have = [r for r in records if r.detection is not None]
+    if not have or any(r.detection is None and r.measurement is not None for r in records):
         return list(records)
     dets = reconcile(
-        [r.detection for r in records],
-        np.array([r.control for r in records], dtype=float),
-        names=[r.name or f"#{r.seq}" for r in records],
+        [r.detection for r in have],
+        np.array([r.control for r in have], dtype=float),
+        names=[r.name or f"#{r.seq}" for r in have],
         band=band,
     )
+    chosen = dict(zip((id(r) for r in have), dets, strict=True))
     out = []
-    for r, d in zip(records, dets, strict=True):
+    for r in records:
+        d = chosen.get(id(r))
+        if d is None:
+            out.append(r)
+            continue
         if d is r.detection:
             out.append(r)
             continue

@@ -388,7 +388,7 @@ def _manifest_options(
     out = []
     for k, rec in enumerate(recs):
         cell = {c: table.cells[col][k].strip() for c, col in cols.items() if col}
-        q = cell.get("quantity") or args.quantity or rec.quantity
+        q = cell.get("quantity") or args.quantity or getattr(rec, "quantity", None)
         if q and q not in ("displacement", "velocity", "acceleration"):
             raise bad("MANIFEST", args.manifest, f"quantity {q!r} of {names[k]}: expected "
                       "displacement, velocity or acceleration")  # fmt: skip
@@ -425,26 +425,40 @@ def _sweep(args: argparse.Namespace) -> int:
     steps = _floats(table, dt_col, "MANIFEST", args.manifest) if dt_col else None
     paths = table.cells[path_col]
     base = Path(args.manifest).resolve().parent
-    recs, names, notes = [], [], {}
+    recs, names, notes, unread = [], [], {}, {}
     for k, (rel, c) in enumerate(zip(paths, control)):
         p = Path(rel)
         p = p if p.is_absolute() else base / p
         dt = args.dt if steps is None else float(steps[k])
-        rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample,
-                          reader=_reader_options(args))  # fmt: skip
+        try:
+            rec = read_record(str(p), option="MANIFEST entry", dt=dt, resample=args.resample,
+                              reader=_reader_options(args))  # fmt: skip
+        except CliError as exc:  # a record that cannot be read is set aside, not fatal
+            unread[k] = exc
+            rec = None
         recs.append((rec, float(c)))
         names.append(str(rel))
-        notes[str(rel)] = rec.flags
+        notes[str(rel)] = rec.flags if rec is not None else ()
+    if len(recs) - len(unread) < 3 and unread:
+        raise next(iter(unread.values()))
+    read = [k for k in range(len(recs)) if k not in unread]
     # records in different time units (one file in ms, another in s) are brought to seconds
     try:
-        factors, time_unit = common_time_base([r.unit for r, _ in recs], names)
+        f_read, time_unit = common_time_base([recs[k][0].unit for k in read],
+                                             [names[k] for k in read])  # fmt: skip
     except RecordingError as exc:
         err = error_from(exc, context=f"MANIFEST {args.manifest!r}")
         assert err is not None
         raise err from None
-    records = [(r.w, r.dt * f, c) for (r, c), f in zip(recs, factors)]
+    factors = [1.0] * len(recs)
+    for k, f in zip(read, f_read):
+        factors[k] = f
+    records = [(r.w, r.dt * f, c) if r is not None else (None, math.nan, c)
+               for (r, c), f in zip(recs, factors)]  # fmt: skip
     # a start in a record's own time unit is brought to the common one with its samples
     options = _manifest_options(table, args, [r for r, _ in recs], names, factors)
+    for k, exc in unread.items():
+        options[k] = {"unreadable": str(exc)}
     cb = _progress_printer(not args.no_progress)
     try:
         plan = SweepPlan(step=args.step, margin=args.margin, band=args.band,

@@ -128,6 +128,43 @@ def test_sweep_cli_reads_a_manifest(tmp_path, capsys) -> None:
     assert doc["prediction"]["mu_star"] == pytest.approx(mu_star, abs=1e-3)
 
 
+def test_sweep_sets_aside_a_record_that_cannot_be_read(tmp_path, capsys) -> None:
+    """A manifest whose record has dropped samples (NaN) and one whose file is empty: both set
+    aside by name with the reader's reason, the answer that of the other records alone (the
+    same document to the last digit); with fewer than 3 readable records the reader's error."""
+    mu_star = bifurcation("asymmetric").mu_star
+    mus = mu_star - np.geomspace(0.3, 2e-3, 8)
+    rows = ["path,control"]
+    for k, (w, dt, c) in enumerate(_lab_records("asymmetric", mus, deg=1.0, seconds=1.0)):
+        f = tmp_path / f"rec{k}.csv"
+        t = np.arange(w.size) * dt
+        f.write_text("t,w\n" + "\n".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(t, w)) + "\n")
+        rows.append(f"{f.name},{c!r}")
+    (tmp_path / "clean.csv").write_text("\n".join(rows) + "\n")
+    lines = (tmp_path / "rec0.csv").read_text().splitlines()
+    lines[200] = lines[200].split(",")[0] + ",nan"  # a dropped sample
+    (tmp_path / "gap.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "empty.csv").write_text("")
+    bad_rows = [*rows[:3], f"gap.csv,{float(mus[3]) - 1e-3!r}", *rows[3:],
+                f"empty.csv,{float(mus[5]) + 1e-4!r}"]  # fmt: skip
+    (tmp_path / "lab.csv").write_text("\n".join(bad_rows) + "\n")
+    assert main(["sweep", str(tmp_path / "clean.csv"), "--json", "--no-progress"]) == 0
+    clean = json.loads(capsys.readouterr().out)
+    assert main(["sweep", str(tmp_path / "lab.csv"), "--json", "--no-progress"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["n_set_aside"] == 2
+    names = {a["name"]: a["reason"] for a in doc["set_aside"]}
+    assert set(names) == {"gap.csv", "empty.csv"}
+    assert "must be finite" in names["gap.csv"] and "gap.csv" in names["gap.csv"]
+    assert doc["prediction"] == clean["prediction"]
+    assert [m["mu"] for m in doc["measurements"]] == [m["mu"] for m in clean["measurements"]]
+    # two readable records: no sweep, the first reader's error (exit 2, its field named)
+    (tmp_path / "few.csv").write_text("\n".join([rows[0], rows[1], rows[2], f"gap.csv,{1.0!r}"])
+                                      + "\n")
+    assert main(["sweep", str(tmp_path / "few.csv"), "--json", "--no-progress"]) == 2
+    assert "must be finite" in capsys.readouterr().err
+
+
 def test_sweep_rejects_a_bad_manifest(tmp_path, capsys) -> None:
     (tmp_path / "m.csv").write_text("file,value\nx.csv,1\n")
     assert main(["sweep", str(tmp_path / "m.csv"), "--json"]) == 2
