@@ -96,20 +96,26 @@ Flags (``Detection.flags``, codes in :data:`FLAG_CODES`)
                        before the kick or given by the user as ``notch``) are fitted and set
                        aside (``Mode.kind = "line"``); never the fundamental, never ``unstable``.
 ``drift``              beside a kicked ringing mode, a slower component that was not kicked
-                       (an overdamped one not starting from rest, less than one oscillation in
-                       the record, fewer than 2 at below 15 % of the ringing mode's amplitude:
+                       (already there in the lead-in before the kick, regressed on its
+                       waveform extrapolated back; an overdamped one not starting from rest,
+                       less than one oscillation in the record, fewer than 2 at below 15 %
+                       of the ringing mode's amplitude:
                        an offset that settles, a ramp, a slow wobble) is set aside
                        (``Mode.kind = "drift"``); never the fundamental. A record whose
                        slowest mode grows beside a ringing one is refitted with its slope
                        removed (a ramp of the baseline).
 ``forced_part``        the hammer's contact: the first samples after the kick misfit while the
                        rest fits (cut, ``Detection.start`` moves past them), or a mode that
-                       dies within the record beside a ringing one (``Mode.kind =
-                       "transient"``); never the fundamental.
-``repeated_kick``      later kicks in the record (the envelope jumps again): the first ring-down
-                       is analysed, up to the next kick (``Detection.n_samples``).
+                       dies within the record beside a ringing one, or (a lab window) an
+                       overdamped pair damped 100x harder than the ringing modes (``Mode.kind
+                       = "transient"``); never the fundamental.
+``repeated_kick``      later kicks in the record (the envelope jumps again, or a ringing line's
+                       complex amplitude leaves a free decay's constant ratio): the first
+                       ring-down is analysed, up to the next kick (``Detection.n_samples``).
 ``clipped``            samples held at the record's extreme in several runs (a saturated
-                       sensor): the fit reads the longest stretch of the window without them.
+                       sensor): censored data, each only known to lie beyond the range; the
+                       fit reads the whole window with them replaced by their expected values
+                       given the fit (EM for censored Gaussian data, module ``_censored``).
 ``negligible_growth``  a growing component that stays below 1 % of the largest amplitude over
                        the record (a by-product of the fit beside a loud ringing): not read as
                        ``unstable``.

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from service.analysis.common import Flag
-from service.analysis.detect import _lab
+from service.analysis.detect import _censored, _lab
 from service.analysis.detect._flags import _record_flags
 from service.analysis.detect._methods import (
     ALIASES,
@@ -18,6 +18,7 @@ from service.analysis.detect._methods import (
     Options,
     Outcome,
     Record,
+    _fit_parametric,
 )
 from service.analysis.detect._modes import (
     _as_fundamental,
@@ -344,12 +345,14 @@ def detect(
     resolved = ALIASES.get(method, method)
     win, first, _ = _window(arr, dt, kind, start)
     lead = arr[: win.lead] if win is not None and win.lead and not win.user_start else None
+    hi = lo = None
     if win is None:
         arr, first, lead = _cut_pretrigger(arr, dt, kind)
         pre = [] if lead is None else [lead]
         seeds_w = notch_w
     else:
         seeds_w = np.concatenate((notch_w, _lab.lead_lines(arr, win.lead)))
+        hi, lo = _lab.clipped_edges(arr, win)
         arr = arr[win.start : win.stop]
         pre = win.flags
     n_seeds = seeds_w.size if kind == "impulse" else 0
@@ -359,13 +362,31 @@ def detect(
     # a lab's record (a lead-in with hum or drift on it, a second kick, clipping) is read with
     # its slope removed (the drift's ramp); a quiet lead-in alone is not
     detrend = win is not None and kind == "impulse" and not win.quiet
-    rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
+    if resolved != "varpro" or win is None:
+        hi = lo = None
+    raw = arr
+
+    def fit(detrend: bool) -> tuple[np.ndarray, Record, Outcome]:
+        """The window as fitted (its clipped samples censored: replaced by their expected
+        values at the EM fit's convergence, module _censored) and its fit."""
+        if hi is None or lo is None:
+            return (raw, *_fit(raw, dt, kind, mm, resolved, opts, detrend))
+        a, _ = _censored.fit_censored(
+            raw, hi, lo, detrend=_detrended if detrend else (lambda v: v),
+            first=lambda y: _fit_parametric(
+                y, _spectrum(y), max_modes=mm, common=opts.common, refine=True,
+                max_iter=opts.max_iter, seeds=opts.seeds)[0],
+            max_modes=mm, max_iter=opts.max_iter,
+        )  # fmt: skip
+        return (a, *_fit(a, dt, kind, mm, resolved, opts, detrend))
+
+    arr, rec, out = fit(detrend)
     lab = kind == "impulse" and (win is not None or resolved == "varpro")
     if not detrend and lab and _suspect(out.modes, arr.size * dt):
         # a growing or slow fundamental that is not kicked beside a ringing mode: refit with
         # the record's slope (a drift of the baseline) taken out, and use that fit
         detrend = True
-        rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
+        arr, rec, out = fit(detrend)
     if win is not None and resolved == "varpro" and rec.scale > 0 and out.modes:
         skip = _lab.forced_head(_residual(rec, out, dt), out.noise_std)
         if skip and arr.size - skip >= max(4 * MIN_SAMPLES, arr.size // 2):
@@ -458,7 +479,13 @@ def _result(
             peak = float(np.max(np.abs(rec.x))) if rec.x.size else math.inf
             lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
                                                            trend | combos, lead_T,
-                                                           peak)  # fmt: skip
+                                                           peak, base is not None)  # fmt: skip
+            if base is not None and base[1] is not None:
+                # a slow component the lead-in already holds was not kicked: a drift
+                before = _lab.before_kick(out.modes, n * dt, base[1] / rec.unit - rec.mean,
+                                          start, dt, trend | lines | drift | transient,
+                                          lines)  # fmt: skip
+                drift = drift | before
             tiny = _lab.negligible_growth(out.modes, n * dt)
     modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
                                 aside=lines)

@@ -52,6 +52,7 @@ class Window:
     flags: list[Flag] = field(default_factory=list)
     user_start: bool = False
     quiet: bool = False  # the lead-in is quiet (below 5 % of the response: no hum, no drift)
+    clip: np.ndarray | None = None  # the record's clipped samples (boolean mask), None: none
 
 
 def _movmean(x: np.ndarray, L: int) -> np.ndarray:
@@ -70,6 +71,31 @@ def _movmean(x: np.ndarray, L: int) -> np.ndarray:
     hi = i - h + L
     hi[n - (L - h) + 1 :] = n
     return (c[hi] - c[lo]) / (hi - lo)
+
+
+def _trailmean(x: np.ndarray, L: int) -> np.ndarray:
+    """Trailing moving mean over ``L`` samples (fewer at the start): sample ``i`` sees only
+    ``x[i - L + 1 : i + 1]``, never what follows it."""
+    c = np.empty(x.size + 1)
+    c[0] = 0.0
+    np.cumsum(x, out=c[1:])
+    i = np.arange(1, x.size + 1)
+    lo = np.maximum(i - L, 0)
+    return (c[i] - c[lo]) / (i - lo)
+
+
+def _causal_envelope(arr: np.ndarray, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """The record less its trailing moving mean over a tenth of the record (``hpc``) and
+    ``hpc``'s moving rms over ``L`` samples: the baseline before a sample is judged from the
+    samples before it only, so the response after a kick (its mean shifted by a one-sided
+    clipping, a slow mode) does not leak into the lead-in before it, as a centred mean's
+    would over half its length."""
+    n = arr.size
+    peak = float(np.max(np.abs(arr)))
+    x = arr / peak if peak > 0 and math.isfinite(peak) else arr
+    x = x - float(np.mean(x))
+    hpc = x - _trailmean(x, max(8, n // 10))
+    return hpc, np.sqrt(np.maximum(_movmean(hpc * hpc, L), 0.0))
 
 
 def clipped_mask(arr: np.ndarray) -> np.ndarray | None:
@@ -190,32 +216,59 @@ def _later_kicks(E: np.ndarray, first: int, LL: int) -> list[int]:
     return out
 
 
-#: A later kick seen in the dominant line's complex amplitude: demodulated at its frequency and
-#: smoothed twice over KICK_PERIODS periods, the amplitude's ratio over that span departs from
-#: its median (a free decay keeps it constant) by more than KICK_DEV, for at least half the
-#: span, where the line is at least KICK_STRONG of its largest amplitude.
-KICK_PERIODS, KICK_DEV, KICK_STRONG = 2, 0.25, 0.2
+#: A later kick seen in a ringing line's complex amplitude: demodulated at its frequency and
+#: smoothed twice over KICK_PERIODS periods (at least the inverse of the gap to the nearest
+#: other strong line, whose beat it then cancels), the amplitude's ratio over that span
+#: departs from its median (a free decay keeps it constant) by more than KICK_DEV_Z times the
+#: median departure (its scatter: noise, leakage of the other lines), KICK_DEV at least and
+#: KICK_DEV_MAX at most,
+#: for at least half the span, where the line is at least KICK_STRONG of its largest
+#: amplitude. The
+#: KICK_LINES strongest lines of the window's spectrum (above KICK_PEAK of the strongest's
+#: power) are each read.
+KICK_PERIODS, KICK_DEV, KICK_DEV_MAX, KICK_DEV_Z, KICK_STRONG = 1, 0.1, 0.25, 6.0, 0.1
+KICK_LINES, KICK_PEAK = 3, 0.1
 
 
-def _line_kick(hp: np.ndarray, a: int, b: int) -> int | None:
+def _line_kick(hp: np.ndarray, a: int, b: int, least: int = 0) -> int | None:
     """The sample (before a later kick) where the window ``[a, b)`` should stop, from the
-    complex amplitude of its dominant line: a kick changes a ringing line's amplitude or
-    phase at once (up or down: a second hit out of phase lowers the envelope), which an
-    envelope rise alone misses; None when the line decays freely to the end."""
+    complex amplitudes of its strongest lines (:func:`_kick_in_line`: the earliest stop that
+    leaves at least ``least`` samples); None when they decay freely to the end. A kick moves
+    every kicked mode's amplitude or phase at once (up or down: a second hit out of phase
+    lowers the envelope), which an envelope rise alone misses; a stationary line (hum) keeps
+    its complex amplitude and says nothing."""
     seg = hp[a:b]
     m = seg.size
     if m < 256:
         return None
     P = np.abs(np.fft.rfft(seg * np.hanning(m))) ** 2
-    k = int(np.argmax(P[3:])) + 3
-    if k >= P.size - 1:
-        return None
-    lo, mid, hi = np.log(P[k - 1 : k + 2] + 1e-300)
-    den = lo - 2 * mid + hi
-    w = 2 * math.pi * (k + (0.5 * (lo - hi) / den if den < 0 else 0.0)) / m
+    P[:3] = 0.0
+    peaks = np.flatnonzero((P[1:-1] >= P[:-2]) & (P[1:-1] > P[2:])) + 1
+    peaks = peaks[P[peaks] >= KICK_PEAK * float(P.max())]
+    hits = []
+    for k in peaks[np.argsort(P[peaks])[::-1]][:KICK_LINES]:
+        lo, mid, hi = np.log(P[k - 1 : k + 2] + 1e-300)
+        den = lo - 2 * mid + hi
+        w = 2 * math.pi * (k + (0.5 * (lo - hi) / den if den < 0 else 0.0)) / m
+        gap = np.abs(peaks[peaks != k] - k)
+        span = int(round(m / float(gap.min()))) if gap.size else 0
+        hit = _kick_in_line(seg, w, span, least)
+        if hit is not None:
+            hits.append(a + hit)
+    return min(hits) if hits else None
+
+
+def _kick_in_line(seg: np.ndarray, w: float, span: int = 0, least: int = 0) -> int | None:
+    """Where the window ``seg`` should stop before a kick seen in its line at ``w`` (rad per
+    sample): its complex amplitude ``z`` (demodulated, smoothed twice over ``Lp``: KICK_PERIODS
+    periods, or ``span`` samples if longer, a sixth of the window at most) keeps the ratio
+    ``z(t + Lp) / z(t)`` of a free decay, except from ``2 Lp`` before a kick on; None when it
+    does (or only before ``least`` samples)."""
+    m = seg.size
     Lp = int(round(KICK_PERIODS * 2 * math.pi / w))
     if Lp < 8 or 6 * Lp > m:
         return None
+    Lp = max(Lp, min(span, m // 6))  # a neighbour too close to cancel: the longest span
     z = seg * np.exp(-1j * w * np.arange(m))
     re = _movmean(_movmean(z.real, Lp), Lp)
     im = _movmean(_movmean(z.imag, Lp), Lp)
@@ -223,20 +276,24 @@ def _line_kick(hp: np.ndarray, a: int, b: int) -> int | None:
     mag = np.abs(z)
     r = z[Lp:] / np.where(mag[:-Lp] > 0, z[:-Lp], 1.0)
     ok = (mag[:-Lp] >= KICK_STRONG * float(mag.max())) & (mag[Lp:] > 0)
-    ok[: 2 * Lp] = False  # the contact and the filter's edge
+    ok[: 3 * Lp // 2] = False  # the filter's edge and the contact
     ok[max(0, ok.size - Lp) :] = False
     if np.count_nonzero(ok) < 2 * Lp:
         return None
     ref = complex(float(np.median(r[ok].real)), float(np.median(r[ok].imag)))
     if abs(ref) == 0:
         return None
-    bad = ok & (np.abs(r / ref - 1.0) > KICK_DEV)
-    # the first run of at least Lp/2 samples: the kick comes 1.2-1.5 Lp after its start
+    dev = np.abs(r / ref - 1.0)
+    thr = min(KICK_DEV_MAX, max(KICK_DEV, KICK_DEV_Z * float(np.median(dev[ok]))))
+    bad = ok & (dev > thr)
+    bad[:least] = False
+    # the first run of at least Lp/2 samples: the kick comes up to 2 Lp after its start (the
+    # smoothed amplitudes reach Lp and 2 Lp ahead), never before it
     run = np.convolve(bad.astype(float), np.ones(Lp // 2), mode="valid") >= Lp // 2
     hit = np.flatnonzero(run)
     if not hit.size:
         return None
-    return a + int(hit[0]) + Lp
+    return int(hit[0])
 
 
 def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
@@ -250,7 +307,15 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
     hp, e, E, L, LL, (period, few) = _envelope(arr)
     # a strong line of fewer than 4 cycles dips near its zero crossings for longer than a
     # lead-in must last: no lead-in is looked for then (give ``start``)
-    lead, i_half = _lead(e, L, period)
+    # the lead-in is looked for on a causal baseline first, then on the centred one: the
+    # centred baseline sees the response's mean after the kick (half its length ahead), the
+    # causal one lags a slow wobble; either may hide a lead-in, none makes one up
+    # (_causal_envelope)
+    hpc, ec = _causal_envelope(arr, L)
+    lead, i_half = _lead(ec, L, period)
+    if not lead:
+        hpc = hp
+        lead, i_half = _lead(e, L, period)
     if few:
         lead = 0
     if start is not None:
@@ -259,7 +324,7 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
         win.lead = win.start
     elif lead:
         win.lead = lead
-        win.start = _onset(hp, lead, i_half)
+        win.start = _onset(hpc, lead, i_half)
     kicks = [] if few else _later_kicks(E, max(win.start, i_half), LL)
     if kicks:
         stop = kicks[0]
@@ -274,8 +339,9 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
                     f"analysed (samples {win.start} to {win.stop}), the later ones are not",
                 )
             )
-    if (win.lead or clip is not None) and not few and not win.user_start:
-        stop = _line_kick(hp, win.start, win.stop)
+    if (win.lead or clip is not None) and not win.user_start:
+        least = int(max(WINDOW_MIN * n, 4 * MIN_SAMPLES))
+        stop = _line_kick(hp, win.start, win.stop, least)
         if stop is not None and stop - win.start >= max(WINDOW_MIN * n, 4 * MIN_SAMPLES):
             win.kicks = sorted({*win.kicks, stop})
             win.stop = stop
@@ -289,44 +355,31 @@ def locate(arr: np.ndarray, dt: float, *, start: float | None = None) -> Window:
                 ))  # fmt: skip
     if clip is not None:
         win.n_clipped = int(clip.sum())
-        inside = np.flatnonzero(clip[win.start : win.stop])
-        if inside.size:
-            a, b = _unclipped(win.start + inside, win.start, win.stop, LL, i_half)
-            if b - a >= max(WINDOW_MIN * (win.stop - win.start), 4 * MIN_SAMPLES):
-                win.start, win.stop = a, b
+        win.clip = clip
+        inside = int(np.count_nonzero(clip[win.start : win.stop]))
         win.flags.append(
             Flag(
                 "clipped",
                 f"{win.n_clipped} sample(s) held at the record's extreme (a saturated sensor); "
-                f"left out: the fit reads samples {win.start} to {win.stop}",
+                f"the fit reads samples {win.start} to {win.stop} with the {inside} clipped "
+                "one(s) among them as censored (only known to lie beyond the range: "
+                "replaced by their expected values given the fit, iterated)",
             )
         )
     return win
 
 
-def _unclipped(
-    idx: np.ndarray, start: int, stop: int, LL: int, rise: int = 0
-) -> tuple[int, int]:
-    """The stretch of the window ``[start, stop)`` read past its clipped samples ``idx``: from
-    the end of the first cluster of clipped peaks (the kick's, gaps below ``LL``) to the next
-    clipped sample (a ring-down clips again only when kicked again); the part before the first
-    clipped sample when that comes late after the response's rise ``rise`` (a later kick
-    clipped: never the lead-in alone, when no lead-in was found); else the longest stretch."""
-    gaps = np.diff(idx)
-    if idx[0] - max(start, rise) > 2 * LL:
-        a, b = start, int(idx[0])
-    else:
-        far = np.flatnonzero(gaps > LL)
-        end = int(idx[far[0]]) if far.size else int(idx[-1])
-        later = idx[idx > end]
-        a, b = end + 1, int(later[0]) if later.size else stop
-    if b - a >= WINDOW_MIN * (stop - start):
-        return a, b
-    edges = np.concatenate(([start - 1], idx, [stop]))
-    size = np.diff(edges) - 1
-    size[edges[1:] <= rise + 2 * LL] = -1  # a stretch over before the response is no window
-    g = int(np.argmax(size))
-    return int(edges[g] + 1), int(edges[g + 1])
+def clipped_edges(
+    arr: np.ndarray, win: Window
+) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """The window's samples clipped at the record's upper and at its lower edge (boolean
+    masks over ``[win.start, win.stop)``); ``(None, None)`` when none is inside."""
+    if win.clip is None:
+        return None, None
+    sl = slice(win.start, win.stop)
+    hi = win.clip[sl] & (arr[sl] == float(arr.max()))
+    lo = win.clip[sl] & (arr[sl] == float(arr.min()))
+    return (hi, lo) if (hi.any() or lo.any()) else (None, None)
 
 
 def lead_lines(arr: np.ndarray, lead: int) -> np.ndarray:
@@ -378,6 +431,9 @@ TRANSIENT_DECAY = 8.0
 #: ... or an overdamped mode whose terms exceed this many times the window's largest deviation
 #: (two terms that cancel: a component that large cannot be in the record otherwise).
 TRANSIENT_HUGE = 10.0
+#: ... or (a lab window) an overdamped mode whose ``p`` (the sum of its decay rates) exceeds
+#: this many times the largest ``p`` of the ringing modes.
+TRANSIENT_P = 100.0
 #: A slow oscillation of fewer than FEW_PERIODS cycles, or a slow real pole, that decays by
 #: less than this many e-folds over the window beside a ringing mode is the baseline's drift.
 DRIFT_DECAY = 0.5
@@ -400,12 +456,14 @@ def _cycles(m: Mode, T: float) -> float:
 
 
 def _rings(m: Mode, T: float) -> bool:
-    """A kicked ringing mode: underdamped, at least FEW_PERIODS oscillations in the window,
-    above the low-SNR level, and decaying (by RING_DECAY e-folds over the window at least,
-    beyond 3 standard errors: a kicked mode decays, a line or a drift does not)."""
+    """A kicked ringing mode: underdamped, at least FEW_PERIODS oscillations in the window
+    before it dies (decays by TRANSIENT_DECAY e-folds: a transient rings no cycles of its
+    own), above the low-SNR level, and decaying (by RING_DECAY e-folds over the window at
+    least, beyond 3 standard errors: a kicked mode decays, a line or a drift does not)."""
+    alive = min(T, TRANSIENT_DECAY / m.damping) if m.damping > 0 else T
     return (
         m.regime == "underdamped"
-        and _cycles(m, T) >= FEW_PERIODS
+        and _cycles(m, alive) >= FEW_PERIODS
         and (not math.isfinite(m.snr_db) or m.snr_db >= LOW_SNR_DB)
         and m.damping * T >= RING_DECAY
         and m.damping > 3.0 * m.damping_std
@@ -424,7 +482,7 @@ def _from_rest(m: Mode, T: float) -> bool:
 
 def lines_and_drift(
     modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int],
-    lead_T: float = 0.0, peak: float = math.inf,
+    lead_T: float = 0.0, peak: float = math.inf, window: bool = False,
 ) -> tuple[frozenset[int], frozenset[int], frozenset[int]]:  # fmt: skip
     """Indices of the stationary lines, of the slow drift and of the transients among
     ``modes`` (a window of
@@ -449,7 +507,9 @@ def lines_and_drift(
     * transient: beside a kicked ringing mode a slower one that dies within the window
       (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed;
       or an overdamped one whose terms exceed :data:`TRANSIENT_HUGE` times the record's
-      largest deviation ``peak`` (they cancel: a pair the fit made of the contact).
+      largest deviation ``peak`` (they cancel: a pair the fit made of the contact); on a
+      record read through a lab ``window`` (a kick located), also an overdamped one whose
+      ``p`` exceeds :data:`TRANSIENT_P` times the ringing modes' largest.
     """
     lines: set[int] = set()
     for k, m in enumerate(modes):
@@ -507,7 +567,72 @@ def lines_and_drift(
         transient |= {k for k, m in enumerate(modes)
                       if m.regime == "overdamped" and m.amplitude > TRANSIENT_HUGE * peak
                       and k not in lines and k not in drift and k not in rings}  # fmt: skip
+        # an overdamped pair whose decay rates sum (its p) far above the ringing modes' p:
+        # no mode of the structure (Rayleigh damping p = alpha + beta omega^2 grows with the
+        # frequency: a slower mode is not damped harder), a forced part the fit absorbed
+        p_ring = max(2.0 * modes[j].damping for j in rings)
+        transient |= {k for k, m in enumerate(modes)
+                      if window and m.regime == "overdamped" and m.real_poles is not None
+                      and -(m.real_poles[0] + m.real_poles[1]) > TRANSIENT_P * p_ring
+                      and k not in lines and k not in drift
+                      and abs(m.sigma2) < fastest_ring}  # fmt: skip
     return frozenset(lines), frozenset(drift), frozenset(transient)
+
+
+#: A slow component was there before the kick (a drift, not a kicked mode) when the lead-in,
+#: regressed on a constant, a ramp and the component's waveform extrapolated back over it, holds
+#: that waveform at more than BEFORE_SHARE of its size and BEFORE_Z standard errors from none.
+BEFORE_SHARE, BEFORE_Z = 0.5, 5.0
+#: A waveform that extrapolates back to more than this many times the lead-in's range is not
+#: looked for there (a kicked mode's growth backwards).
+BEFORE_RANGE = 1e3
+
+
+def before_kick(
+    modes: list[Mode], T: float, lead: np.ndarray | None, offset: int, dt: float,
+    exclude: frozenset[int] | set[int], lines: frozenset[int] | set[int] = frozenset(),
+) -> frozenset[int]:  # fmt: skip
+    """Indices of the components slower than a kicked ringing mode (:func:`_rings`) that the
+    lead-in before the kick already holds: a kicked mode is not there before its kick, a
+    drift of the baseline (a wobble, a settling) is. ``lead``: the record before the kick, in
+    the modes' units; ``offset``: the fitted window's first sample less the lead-in's first
+    (the lead's samples are at ``-offset .. len(lead) - offset - 1`` of the window);
+    ``lines``: the stationary lines (their frequencies are regressed out of the lead too)."""
+    if lead is None or lead.size < 64:
+        return frozenset()
+    rings = [m for j, m in enumerate(modes) if j not in exclude and _rings(m, T)]
+    if not rings:
+        return frozenset()
+    fastest = max(abs(m.sigma2) for m in rings)
+    u = (np.arange(lead.size) - offset) * dt
+    t = u - u.mean()
+    cols = [np.ones(lead.size), t]
+    for j in sorted(lines):
+        cols += [np.cos(modes[j].omega * u), np.sin(modes[j].omega * u)]
+    out = set()
+    for k, m in enumerate(modes):
+        if k in exclude or not abs(m.sigma2) < fastest or _rings(m, T):
+            continue
+        with np.errstate(over="ignore", invalid="ignore"):
+            if m.regime == "overdamped" and m.real_poles is not None and m.real_amplitudes:
+                (s1, s2), (b1, b2) = m.real_poles, m.real_amplitudes
+                w = b1 * np.exp(s1 * u) + b2 * np.exp(s2 * u)
+            else:
+                w = m.amplitude * np.exp(-m.damping * u) * np.cos(m.omega * u + m.phase)
+        # extrapolated back to far beyond the lead's own range: not there before the kick
+        span = float(np.ptp(lead))
+        if not np.all(np.isfinite(w)) or not 0 < float(np.ptp(w)) <= BEFORE_RANGE * span:
+            continue
+        X = np.column_stack((*cols, w))
+        coef, *_ = np.linalg.lstsq(X, lead, rcond=None)
+        r = lead - X @ coef
+        s2 = float(r @ r) / max(lead.size - X.shape[1], 1)
+        cov = np.linalg.pinv(X.T @ X) * s2
+        se = math.sqrt(max(float(cov[-1, -1]), 0.0))
+        beta = float(coef[-1])
+        if beta > BEFORE_SHARE and (se == 0.0 or beta > BEFORE_Z * se):
+            out.add(k)
+    return frozenset(out)
 
 
 def negligible_growth(modes: list[Mode], T: float) -> frozenset[int]:
