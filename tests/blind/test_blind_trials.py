@@ -235,13 +235,10 @@ DETECTOR_CASES: dict[str, tuple[range, str | None]] = {
     "accel_g": (range(4), None),
     "adc_12bit": (range(4), None),
     "bounce": (range(4), None),
-    "noise_30dB": (range(4), (
-        "detector: with a 10 % pre-trigger and a per-sample SNR of 30 dB the lead-in is not "
-        "recognised (no `pretrigger` flag), the fit runs across the kick and a spurious slower "
-        "line is the fundamental with no flag: 3 of these 4 (7 of 8 in bench/blind.py "
-        "--detector 8), e.g. 1.501 Hz for 1.903, 0.324 Hz for 1.797; mid-ring at 30 dB: 8/8")),
-    "noise_25dB": (range(4, 8), (
-        "detector: as at 30 dB, 3 of these 4 records silently wrong (pre-trigger not found)")),
+    # strict xfails until the detector's causal lead-in (detect/_lab._causal_envelope): the
+    # pre-trigger was not recognised at 25-30 dB (3 of 4 records silently wrong each)
+    "noise_30dB": (range(4), None),
+    "noise_25dB": (range(4, 8), None),
     "rig_mode": (range(4), (
         "detector/reconcile: a rig mode at a fixed 0.6 Hz (a suspended sensor, half the "
         "response's peak) is the fundamental with no flag in 2 of these 4 (5 of 8)")),
