@@ -61,6 +61,11 @@ CASES: dict[tuple[str, str, int], str | None] = {
         "detector (2 % 60 Hz hum hides the pre-trigger: spurious lines below the real ones) then "
         "predictor: saddle-node [189.954, 190.294] N named for a subcritical pitchfork at "
         "195.997 N (17 widths early)"),
+    ("arch_crossing", "past", 1): (
+        "REGRESSION on main 35c60e7 (at 1615316: undetermined [840.19, 851.77] covering 850.11): "
+        "the stiff record on the snapped branch (858.61) is kept, and with the first record "
+        "misread (sigma2 -381 for -8381) the whole sweep is refused: 'the records slow down "
+        "toward the lowest mu: T at mu=0.0 is 5.04 times T at mu=858.61' (exit 2)"),
     ("arch_imperfect", "lab", 0): (
         "type `none` (no loss of stability) for an arch that snaps at a fold at 1150.164 lbf: "
         "the 5 nearest records read as combs (sigma2 -9..-17 for -43..-107, pre-trigger not "
