@@ -37,35 +37,17 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("arch_fold", "lab", 0): None,
     ("arch_fold", "far", 0): None,
     ("arch_fold", "past", 0): None,
-    ("arch_fold", "past", 1): (
-        "REGRESSION on main 35c60e7 (passed its record check at 1615316, where the snapped "
-        "record was set aside by name): the record on the snapped branch (105.084 N, as stiff as "
-        "the first records) is kept as stable, nothing is set aside, interval [105.08, 3207] N "
-        "wholly beyond the fold at 104.044, alarm insufficient, next control 108.47 N above "
-        "the fold; reconcile (bf28d1c?) or policy (e626e2a?)"),
-    ("arch_fold", "past", 2): (
-        "detector (3 % hum at 500 Hz, 3 s records: the last stable record at 114.207 N read "
-        "sigma2 -9.6 for -142.5) then predictor/policy: saddle-node named with the interval "
-        "[114.2070, 114.2101] N, 500 widths below the fold at 115.7495 (flags interval_huge, "
-        "law_misfit); the predictor alone on the exact table: saddle-node [115.732, 115.793]"),
+    ("arch_fold", "past", 1): None,  # passes with the causal lead-in detector (d87c840)
+    ("arch_fold", "past", 2): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_pitchfork", "lab", 0): None,
     ("arch_pitchfork", "far", 0): None,
-    ("arch_pitchfork", "past", 0): (
-        "detector: the 4 nearest records read as 0.3 Hz combs (sigma2 -4..-5 for -99..-138: the "
-        "10 % pre-trigger not recognised at 27 dB, fitted across the kick); sweep says pitchfork "
-        "[1239.28, 1248.48] lbf, truth 1315.65 (7 widths early, flags interval_huge, "
-        "imperfection_possible)"),
+    ("arch_pitchfork", "past", 0): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_crossing", "lab", 0): None,
-    ("arch_crossing", "far", 0): None,
-    ("arch_crossing", "past", 0): (
-        "detector (2 % 60 Hz hum hides the pre-trigger: spurious lines below the real ones) then "
-        "predictor: saddle-node [189.954, 190.294] N named for a subcritical pitchfork at "
-        "195.997 N (17 widths early)"),
-    ("arch_crossing", "past", 1): (
-        "REGRESSION on main 35c60e7 (at 1615316: undetermined [840.19, 851.77] covering 850.11): "
-        "the stiff record on the snapped branch (858.61) is kept, and with the first record "
-        "misread (sigma2 -381 for -8381) the whole sweep is refused: 'the records slow down "
-        "toward the lowest mu: T at mu=0.0 is 5.04 times T at mu=858.61' (exit 2)"),
+    ("arch_crossing", "far", 0): (
+        "NEW failure on main d87c840 (the causal lead-in detector; passed at 1615316-b4e0999): "
+        "found at 02:46, not yet diagnosed"),
+    ("arch_crossing", "past", 0): None,  # passes with the causal lead-in detector (d87c840)
+    ("arch_crossing", "past", 1): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_imperfect", "lab", 0): (
         "type `none` (no loss of stability) for an arch that snaps at a fold at 1150.164 lbf: "
         "the 5 nearest records read as combs (sigma2 -9..-17 for -43..-107, pre-trigger not "
@@ -75,13 +57,11 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("arch_imperfect", "past", 0): None,
     ("foundation", "lab", 0): None,
     ("foundation", "far", 0): None,
-    ("foundation", "past", 0): None,
-    ("foundation", "past", 2): (
-        "detector then policy: the record past mu* (6.870 N, truth 6.8224; growing e^6 over the "
-        "record, read through a geophone at 20 kHz) is read as a stable overdamped mode "
-        "(sigma2 -1000, flags repeated_kick, few_periods: the growth taken for a second kick), "
-        "not `unstable`: the interval [6.897, 242.5] N starts beyond a record that grew and the "
-        "advice (6.8836) is above mu*"),
+    ("foundation", "past", 0): (
+        "NEW failure on main d87c840 (passed at 1615316-b4e0999): the growing record past mu* "
+        "(rec13, 1.338 kN) neither set aside nor past_transition; interval [1.3382, 1.6778] kN "
+        "wholly beyond mu* = 1.33364 (late)"),
+    ("foundation", "past", 2): None,  # passes with the causal lead-in detector (d87c840)
     ("threelink", "lab", 0): None,
     ("threelink", "far", 0): None,
     ("threelink", "past", 0): None,
