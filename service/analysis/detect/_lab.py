@@ -588,6 +588,14 @@ BEFORE_SHARE, BEFORE_Z = 0.5, 5.0
 BEFORE_RANGE = 1e3
 
 
+def _grows(m: Mode, T: float) -> bool:
+    """Whether the component grows by more than a factor e over the window ``T`` (a growing
+    record past the transition: never read as a drift the lead-in holds)."""
+    if m.regime == "overdamped" and m.real_poles is not None:
+        return max(m.real_poles) * T > 1.0
+    return -m.damping * T > 1.0
+
+
 def before_kick(
     modes: list[Mode], T: float, lead: np.ndarray | None, offset: int, dt: float,
     exclude: frozenset[int] | set[int], lines: frozenset[int] | set[int] = frozenset(),
@@ -611,7 +619,7 @@ def before_kick(
         cols += [np.cos(modes[j].omega * u), np.sin(modes[j].omega * u)]
     out = set()
     for k, m in enumerate(modes):
-        if k in exclude or not abs(m.sigma2) < fastest or _rings(m, T):
+        if k in exclude or not abs(m.sigma2) < fastest or _rings(m, T) or _grows(m, T):
             continue
         with np.errstate(over="ignore", invalid="ignore"):
             if m.regime == "overdamped" and m.real_poles is not None and m.real_amplitudes:
