@@ -210,11 +210,14 @@ def judge(ans: Answer, truth: Any) -> Verdict:
         problems.append(f"interval {ans.interval} misses mu* = {truth.mu_star!r}"
                         + (" LATE (wholly beyond the truth)" if late else " (early)")
                         + (f" (flags {sorted(caution)})" if caution else " with no caution flag"))
-    # untrusted records: set aside by name, or the sweep says it is past the transition
+    # untrusted records: set aside by name, or the sweep says it is past the transition (or,
+    # for one growing record below the stable records' interval, that the growth awaits a
+    # second record: growth_unconfirmed, the interval spanning both readings)
     text = " ".join(ans.set_aside)
+    grew = {"past_transition", "growth_unconfirmed"}
     for name, why in truth.untrusted.items():
         stem = Path(name).stem
-        if stem not in text and "past_transition" not in ans.flags:
+        if stem not in text and not (grew & set(ans.flags)):
             problems.append(f"{name} ({why}) neither set aside by name nor past_transition")
     for m in ans.set_aside:
         if not any(Path(n).stem in m for n in truth.names):
