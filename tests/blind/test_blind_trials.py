@@ -49,9 +49,9 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("arch_crossing", "past", 0): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_crossing", "past", 1): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_imperfect", "lab", 0): (
-        "type `none` (no loss of stability) for an arch that snaps at a fold at 1150.164 lbf: "
-        "the 5 nearest records read as combs (sigma2 -9..-17 for -43..-107, pre-trigger not "
-        "recognised at 29 dB); interval [1067.9, 1135.1] misses; the predictor alone on the "
+        "on main 458c616: saddle-node named (right) but its interval [1149.660, 1150.137] lbf "
+        "ends 0.03 lbf below the fold at 1150.164 with no caution flag (mid-session, before "
+        "the causal lead-in: `none` from records read as combs); the predictor alone on the "
         "exact table says saddle-node [1146.5, 1152.4]"),
     ("arch_imperfect", "far", 0): None,
     ("arch_imperfect", "past", 0): None,
