@@ -110,15 +110,22 @@ def test_sweep_from_signals_is_unit_agnostic() -> None:
     assert res.measurements[0].sigma2 == pytest.approx(s2, rel=1e-3)
 
 
-def test_sweep_cli_reads_a_manifest(tmp_path, capsys) -> None:
-    mu_star = bifurcation("asymmetric").mu_star
-    mus = mu_star - np.geomspace(0.3, 2e-3, 8)
+def _write_records(tmp_path, mus: np.ndarray) -> list[str]:  # noqa: ANN001
+    """The asymmetric beam's records at ``mus`` written as CSV files ``rec<k>.csv``; the
+    manifest's rows (header first)."""
     rows = ["path,control"]
     for k, (w, dt, c) in enumerate(_lab_records("asymmetric", mus, deg=1.0, seconds=1.0)):
         f = tmp_path / f"rec{k}.csv"
         t = np.arange(w.size) * dt
         f.write_text("t,w\n" + "\n".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(t, w)) + "\n")
         rows.append(f"{f.name},{c!r}")
+    return rows
+
+
+def test_sweep_cli_reads_a_manifest(tmp_path, capsys) -> None:
+    mu_star = bifurcation("asymmetric").mu_star
+    mus = mu_star - np.geomspace(0.3, 2e-3, 8)
+    rows = _write_records(tmp_path, mus)
     (tmp_path / "manifest.csv").write_text("\n".join(rows) + "\n")
     assert main(["sweep", str(tmp_path / "manifest.csv"), "--json", "--no-progress"]) == 0
     doc = json.loads(capsys.readouterr().out)
@@ -134,12 +141,7 @@ def test_sweep_sets_aside_a_record_that_cannot_be_read(tmp_path, capsys) -> None
     same document to the last digit); with fewer than 3 readable records the reader's error."""
     mu_star = bifurcation("asymmetric").mu_star
     mus = mu_star - np.geomspace(0.3, 2e-3, 8)
-    rows = ["path,control"]
-    for k, (w, dt, c) in enumerate(_lab_records("asymmetric", mus, deg=1.0, seconds=1.0)):
-        f = tmp_path / f"rec{k}.csv"
-        t = np.arange(w.size) * dt
-        f.write_text("t,w\n" + "\n".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(t, w)) + "\n")
-        rows.append(f"{f.name},{c!r}")
+    rows = _write_records(tmp_path, mus)
     (tmp_path / "clean.csv").write_text("\n".join(rows) + "\n")
     lines = (tmp_path / "rec0.csv").read_text().splitlines()
     lines[200] = lines[200].split(",")[0] + ",nan"  # a dropped sample
