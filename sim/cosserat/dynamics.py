@@ -120,16 +120,7 @@ def integrate(
         halved (and ``every`` doubled, so the samples are the same), at most ``retries``
         times; ``Run.stop`` is "diverged" if it still fails, with the record up to there.
     """
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ParameterError("dt", dt, f"dt must be a positive number, got {dt!r}")
-    if int(nsteps) != nsteps or nsteps < 1:
-        raise ParameterError("nsteps", nsteps, f"nsteps must be an integer >= 1, got {nsteps!r}")
-    if int(every) != every or every < 1:
-        raise ParameterError("every", every, f"every must be an integer >= 1, got {every!r}")
-    if not (xi >= 0 and math.isfinite(xi)):
-        raise ParameterError("xi", xi, f"xi must be >= 0, got {xi!r}")
-    if not 0.0 <= rho_inf <= 1.0:
-        raise ParameterError("rho_inf", rho_inf, f"rho_inf must lie in [0, 1], got {rho_inf!r}")
+    _check_stepping(dt, nsteps, every, xi, rho_inf)
     z = rod.apply_bc(np.array(z0, dtype=float), mu)
     v = np.array(v0, dtype=float)
     if z.shape != (rod.N,) or v.shape != (rod.N,):
@@ -150,36 +141,14 @@ def integrate(
     nrec = nsteps // every + 1
     rec = np.zeros((nrec, len(probes)))
     stats = np.zeros(3)
+    fixed_u8 = fixed.astype(np.uint8)
     c0 = time.process_time()
     for attempt in range(retries + 1):
         K.integrate(
-            z,
-            v,
-            a,
-            mass,
-            fixed.astype(np.uint8),
-            rod.n,
-            rod.ds,
-            rod.EA,
-            rod.GA,
-            1.0,
-            rod.k_clamp,
-            rod.k_clamp,
-            aL,
-            aR,
-            float(xi),
-            float(dt),
-            int(nsteps),
-            int(every),
-            pidx,
-            pw,
-            float(rho_inf),
-            float(tol),
-            int(maxit),
-            int(full_its),
-            rec,
-            stats,
-        )
+            z, v, a, mass, fixed_u8, rod.n, rod.ds, rod.EA, rod.GA, 1.0, rod.k_clamp,
+            rod.k_clamp, aL, aR, float(xi), float(dt), int(nsteps), int(every), pidx, pw,
+            float(rho_inf), float(tol), int(maxit), int(full_its), rec, stats,
+        )  # fmt: skip
         if not stats[2] or attempt == retries:
             break
         dt, nsteps, every = 0.5 * dt, 2 * nsteps, 2 * every
@@ -200,6 +169,20 @@ def integrate(
         cpu_s=cpu,
         dt=dt,
     )
+
+
+def _check_stepping(dt: float, nsteps: int, every: int, xi: float, rho_inf: float) -> None:
+    """Refuse a time-stepping request that cannot run, naming the parameter and its value."""
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ParameterError("dt", dt, f"dt must be a positive number, got {dt!r}")
+    if int(nsteps) != nsteps or nsteps < 1:
+        raise ParameterError("nsteps", nsteps, f"nsteps must be an integer >= 1, got {nsteps!r}")
+    if int(every) != every or every < 1:
+        raise ParameterError("every", every, f"every must be an integer >= 1, got {every!r}")
+    if not (xi >= 0 and math.isfinite(xi)):
+        raise ParameterError("xi", xi, f"xi must be >= 0, got {xi!r}")
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ParameterError("rho_inf", rho_inf, f"rho_inf must lie in [0, 1], got {rho_inf!r}")
 
 
 def kick_velocity(rod: Rod, X: float, kick: float) -> np.ndarray:
@@ -286,43 +269,8 @@ def simulate(
         antisymmetric pitchfork (where it has merged with S_B).
     """
     rod, res = rod_for(scene, clamp)
-    z_eq = S.branch_state(rod, scene.mu, scene.branch)
-    lam = S.min_eigenvalues(rod, z_eq)[0]
-    s2, _ = S.sigma2(rod, z_eq, modes=4)
-    k_mid = 3 * (rod.n // 2) + 1
-    if lam <= 0.0:
-        raise SimulationError(
-            "mu",
-            scene.mu,
-            f"the {scene.branch} equilibrium of the rod ({rod.n} elements) at "
-            f"mu={scene.mu!r} is unstable (smallest Hessian eigenvalue {lam:.3e}): past its "
-            "transition, the strip would snap (see `snapwarn bifurcation --model cosserat`)",
-        )
-    if (
-        scene.actuation == "antisymmetric"
-        and scene.branch in ("U_A", "U_B")
-        and abs(z_eq[k_mid]) < 1e-9 * math.sqrt(rod.end_shortening)
-    ):
-        raise SimulationError(
-            "mu",
-            scene.mu,
-            f"{scene.branch} does not exist at mu={scene.mu!r}: past the rod's "
-            f"supercritical pitchfork ({rod.n} elements) it has merged with S_B",
-        )
-    half = Rod(
-        elements=max(4, 2 * (rod.n // 4)),
-        end_shortening=rod.end_shortening,
-        slenderness=rod.slenderness,
-        actuation=rod.actuation,
-        clamp=clamp,
-        poisson=rod.poisson,
-    )
-    try:
-        s2_half = S.sigma2(half, S.branch_state(half, scene.mu, scene.branch), 1)[0][0]
-        s2_err = abs(s2[0] - s2_half) / (2.0 ** (2 if clamp == "node" else 1) - 1.0)
-        s2_err = float(s2_err / abs(s2[0]))
-    except (SimulationError, np.linalg.LinAlgError):  # n/2 is past its own fold
-        s2_err = math.inf
+    z_eq, lam, s2 = _stable_equilibrium(rod, scene)
+    s2_err = _richardson_sigma2_error(rod, scene, s2[0], clamp)
     if steps_per_period is None:
         steps_per_period = steps_for(scene.rtol)
     omega1 = math.sqrt(abs(s2[0]))
@@ -378,6 +326,65 @@ def simulate(
             stacklevel=2,
         )
     return Signal(t=run.t, w=w, w_static=float(w_static), model="cosserat", scene=scene, info=info)
+
+
+def _stable_equilibrium(rod: Rod, scene: Scene) -> tuple[np.ndarray, float, np.ndarray]:
+    """The rod's equilibrium on ``scene.branch`` at ``scene.mu``, refused unless it is stable.
+
+    Returns the state, the Hessian's smallest eigenvalue and the four lowest sigma^2.
+
+    Raises
+    ------
+    sim.errors.SimulationError
+        (parameter "mu") on an unstable equilibrium, or on U_A/U_B past the antisymmetric
+        pitchfork (where the branch has merged with S_B).
+    """
+    z_eq = S.branch_state(rod, scene.mu, scene.branch)
+    lam = S.min_eigenvalues(rod, z_eq)[0]
+    s2, _ = S.sigma2(rod, z_eq, modes=4)
+    k_mid = 3 * (rod.n // 2) + 1
+    if lam <= 0.0:
+        raise SimulationError(
+            "mu",
+            scene.mu,
+            f"the {scene.branch} equilibrium of the rod ({rod.n} elements) at "
+            f"mu={scene.mu!r} is unstable (smallest Hessian eigenvalue {lam:.3e}): past its "
+            "transition, the strip would snap (see `snapwarn bifurcation --model cosserat`)",
+        )
+    if (
+        scene.actuation == "antisymmetric"
+        and scene.branch in ("U_A", "U_B")
+        and abs(z_eq[k_mid]) < 1e-9 * math.sqrt(rod.end_shortening)
+    ):
+        raise SimulationError(
+            "mu",
+            scene.mu,
+            f"{scene.branch} does not exist at mu={scene.mu!r}: past the rod's "
+            f"supercritical pitchfork ({rod.n} elements) it has merged with S_B",
+        )
+    return z_eq, float(lam), s2
+
+
+def _richardson_sigma2_error(rod: Rod, scene: Scene, s2_1: float, clamp: str) -> float:
+    """Relative error of the fundamental's sigma^2 by Richardson: n elements against n/2.
+
+    The spatial convergence order is 2 for node clamps and 1 for element clamps; infinite
+    when the coarse rod is already past its own fold.
+    """
+    half = Rod(
+        elements=max(4, 2 * (rod.n // 4)),
+        end_shortening=rod.end_shortening,
+        slenderness=rod.slenderness,
+        actuation=rod.actuation,
+        clamp=clamp,
+        poisson=rod.poisson,
+    )
+    try:
+        s2_half = S.sigma2(half, S.branch_state(half, scene.mu, scene.branch), 1)[0][0]
+    except (SimulationError, np.linalg.LinAlgError):  # n/2 is past its own fold
+        return math.inf
+    s2_err = abs(s2_1 - s2_half) / (2.0 ** (2 if clamp == "node" else 1) - 1.0)
+    return float(s2_err / abs(s2_1))
 
 
 @dataclass(frozen=True)
