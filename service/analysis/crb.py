@@ -157,6 +157,24 @@ def crb(
     t = np.asarray(t, dtype=float)
     if not noise_std > 0:
         raise ValueError(f"noise_std={noise_std!r}: must be > 0")
+    J, names, layout = _jacobian(t, modes, static=static, common_damping=common_damping)
+    fisher = J.T @ J / noise_std**2
+    scale = np.sqrt(np.diag(fisher))
+    scale[scale == 0] = 1.0
+    cov = np.linalg.pinv(fisher / np.outer(scale, scale), rcond=1e-15) / np.outer(scale, scale)
+    om, ga, s2 = _mode_bounds(modes, layout, cov)
+    st = float(np.sqrt(cov[0, 0])) if static else 0.0
+    return CRB(om, om / (2 * np.pi), ga, s2, st, fisher, tuple(names))
+
+
+def _jacobian(
+    t: np.ndarray, modes: Sequence[ModeSpec], *, static: bool, common_damping: bool
+) -> tuple[np.ndarray, list[str], list[dict[str, int]]]:
+    """Columns d(response)/d(parameter) of the modal model at the true parameters.
+
+    Returns the Jacobian (N, P), the parameter names and, per mode, the column index of each
+    of its parameters (``gamma`` shared by all modes when ``common_damping``).
+    """
     cols: list[np.ndarray] = []
     names: list[str] = []
     gamma_cols: list[np.ndarray] = []
@@ -204,11 +222,13 @@ def crb(
         names.append("gamma")
         for idx in layout:
             idx["gamma"] = gidx
-    J = np.column_stack(cols)
-    fisher = J.T @ J / noise_std**2
-    scale = np.sqrt(np.diag(fisher))
-    scale[scale == 0] = 1.0
-    cov = np.linalg.pinv(fisher / np.outer(scale, scale), rcond=1e-15) / np.outer(scale, scale)
+    return np.column_stack(cols), names, layout
+
+
+def _mode_bounds(
+    modes: Sequence[ModeSpec], layout: list[dict[str, int]], cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-mode bounds on omega, damping and sigma^2 (delta method) from the covariance."""
     n = len(modes)
     om = np.zeros(n)
     ga = np.zeros(n)
@@ -220,7 +240,7 @@ def crb(
             io = idx["omega"]
             om[k] = np.sqrt(cov[io, io])
             # sigma2 = -(gamma^2 + omega^2)
-            grad = np.zeros(len(names))
+            grad = np.zeros(cov.shape[0])
             grad[ig] = -2 * m.damping
             grad[io] += -2 * m.omega
         else:
@@ -228,9 +248,8 @@ def crb(
             gam = m.damping
             dl = 0.5 * (m.rate_fast - m.rate_slow)
             # sigma2 = -(gamma^2 - delta^2)
-            grad = np.zeros(len(names))
+            grad = np.zeros(cov.shape[0])
             grad[ig] = -2 * gam
             grad[idl] += 2 * dl
         s2[k] = np.sqrt(max(grad @ cov @ grad, 0.0))
-    st = float(np.sqrt(cov[0, 0])) if static else 0.0
-    return CRB(om, om / (2 * np.pi), ga, s2, st, fisher, tuple(names))
+    return om, ga, s2
