@@ -84,30 +84,13 @@ def fit_figure(
     """
     t = np.asarray(t, dtype=float)
     w = np.asarray(w, dtype=float)
-    tr = t - t[0]
     kind = _get(detection, "kind") if _has(detection, "kind") else "impulse"
-    modes = list(_get(detection, "modes") or [])
-    fit = None
-    if kind == "impulse" and modes:
-        ts = tr - tr[_start(detection, tr.size)]
-        fit = model_curve(ts, modes, _get(detection, "static_level"))
-        fit[ts < 0] = np.nan  # the pre-trigger: before the kick the model says nothing
+    fit = _fit_curve(t, detection, kind)
     tlabel = label("t", time_unit)
     wlabel = label("w", value_unit)
-    if small:
-        fig = figure(3.2, 1.5, dpi=80)
-        ax = fig.add_subplot()
-        keep = _first_periods(t, detection, 6)
-        td, wd = _decimate(t[keep], w[keep], points=600)
-        ax.plot(td, wd, ".", ms=1.5, color="0.35")
-        if fit is not None:
-            td, fd = _decimate(t[keep], fit[keep], points=600)
-            ax.plot(td, fd, lw=0.8, color="tab:red")
-        ax.tick_params(labelsize=6)
-        ax.set_xlabel(tlabel, fontsize=6, labelpad=1)
-        ax.set_ylabel(wlabel, fontsize=6, labelpad=1)
-        return fig
     keep = _first_periods(t, detection, 6)
+    if small:
+        return _thumbnail(t, w, fit, keep, tlabel, wlabel)
     zoom = fit is not None and keep.stop is not None and keep.stop < 0.5 * t.size
     if zoom:
         fig = figure(9.0, 7.4)
@@ -125,37 +108,13 @@ def fit_figure(
         ax, rx = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
     td, wd = _decimate(t, w)
     ax.plot(td, wd, lw=0.6, color="0.45", label="record")
-    if fit is not None:
-        td, fd = _decimate(t, fit)
-        ax.plot(td, fd, lw=0.9, color="tab:red", label="detector's fit")
-        td, rd = _decimate(t, w - fit)
-        rx.plot(td, rd, lw=0.5, color="tab:purple")
-        noise = _get(detection, "noise_std") if _has(detection, "noise_std") else None
-        if noise is not None and math.isfinite(noise):
-            for v in (-2 * noise, 2 * noise):
-                rx.axhline(v, color="k", lw=0.6, ls="--")
-            rx.text(0.01, 0.95, f"dashed: +-2 x noise std ({fmt_num(noise, 3)})",
-                    transform=rx.transAxes, fontsize=7, va="top")  # fmt: skip
-    else:
-        why = "ambient record: poles from its correlation" if kind == "ambient" else "no mode"
-        rx.text(0.5, 0.5, f"no fit over the record ({why})", ha="center", transform=rx.transAxes)
+    _residual_panel(ax, rx, t, w, fit, detection, kind)
     static = _get(detection, "static_level")
     if static is not None and math.isfinite(static):
         ax.axhline(static, color="k", ls="--", lw=0.7, label="static level")
-    f = _get(detection, "fundamental")
-    if f is not None:
-        s2 = _get(f, "sigma2")
-        if s2 is not None and s2 < 0:
-            T = 2 * math.pi / math.sqrt(-s2)
-            ax.set_title(
-                (title + ": " if title else "")
-                + f"fundamental period 2 pi/sqrt|sigma^2| = {fmt_num(T, 6)}"
-                + (f" {time_unit}" if time_unit and time_unit != NONDIM else "")
-                + f" ({_get(f, 'regime')})",
-                fontsize=9,
-            )
-    elif title:
-        ax.set_title(title, fontsize=9)
+    heading = _fundamental_title(detection, title, time_unit)
+    if heading:
+        ax.set_title(heading, fontsize=9)
     ax.set_ylabel(wlabel)
     rx.set_ylabel(label("residual", value_unit))
     rx.set_xlabel(tlabel)
@@ -163,6 +122,73 @@ def fit_figure(
     for a_ in (ax, rx):
         a_.grid(alpha=0.3)
     return fig
+
+
+def _fit_curve(t: np.ndarray, detection: Any, kind: str) -> np.ndarray | None:
+    """The detector's model over the record's times (NaN before the kick), or None."""
+    modes = list(_get(detection, "modes") or [])
+    if kind != "impulse" or not modes:
+        return None
+    tr = t - t[0]
+    ts = tr - tr[_start(detection, tr.size)]
+    fit = model_curve(ts, modes, _get(detection, "static_level"))
+    fit[ts < 0] = np.nan  # the pre-trigger: before the kick the model says nothing
+    return fit
+
+
+def _thumbnail(
+    t: np.ndarray, w: np.ndarray, fit: np.ndarray | None, keep: slice, tlabel: str, wlabel: str
+) -> Any:
+    """A table thumbnail: the first six periods with the fit, no legend."""
+    fig = figure(3.2, 1.5, dpi=80)
+    ax = fig.add_subplot()
+    td, wd = _decimate(t[keep], w[keep], points=600)
+    ax.plot(td, wd, ".", ms=1.5, color="0.35")
+    if fit is not None:
+        td, fd = _decimate(t[keep], fit[keep], points=600)
+        ax.plot(td, fd, lw=0.8, color="tab:red")
+    ax.tick_params(labelsize=6)
+    ax.set_xlabel(tlabel, fontsize=6, labelpad=1)
+    ax.set_ylabel(wlabel, fontsize=6, labelpad=1)
+    return fig
+
+
+def _residual_panel(
+    ax: Any, rx: Any, t: np.ndarray, w: np.ndarray, fit: np.ndarray | None, detection: Any,
+    kind: str,
+) -> None:  # fmt: skip
+    """The fit over the record (``ax``) and the residual with +-2 noise std (``rx``)."""
+    if fit is None:
+        why = "ambient record: poles from its correlation" if kind == "ambient" else "no mode"
+        rx.text(0.5, 0.5, f"no fit over the record ({why})", ha="center", transform=rx.transAxes)
+        return
+    td, fd = _decimate(t, fit)
+    ax.plot(td, fd, lw=0.9, color="tab:red", label="detector's fit")
+    td, rd = _decimate(t, w - fit)
+    rx.plot(td, rd, lw=0.5, color="tab:purple")
+    noise = _get(detection, "noise_std") if _has(detection, "noise_std") else None
+    if noise is not None and math.isfinite(noise):
+        for v in (-2 * noise, 2 * noise):
+            rx.axhline(v, color="k", lw=0.6, ls="--")
+        rx.text(0.01, 0.95, f"dashed: +-2 x noise std ({fmt_num(noise, 3)})",
+                transform=rx.transAxes, fontsize=7, va="top")  # fmt: skip
+
+
+def _fundamental_title(detection: Any, title: str | None, time_unit: str | None) -> str | None:
+    """The chart's title: the fundamental's period and regime when there is one."""
+    f = _get(detection, "fundamental")
+    if f is None:
+        return title or None
+    s2 = _get(f, "sigma2")
+    if s2 is None or not s2 < 0:
+        return None
+    T = 2 * math.pi / math.sqrt(-s2)
+    return (
+        (title + ": " if title else "")
+        + f"fundamental period 2 pi/sqrt|sigma^2| = {fmt_num(T, 6)}"
+        + (f" {time_unit}" if time_unit and time_unit != NONDIM else "")
+        + f" ({_get(f, 'regime')})"
+    )
 
 
 def _first_periods(t: np.ndarray, detection: Any, periods: float) -> slice:
