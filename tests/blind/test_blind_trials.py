@@ -44,15 +44,20 @@ CASES: dict[tuple[str, str, int], str | None] = {
     ("arch_pitchfork", "past", 0): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_crossing", "lab", 0): None,
     ("arch_crossing", "far", 0): (
-        "NEW failure on main d87c840 (the causal lead-in detector; passed at 1615316-b4e0999): "
-        "found at 02:46, not yet diagnosed"),
+        "detector (diagnosed on e21e7fb with tests/blind/_blind_diagnose.py): undetermined "
+        "[4.1989, 5.0161] kN for mu* 5.03980 (early, with caution flags); the two records "
+        "nearest the modes' crossing are blends read as one line with a single line's std "
+        "(3.5905 kN: -622.320 +- 0.025 for modes -621.215/-623.193; 3.7953 kN: -566.338 +- 0.034 "
+        "for -560.736 critical/-574.371, z -163, after a false repeated_kick cut the window to "
+        "2.2 s); predict on the exact critical sigma2 with the same stds covers [4.712, 5.077]"),
     ("arch_crossing", "past", 0): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_crossing", "past", 1): None,  # passes with the causal lead-in detector (d87c840)
     ("arch_imperfect", "lab", 0): (
-        "on main 458c616: saddle-node named (right) but its interval [1149.660, 1150.137] lbf "
-        "ends 0.03 lbf below the fold at 1150.164 with no caution flag (mid-session, before "
-        "the causal lead-in: `none` from records read as combs); the predictor alone on the "
-        "exact table says saddle-node [1146.5, 1152.4]"),
+        "predictor (diagnosed on e21e7fb with tests/blind/_blind_diagnose.py): saddle-node "
+        "[1149.660, 1150.137] lbf ends 0.03 below the fold at 1150.164, no caution flag; the "
+        "detector is right (|z| <= 1.8, sum z^2 6.3 over 10 controls) and the sweep equals predict "
+        "on the detected table; predict on the EXACT sigma2 with the detector's stds misses too: "
+        "[1149.678, 1150.124], error -0.263 = -2.65 std (window 7, 4 terms: truncation bias)"),
     ("arch_imperfect", "far", 0): None,
     ("arch_imperfect", "past", 0): None,
     ("foundation", "lab", 0): None,
