@@ -22,7 +22,9 @@ give the same alarm, advice and answer through every door. For the records so fa
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -387,6 +389,16 @@ def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
     ]
 
 
+#: The last predictions, by their exact inputs (:func:`_predict`'s key): ``predict`` is
+#: deterministic in them, and a sweep asks for the same one again: the converged hull
+#: (:func:`_without_newest`) predicts the records but the newest, which the previous record's
+#: update predicted (a live sweep's worker keeps them across requests), and a batch's
+#: :meth:`SweepPolicy.result` assesses the records but the last first.
+_PREDICTIONS: OrderedDict[tuple, Prediction] = OrderedDict()
+_PREDICTIONS_MAX = 16
+_PREDICTIONS_LOCK = threading.Lock()
+
+
 def _predict(
     ms: Sequence[Measurement], level: float, strict: bool = False
 ) -> tuple[Prediction | None, list[Flag]]:
@@ -394,6 +406,13 @@ def _predict(
         return None, []
     col = {k: np.array([getattr(m, k) for m in ms])
            for k in ("mu", "sigma2", "sigma2_std", "w_static", "w_static_std")}  # fmt: skip
+    # exact: the columns' bytes (the arguments below are functions of them) and the level
+    key = (level, *((col[k].dtype.str, col[k].tobytes()) for k in sorted(col)))
+    with _PREDICTIONS_LOCK:
+        hit = _PREDICTIONS.get(key)
+        if hit is not None:
+            _PREDICTIONS.move_to_end(key)
+            return hit, []
     s2_std = col["sigma2_std"]
     # records of a velocity or an acceleration have no static level (NaN): the prediction
     # then reads the frequencies alone
@@ -413,6 +432,10 @@ def _predict(
         return _failed(ms)
     except (ValueError, ArithmeticError):  # LinAlgError, overflow
         return _failed(ms)
+    with _PREDICTIONS_LOCK:
+        _PREDICTIONS[key] = pred
+        while len(_PREDICTIONS) > _PREDICTIONS_MAX:
+            _PREDICTIONS.popitem(last=False)
     return pred, []
 
 
