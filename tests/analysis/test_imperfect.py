@@ -31,7 +31,7 @@ from service.analysis.predictor._kernels.cusp import (
     scan2,
     stiffness,
 )
-from service.analysis.predictor.imperfect import _GS, _TS, _fit, _joint
+from service.analysis.predictor.cusp import _GS, _TS, _fit, _joint
 
 
 def _branch_x(lam: float, eps: float, c: float, soft: bool) -> float:

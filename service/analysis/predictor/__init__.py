@@ -9,8 +9,10 @@ Pipeline, top to bottom (each module imports only from the ones below it)::
 
     prediction       predict(): sweep -> fits -> interval -> imperfect laws -> type rules ->
                      alarm -> Prediction (one mu*, inside its interval, that every flag refers to)
-    imperfect        the unfolded (imperfect) pitchforks against the perfect one: a softening
+    imperfect        decide(): what the imperfect pitchforks change in the answer: a softening
                      one snaps at a fold before mu*, a stiffening one never loses stability
+    cusp             assess(): the unfolded (imperfect) pitchforks fitted against the perfect
+                     one on a window of nearest points (CuspWindow, Imperfection)
     interval         fit_sweep(): the law given or the classified candidates refitted on their
                      own windows; interval(): profile or mixture interval, fewer-terms rivals,
                      truncation spread
