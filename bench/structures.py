@@ -81,11 +81,14 @@ RIGHT = {
 }
 #: the kinds that never lose stability
 NO_LOSS = ("imperfect-stiffening", "coupled-stiffening")
-#: names that are wrong (a withheld type, "undetermined", is neither)
+#: names that are wrong (a withheld type, "undetermined", is neither; so is a plain "pitchfork"
+#: for an imperfect softening structure: issue 28 asks that it is never called supercritical or
+#: smooth, and "pitchfork" withholds which pitchfork, i.e. whether it snaps; the alarm treats it
+#: as a possible snap, and its interval is scored against the fold like any other name's)
 WRONG = {
     "perfect-softening": ("saddle-node", "supercritical-pitchfork", *NONE_NAMES),
     "perfect-stiffening": ("saddle-node", "subcritical-pitchfork", *NONE_NAMES),
-    "imperfect-softening": ("supercritical-pitchfork", "pitchfork", *NONE_NAMES),
+    "imperfect-softening": ("supercritical-pitchfork", *NONE_NAMES),
     "imperfect-stiffening": SNAP_NAMES,
     "truss": ("pitchfork", "subcritical-pitchfork", "supercritical-pitchfork", *NONE_NAMES),
     "truss-asymmetric": (
@@ -94,7 +97,7 @@ WRONG = {
         "supercritical-pitchfork",
         *NONE_NAMES,
     ),
-    "coupled-softening": ("supercritical-pitchfork", "pitchfork", *NONE_NAMES),
+    "coupled-softening": ("supercritical-pitchfork", *NONE_NAMES),
     "coupled-stiffening": SNAP_NAMES,
 }
 
@@ -375,8 +378,10 @@ def write(
         "type named with p >= 0.9; 'within 1 %' = plans whose last load is within 1 % of P_c. "
         "Right names: perfect columns their pitchfork (or 'pitchfork'), imperfect softening "
         "saddle-node or subcritical (a snap), imperfect stiffening 'none' (no transition), "
-        "truss saddle-node; a plain 'pitchfork' for an imperfect softening column is wrong "
-        "(it has no pitchfork: it snaps at a fold); 'undetermined' (type withheld) is neither.",
+        "truss saddle-node. Wrong for imperfect softening: supercritical or 'none' (issue 28: never "
+        "called supercritical or smooth); a plain 'pitchfork' there (which pitchfork, i.e. "
+        "whether it snaps, withheld; the alarm treats it as a possible snap) and 'undetermined' "
+        "(type withheld) are neither right nor wrong.",
         "",
     ]
     cols = list(summ[0]) if summ else []
