@@ -378,8 +378,8 @@ def write(
         "type named with p >= 0.9; 'within 1 %' = plans whose last load is within 1 % of P_c. "
         "Right names: perfect columns their pitchfork (or 'pitchfork'), imperfect softening "
         "saddle-node or subcritical (a snap), imperfect stiffening 'none' (no transition), "
-        "truss saddle-node. Wrong for imperfect softening: supercritical or 'none' (issue 28: never "
-        "called supercritical or smooth); a plain 'pitchfork' there (which pitchfork, i.e. "
+        "truss saddle-node. Wrong for imperfect softening: supercritical or 'none' (issue 28: "
+        "never called supercritical or smooth); a plain 'pitchfork' there (which pitchfork, i.e. "
         "whether it snaps, withheld; the alarm treats it as a possible snap) and 'undetermined' "
         "(type withheld) are neither right nor wrong.",
         "",
