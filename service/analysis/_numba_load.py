@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from types import ModuleType
 
 #: modules numba's ``__init__`` imports for a version check and an optional config file only
@@ -72,6 +74,32 @@ def __getattr__(name: str):  # noqa: ANN202 - module attribute
         return import_numba().njit
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+@contextmanager
+def quiet_llvm_lock() -> Iterator[None]:
+    """numba's ``numba:llvm_lock`` events off inside (they are restored after).
+
+    numba registers callbacks on llvmlite's lock that broadcast a start and an end event
+    around every call into LLVM, for its compile timers. Loading a cached kernel makes a
+    few hundred such calls (reading its bitcode, listing its symbols): some 10 ms CPU of a
+    ``snapwarn detect`` for events no one listens to while nothing compiles. Only while this
+    thread is the only one (the callback list is global: another thread's compilation keeps
+    its events) and where llvmlite keeps the list as this was written against."""
+    import threading
+
+    from llvmlite.binding import ffi
+
+    callbacks = getattr(getattr(getattr(ffi, "lib", None), "_lock", None), "_cblist", None)
+    if not isinstance(callbacks, list) or not callbacks or threading.active_count() > 1:
+        yield
+        return
+    saved = list(callbacks)
+    callbacks.clear()
+    try:
+        yield
+    finally:
+        callbacks[:0] = saved
+
+
 #: numba versions whose ``Cache.load_overload`` this replaces (its body is unchanged from 0.49 to
 #: 0.68, the version installed when this was written)
 CHECKED = ("0.6",)
@@ -95,12 +123,13 @@ def install() -> bool:
     original = caching.Cache.load_overload
 
     def load_overload(self, sig, target_context):  # noqa: ANN001, ANN202 - numba's signature
-        nrt.rtsys.initialize(target_context)
-        with self._guard_against_spurious_io_errors():
-            cres = self._load_overload(sig, target_context)
-            if cres is not None and (cres.objectmode or cres.lifted):
-                target_context.refresh()  # object mode calls back into the registries
-            return cres
+        with quiet_llvm_lock():
+            nrt.rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                cres = self._load_overload(sig, target_context)
+                if cres is not None and (cres.objectmode or cres.lifted):
+                    target_context.refresh()  # object mode calls back into the registries
+                return cres
         return None  # an I/O error swallowed by the guard, as numba's own
 
     load_overload.__wrapped__ = original  # type: ignore[attr-defined]

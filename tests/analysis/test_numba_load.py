@@ -171,3 +171,45 @@ def test_nothing_is_kept_out_while_other_threads_run(tmp_path: Path) -> None:
                          timeout=600, cwd=tmp_path)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == {"scipy": True, "yaml": True}
+
+
+_LOCK = """
+import json, sys, threading
+sys.path.insert(0, sys.argv[1])
+from service.analysis._numba_load import install
+install()
+from llvmlite.binding import ffi
+from numba.core import event
+before = list(ffi.lib._lock._cblist)
+n = [0]
+class Count(event.Listener):
+    def on_start(self, ev): n[0] += 1
+    def on_end(self, ev): pass
+if sys.argv[2] == "threaded":
+    stop = threading.Event()
+    threading.Thread(target=stop.wait).start()
+import kern
+with event.install_listener("numba:llvm_lock", Count()):
+    a = kern.ramp(5)  # cached: loaded
+if sys.argv[2] == "threaded":
+    stop.set()
+print(json.dumps({"events": n[0], "restored": ffi.lib._lock._cblist == before,
+                  "callbacks": len(before), "hits": sum(kern.ramp.stats.cache_hits.values()),
+                  "a": a.tolist()}))
+"""
+
+
+def test_a_cached_load_broadcasts_no_llvm_lock_events_and_restores_the_callbacks(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "kern.py").write_text(_KERNELS)
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    _run(_RUN, str(tmp_path), "plain", env=env)  # fills the cache
+    alone = _run(_LOCK, str(tmp_path), "alone", env=env)
+    assert alone["hits"] == 1 and alone["a"] == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert alone["callbacks"] >= 1 and alone["restored"] is True
+    assert alone["events"] == 0
+    # another thread alive: the callbacks (global) are left alone, the events broadcast
+    threaded = _run(_LOCK, str(tmp_path), "threaded", env=env)
+    assert threaded["hits"] == 1 and threaded["restored"] is True
+    assert threaded["events"] > 0
