@@ -37,7 +37,7 @@ def exact_modes(camp: S.Campaign) -> list[tuple[float, float, list[float]]]:
     out = []
     items = [(p, False) for p in camp.controls] + [(p, True) for p in camp.past]
     for p, beyond in items:
-        st = camp.state(p, beyond and isinstance(camp.structure, S.Arch))
+        st = camp.state(p, beyond and S._snaps(camp.structure))
         s2 = [-float(o) * oms**2 for o in st.omega2]
         crit = s2[st.critical]
         out.append((p * camp.load_scale, crit, [crit] + [v for v in s2 if v != crit]))

@@ -68,6 +68,14 @@ class Recording:
     adc_range: float | None = None  # full scale +-range in the file's unit (None: 1.25 x peak)
     nan_gaps: int = 0
     offset: float = 0.0  # a sensor's zero offset in the file's unit
+    #: the sensor's zero jumps mid-record (a re-zero, a cable knock): ``(fraction of the record,
+    #: size relative to the dynamic peak)``; the values after that instant are shifted
+    offset_step: tuple[float, float] | None = None
+    #: the logger's sampling instants jitter (Gaussian std, s) while the file's times are the
+    #: nominal grid (``stamped=False``) or the instants actually sampled (``stamped=True``:
+    #: non-uniform time stamps, as a logger with its own clock writes them)
+    jitter_s: float = 0.0
+    jitter_stamped: bool = False
     time_unit: str = "s"  # s | ms
     seed: int = 0
 
@@ -188,7 +196,8 @@ def record(state, omega_scale: float, gamma: float, rec: Recording, force: float
     else:
         t_hit = -rec.midring_s
     t = k / rec.rate_hz  # from the record's first sample
-    s = t - t_hit  # time since the hit
+    t_true = t + sample_jitter(rec, n)  # the instants actually sampled
+    s = t_true - t_hit  # time since the hit
     y = np.zeros(n)
     for om2, a_s, a_h in zip(state.omega2, state.at_sensor, state.at_hammer, strict=True):
         y += mode_output(s, float(om2) * omega_scale**2, gamma, force * a_s * a_h, rec)
@@ -198,33 +207,12 @@ def record(state, omega_scale: float, gamma: float, rec: Recording, force: float
         y_r = mode_output(s, wr * wr, z_r * wr, 1.0, rec)
         peak = float(np.max(np.abs(y))) or 1.0
         y += amp * peak / max(float(np.max(np.abs(y_r))), 1e-300) * y_r
-    if rec.sensor == "laser":
-        y = y + state.static * static_mm_per_unit
-    vals, vunit, quantity = _to_unit(y, rec, deg_per_mm)
-    dyn = vals - (vals[0] if rec.start == "pretrigger" else float(np.median(vals)))
-    peak = float(np.max(np.abs(dyn))) or 1.0
-    if rec.hum_rel > 0:
-        ph = rng.uniform(0, 2 * math.pi, 1 + len(rec.harmonics))
-        amps = (1.0,) + tuple(rec.harmonics)
-        for j, (a, p) in enumerate(zip(amps, ph, strict=True)):
-            vals = vals + rec.hum_rel * peak * a * np.sin(2 * math.pi * rec.mains_hz * (j + 1) * t
-                                                          + p)  # fmt: skip
-    if rec.snr_db is not None:
-        sd = peak / math.sqrt(2.0 * 10 ** (rec.snr_db / 10.0))
-        vals = vals + sd * rng.standard_normal(n)
-    vals = vals + rec.offset
-    bits = rec.adc_bits
-    if bits is not None:
-        full = adc_range or rec.adc_range or 1.25 * float(np.max(np.abs(vals)))
-        lsb = 2 * full / 2**bits
-        vals = np.clip(np.round(vals / lsb) * lsb, -full, full - lsb)
-    if rec.nan_gaps:
-        for _ in range(rec.nan_gaps):
-            i = int(rng.integers(n // 5, n - 10))
-            vals[i : i + int(rng.integers(1, 4))] = np.nan
+    vals, vunit, quantity, peak = finish(y, t_true, state.static * static_mm_per_unit, rec, rng,
+                                         deg_per_mm, adc_range)  # fmt: skip
     crit = state.critical
     om2c = float(state.omega2[crit]) * omega_scale**2
-    t_out = t * (1e3 if rec.time_unit == "ms" else 1.0)
+    t_file = t_true if rec.jitter_stamped else t
+    t_out = t_file * (1e3 if rec.time_unit == "ms" else 1.0)
     info = {"omega2_all": (state.omega2 * omega_scale**2).tolist(), "peak": peak}
     return Record(t_out, vals, rec.time_unit, vunit, quantity,
                   math.sqrt(om2c) if om2c > 0 else float("nan"), gamma, info)  # fmt: skip
@@ -241,3 +229,49 @@ def write_csv(r: Record, path) -> None:  # noqa: ANN001
 
 def with_seed(rec: Recording, seed: int) -> Recording:
     return replace(rec, seed=seed)
+
+
+def sample_jitter(rec: Recording, n: int) -> np.ndarray:
+    """The logger's sampling-instant errors (s): zero unless ``rec.jitter_s``; drawn from their
+    own stream so that the other impairments' draws do not change."""
+    if rec.jitter_s <= 0:
+        return np.zeros(n)
+    return rec.jitter_s * np.random.default_rng([rec.seed, 7919]).standard_normal(n)
+
+
+def finish(y: np.ndarray, t: np.ndarray, static_mm: float, rec: Recording,
+           rng: np.random.Generator, deg_per_mm: float = 1.0, adc_range: float | None = None,
+           ) -> tuple[np.ndarray, str, str, float]:  # fmt: skip
+    """The sensor's output ``y`` (mm, mm/s or mm/s^2 about the equilibrium, sampled at the
+    instants ``t``, s) as the file holds it: the static level (a laser), the file's unit, hum,
+    noise, offset, an offset step, the ADC and dropped samples. ``(values, value_unit, quantity,
+    dynamic peak)``."""
+    n = len(y)
+    if rec.sensor == "laser":
+        y = y + static_mm
+    vals, vunit, quantity = _to_unit(y, rec, deg_per_mm)
+    dyn = vals - (vals[0] if rec.start == "pretrigger" else float(np.median(vals)))
+    peak = float(np.max(np.abs(dyn))) or 1.0
+    if rec.hum_rel > 0:
+        ph = rng.uniform(0, 2 * math.pi, 1 + len(rec.harmonics))
+        amps = (1.0,) + tuple(rec.harmonics)
+        for j, (a, p) in enumerate(zip(amps, ph, strict=True)):
+            vals = vals + rec.hum_rel * peak * a * np.sin(2 * math.pi * rec.mains_hz * (j + 1) * t
+                                                          + p)  # fmt: skip
+    if rec.snr_db is not None:
+        sd = peak / math.sqrt(2.0 * 10 ** (rec.snr_db / 10.0))
+        vals = vals + sd * rng.standard_normal(n)
+    vals = vals + rec.offset
+    if rec.offset_step is not None:
+        frac, rel = rec.offset_step
+        vals = vals + np.where(t >= frac * rec.duration_s, rel * peak, 0.0)
+    bits = rec.adc_bits
+    if bits is not None:
+        full = adc_range or rec.adc_range or 1.25 * float(np.max(np.abs(vals)))
+        lsb = 2 * full / 2**bits
+        vals = np.clip(np.round(vals / lsb) * lsb, -full, full - lsb)
+    if rec.nan_gaps:
+        for _ in range(rec.nan_gaps):
+            i = int(rng.integers(n // 5, n - 10))
+            vals[i : i + int(rng.integers(1, 4))] = np.nan
+    return vals, vunit, quantity, peak

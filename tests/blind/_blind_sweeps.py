@@ -23,13 +23,17 @@ foundation         column on a Winkler foundation, beta in     pitchfork (static
                    5-14: mode 2 buckles, mode 1 is the lowest  sub/super cannot be told)
                    line far from mu*
 threelink          three-link column (two interacting modes)   pitchfork (static level 0)
+truss_friction     two-bar (von Mises) truss with Coulomb      saddle-node
+                   friction in its joints (amplitude-
+                   dependent damping; ``_blind_truss``)
 =================  ==========================================  =============================
 
 ``undetermined`` is an honest withholding everywhere, ``pitchfork`` where the truth is one.
 
 Plans: ``lab`` (to ``T/T0`` 3-6), ``far`` (stops at ``T/T0 < 2``: the type must be withheld,
 ``right`` is empty), ``past`` (``lab`` plus one record beyond mu*: on the snapped branch for an
-arch, growing for a column).
+arch or the truss, growing for a column), ``veryfar`` (even load steps that stop at ``T/T0 = 1.3``,
+6-8 controls: the type must be withheld).
 """
 
 from __future__ import annotations
@@ -43,10 +47,13 @@ from pathlib import Path
 import numpy as np
 from _blind_recorder import Recording, record, write_csv
 from _blind_structures import Arch, FoundationColumn, ThreeLinkColumn, _brent
+from _blind_truss import FrictionTruss, record_friction
 
 FAMILIES = ("arch_fold", "arch_pitchfork", "arch_crossing", "arch_imperfect", "foundation",
-            "threelink")  # fmt: skip
-PLANS = ("lab", "far", "past")
+            "threelink", "truss_friction")  # fmt: skip
+PLANS = ("lab", "far", "past", "veryfar")
+#: plans that stop far from mu*, where no type may be named (their ``right`` is empty)
+FAR_PLANS = ("far", "veryfar")
 RIGHT = {
     "arch_fold": {"saddle-node"},
     "arch_pitchfork": {"subcritical-pitchfork"},
@@ -54,6 +61,7 @@ RIGHT = {
     "arch_imperfect": {"saddle-node", "subcritical-pitchfork"},
     "foundation": {"pitchfork"},
     "threelink": {"pitchfork"},
+    "truss_friction": {"saddle-node"},
 }
 WITHHELD = {"undetermined", "pitchfork"}
 
@@ -119,6 +127,9 @@ class Campaign:
     plan: str = "lab"
     spoil: dict = field(default_factory=dict)  # index -> Recording overrides (bad records)
     params: dict = field(default_factory=dict)
+    #: joint friction (``_blind_truss``): the cycles the first record rings before the apex
+    #: sticks (viscous damping aside); None: no friction, the hammer of ``_blind_recorder``
+    friction_cycles: float | None = None
 
     # -- the structure ----------------------------------------------------------------------
     def state(self, p: float, remote: bool = False):  # noqa: ANN201
@@ -176,7 +187,7 @@ class Campaign:
         adc_range = None
         items = [(p, False) for p in self.controls] + [(p, True) for p in self.past]
         for i, (p, beyond) in enumerate(items):
-            remote = beyond and isinstance(self.structure, Arch)
+            remote = beyond and _snaps(self.structure)
             rec = replace(self.rec, seed=self.rec.seed * 1000 + i,
                           duration_s=self._duration(p, remote))  # fmt: skip
             if i in self.spoil:
@@ -184,12 +195,19 @@ class Campaign:
             st = self.state(p, remote)
             sig2.append(-float(st.omega2[st.critical]) * oms**2)
             stat.append(st.static * self.static_mm_per_unit)
-            r = record(st, oms, gam, rec, force, self.static_mm_per_unit, adc_range=adc_range)
+            if self.friction_cycles is not None:
+                r = self._friction_record(st, rec, adc_range)
+            else:
+                r = record(st, oms, gam, rec, force, self.static_mm_per_unit,
+                           adc_range=adc_range)  # fmt: skip
             if rec.adc_bits is not None and adc_range is None:
                 # the lab sets the range on the first record, with headroom, and keeps it
                 adc_range = 2.0 * float(np.nanmax(np.abs(r.y)))
-                r = record(st, oms, gam, rec, force, self.static_mm_per_unit,
-                           adc_range=adc_range)  # fmt: skip
+                if self.friction_cycles is not None:
+                    r = self._friction_record(st, rec, adc_range)
+                else:
+                    r = record(st, oms, gam, rec, force, self.static_mm_per_unit,
+                               adc_range=adc_range)  # fmt: skip
             c = float(p * self.load_scale)
             name = f"rec{i:02d}_{c:.4g}{self.control_unit}.csv".replace(" ", "")
             write_csv(r, folder / name)
@@ -204,12 +222,32 @@ class Campaign:
             for name, c in rows:
                 fh.write(f"{name},{c!r}\n")
         kind = self.structure.kind()
-        far = self.plan == "far"
+        far = self.plan in FAR_PLANS
         return Truth(self.family, self.plan, self.mu_star() * self.load_scale, kind,
                      frozenset() if far else frozenset(RIGHT[self.family]),
                      frozenset(WITHHELD), tuple(c for _, c in rows), tuple(names), untrusted,
                      self.t_ratio(max(self.controls)), self.control_unit, folder / "manifest.csv",
                      dict(self.params), tuple(sig2), gam, tuple(stat))  # fmt: skip
+
+
+    def friction(self) -> tuple[float, float]:
+        """``(v0, f)``: the kick's velocity (mm/s: the first record peaks near ``rec.peak_mm``)
+        and the joints' Coulomb friction (mm/s^2: ``friction_cycles`` cycles to sticking at the
+        first record, viscous damping aside: each cycle loses ``4 f / omega0^2``)."""
+        s0 = self.state(self.controls[0])
+        w0 = math.sqrt(float(s0.omega2[s0.critical])) * self.omega_scale()
+        v0 = self.rec.peak_mm * w0
+        return v0, v0 * w0 / (4.0 * float(self.friction_cycles))
+
+    def _friction_record(self, st, rec: Recording, adc_range: float | None):  # noqa: ANN001, ANN202
+        v0, f = self.friction()
+        return record_friction(st, self.omega_scale(), self.gamma(), rec, v0, f,
+                               self.static_mm_per_unit, adc_range=adc_range)  # fmt: skip
+
+
+def _snaps(structure: object) -> bool:
+    """Whether the structure snaps to a remote branch past mu* (else it collapses: grows)."""
+    return isinstance(structure, (Arch, FrictionTruss))
 
 
 # ------------------------------------------------------------------------------------------
@@ -244,11 +282,25 @@ def lab_controls(camp: Campaign, rng: np.random.Generator, n: int, ratio: float,
     return tuple(float(m) for m in mus)
 
 
+def stepped_controls(camp: Campaign, rng: np.random.Generator, n: int, ratio: float,
+                     ) -> tuple[float, ...]:  # fmt: skip
+    """``n`` controls stepped evenly (each step jittered by up to 20 %) from the first one to
+    ``T/T0 = ratio``, one of them recorded twice: a lab that steps its load uniformly."""
+    mu0, end = camp.controls[0], control_at_ratio(camp, ratio)
+    mus = np.linspace(mu0, end, n)
+    step = (end - mu0) / (n - 1)
+    mus[1:-1] += 0.2 * step * rng.uniform(-1.0, 1.0, n - 2)
+    mus = [float(m) for m in np.round(mus, 12)]
+    j = int(rng.integers(1, n - 1))
+    mus.insert(min(j + 2, n), mus[j])
+    return tuple(mus)
+
+
 def past_control(camp: Campaign, last: float) -> float:
     """A load beyond mu*: for an arch, half the last gap beyond the transition (the structure
     has snapped); for a column, where the collapse grows by ~e^6 over a record."""
     mu_star = camp.mu_star()
-    if isinstance(camp.structure, Arch):
+    if _snaps(camp.structure):
         return mu_star + max(0.5 * (mu_star - last), 0.01 * mu_star)
     oms = camp.omega_scale()
     target = -((6.0 / (oms * camp.rec.duration_s)) ** 2)
@@ -286,6 +338,9 @@ def _structure(family: str, rng: np.random.Generator) -> tuple[object, dict]:
         k2 = rng.uniform(0.6, 1.6)
         m2 = rng.uniform(0.5, 2.0)
         return ThreeLinkColumn(k2=k2, m2=m2), {"k2": k2, "m2": m2}
+    if family == "truss_friction":
+        h0 = rng.uniform(0.1, 0.3)
+        return FrictionTruss(h0=h0, ea=1e4), {"h0": h0}
     raise ValueError(family)
 
 
@@ -298,13 +353,16 @@ _LAB = {
     "arch_imperfect": dict(rate_hz=5000.0, sensor="laser", unit="in"),
     "foundation": dict(rate_hz=20000.0, sensor="geophone", unit="in/s", duration_s=2.0),
     "threelink": dict(rate_hz=1000.0, sensor="laser", unit="deg", start="midring"),
+    "truss_friction": dict(rate_hz=2000.0, sensor="laser", unit="mm"),
 }  # fmt: skip
 
 
 def campaign(family: str, plan: str = "lab", seed: int = 0, *, damping: float | None = None,
+             friction_cycles: float | None = None,
              **rec_overrides) -> Campaign:  # noqa: ANN003  # fmt: skip
     """A random campaign of ``family`` under ``plan`` (module docstring), reproducible from
     ``seed``; ``damping`` fixes the critical mode's first damping ratio (else 0.005-0.03),
+    ``friction_cycles`` the truss's joint friction (else 15-40 cycles to sticking),
     ``rec_overrides`` override the lab's recording."""
     rng = np.random.default_rng([zlib.crc32(family.encode()), PLANS.index(plan), seed])
     structure, params = _structure(family, rng)
@@ -322,12 +380,24 @@ def campaign(family: str, plan: str = "lab", seed: int = 0, *, damping: float | 
     params = params | {"f0_hz": f0, "zeta0": zeta}
     base = Campaign(family, structure, load_scale, f0, zeta, rec, (0.0,),
                     control_unit=unit, plan=plan, params=params)  # fmt: skip
-    ratio = 1.6 if plan == "far" else float(rng.uniform(3.0, 6.0))
-    n = int(rng.integers(7, 9)) if plan == "far" else int(rng.integers(10, 15))
-    controls = lab_controls(base, rng, n, ratio, repeats=1)
+    if plan == "veryfar":
+        ratio, n = 1.3, int(rng.integers(6, 9))
+    elif plan == "far":
+        ratio, n = 1.6, int(rng.integers(7, 9))
+    else:
+        ratio, n = float(rng.uniform(3.0, 6.0)), int(rng.integers(10, 15))
+    if plan == "veryfar":
+        controls = stepped_controls(base, rng, n, ratio)
+    else:
+        controls = lab_controls(base, rng, n, ratio, repeats=1)
     past = (past_control(base, controls[-1]),) if plan == "past" else ()
     params = base.params | {"ratio": ratio, "mu_star_nondim": mu_star}
-    return replace(base, controls=controls, past=past, params=params)
+    friction = None
+    if family == "truss_friction":
+        # drawn last: the other families' draws are unchanged
+        friction = float(rng.uniform(15.0, 40.0)) if friction_cycles is None else friction_cycles
+        params = params | {"friction_cycles": friction}
+    return replace(base, controls=controls, past=past, params=params, friction_cycles=friction)
 
 
 def _main(argv: list[str]) -> None:

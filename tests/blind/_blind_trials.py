@@ -182,7 +182,7 @@ def judge(ans: Answer, truth: Any) -> Verdict:
     if ans.transition is None:
         return Verdict("withheld", False, math.nan, False,
                        [f"no prediction: {ans.error or ans.flags}"], [])  # fmt: skip
-    far = truth.plan == "far"
+    far = truth.plan in ("far", "veryfar")  # _blind_sweeps.FAR_PLANS: no type may be named
     t = ans.transition
     if t in truth.right:
         vt = "right"
@@ -237,6 +237,19 @@ def judge(ans: Answer, truth: Any) -> Verdict:
             if abs(s2 - s2t) > 0.1 * abs(s2t):
                 bad.append(f"control {c:g}: sigma2 {s2:.5g} vs truth {s2t:.5g}")
     return Verdict(vt, covered, err, confident, problems, bad, late)
+
+
+def failures(ans: Answer, truth: Any) -> list[str]:
+    """What makes a door's answer fail a blind trial: the judge's problems (a miss, an untrusted
+    record neither set aside nor reported), a type neither right nor honestly withheld, no
+    interval where the plan reaches close enough for one."""
+    v = judge(ans, truth)
+    bad = list(v.problems)
+    if v.type not in ("right", "withheld"):
+        bad.append(f"type verdict {v.type}")
+    if ans.interval is None and truth.plan not in ("far", "veryfar"):
+        bad.append("no interval")
+    return bad
 
 
 def _family_ok(t: str, truth: Any) -> bool:

@@ -78,22 +78,12 @@ def _params(cases: dict) -> list:
     return out
 
 
-def _failures(ans: T.Answer, truth: S.Truth) -> list[str]:
-    v = T.judge(ans, truth)
-    bad = list(v.problems)
-    if v.type not in ("right", "withheld"):
-        bad.append(f"type verdict {v.type}")
-    if ans.interval is None and truth.plan != "far":
-        bad.append("no interval")
-    return bad
-
-
 @pytest.mark.parametrize("family,plan,seed", _params(CASES))
 def test_blind_campaign_through_the_cli(family: str, plan: str, seed: int, tmp_path: Path):
     truth = S.campaign(family, plan, seed).write(tmp_path / "c")
     ans = T.cli_sweep(truth.manifest)
     v = T.judge(ans, truth)
-    assert not _failures(ans, truth), T.describe(truth, ans, v)
+    assert not T.failures(ans, truth), T.describe(truth, ans, v)
 
 
 #: the predictor alone on each family's exact measurements (0.1 % noise, static levels given)
