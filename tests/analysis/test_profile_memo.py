@@ -37,3 +37,24 @@ def test_predict_twice_gives_the_same_answer() -> None:
     b = predict(mu, -s2, sigma2_std=1e-3 * np.abs(s2))
     assert a.mu_star == b.mu_star and a.mu_star_interval == b.mu_star_interval
     assert a.probabilities == b.probabilities
+
+
+def test_the_cache_is_a_value_the_scope_yields() -> None:
+    """The scope yields its :class:`FitCache`: a nested scope shares it, the fits look it up
+    (a repeated profile is a hit, each kind of entry counted), and none is current outside."""
+    mu, s2 = _sweep()
+    comp = lk._Comp(s2, 1.0 / (1e-3 * np.abs(s2)), np.array([1.0, 2.0]), True, True)
+    assert lk.fit_cache() is None
+    with lk.profile_memo() as cache:
+        assert isinstance(cache, lk.FitCache) and lk.fit_cache() is cache and len(cache) == 0
+        with lk.profile_memo() as inner:
+            assert inner is cache
+        lk._profile(mu, [comp], 1.0)
+        n, hits = len(cache), cache.hits
+        lk._profile(mu, [comp], 1.0)
+        assert len(cache) == n and cache.hits == hits + 1
+        kinds = cache.kinds()
+        assert kinds.get("profile") == 1 and sum(kinds.values()) == n
+    assert lk.fit_cache() is None
+    with lk.profile_memo() as fresh:
+        assert fresh is not cache and len(fresh) == 0

@@ -159,7 +159,7 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
         )
         calls["n"] = 0
         with profile_memo():
-            out[nested] = ([_windows._select_window(sw, p, h, scale) for p, h in
+            out[nested] = ([_windows.select_window(sw, p, h, scale) for p, h in
                             ((0.5, 0.5), (1.0, 1.0))], calls["n"])  # fmt: skip
     (fast, n_fast), (full, n_full) = out[0], out[-1]
     for f, g in zip(fast, full, strict=True):
@@ -221,7 +221,7 @@ def test_window_choice_equals_the_plain_one(
         scale = float(sw.mu[-1] - sw.mu[0])
         for p, h in ((0.5, 0.5), (1.0, 1.0)):
             with profile_memo():
-                got = _windows._select_window(sw, p, h, scale)
+                got = _windows.select_window(sw, p, h, scale)
             with profile_memo():
                 ref = _plain_selection(sw, p, h, scale)
             assert (got.n, got.K, got.accepted, got.conformal) == ref
@@ -277,7 +277,7 @@ def test_a_fit_searches_from_the_optimum_its_window_was_accepted_on() -> None:
     N = sw.mu.size
     scale = float(sw.mu[-1] - sw.mu[0])
     with profile_memo():
-        sel = _windows._select_window(sw, 1.0, 1.0, scale)
+        sel = _windows.select_window(sw, 1.0, 1.0, scale)
     assert (sel.n, sel.K, sel.accepted, sel.conformal) == (21, 2, True, True)
     idx = slice(N - 21, N)
     comp = _sigma_comp(sw, idx, 1.0, 1.0, 2, True)

@@ -56,14 +56,14 @@ from service.analysis.predictor.windows import (
     _KMAX,
     _KW_MAX,
     _MIN_NOISE_DOF,
+    Window,
     _chi2_sf,
     _estimate_noise,
     _noise_flag,
-    _Sel,
-    _select_window,
     _sigma_chi2,
     _static_window,
     _with_damping,
+    select_window,
 )
 
 __all__ = [
@@ -302,8 +302,8 @@ def _compare(
         else {law[0]: (2 * law[1], law[3])}
     )
 
-    def select(s: Sweep) -> dict[str, _Sel]:
-        return {nm: _select_window(s, p, h, scale) for nm, (p, h) in sel_laws.items()}
+    def select(s: Sweep) -> dict[str, Window]:
+        return {nm: select_window(s, p, h, scale) for nm, (p, h) in sel_laws.items()}
 
     sels = select(sw)
     if not any(s.accepted for s in sels.values()):

@@ -15,14 +15,14 @@ import math
 import numpy as np
 from scipy import optimize
 
-from service.analysis.predictor.likelihood import _MEMO
+from service.analysis.predictor.likelihood import fit_cache
 from service.analysis.predictor.sweep import Sweep
 from service.analysis.predictor.windows import (
     _KMAX,
-    _Sel,
-    _select_window,
+    Window,
     _sigma_chi2,
     _with_damping,
+    select_window,
 )
 
 __all__ = ["identify_damping"]
@@ -39,7 +39,7 @@ def identify_damping(sw: Sweep, scale: float) -> float:
     xi is profiled: a point with omega < xi/2 is in the over-damped layer where the observed
     rate is the slow pole. It is identified only on decisive evidence (module docstring;
     ``tests/analysis/test_unstated_noise.py``)."""
-    memo = _MEMO.get()
+    memo = fit_cache()
     key = None
     if memo is not None:
         osd = b"" if sw.omega_sd is None else sw.omega_sd.tobytes()
@@ -57,10 +57,10 @@ def _search_damping(sw: Sweep, scale: float) -> float:
     on the best one's law and window, then kept only if the evidence is decisive."""
     assert sw.omega is not None
 
-    def score(s: Sweep) -> tuple[tuple[bool, int, float], tuple[float, float, _Sel]]:
+    def score(s: Sweep) -> tuple[tuple[bool, int, float], tuple[float, float, Window]]:
         out = None
         for p, h in ((0.5, 0.5), (1.0, 1.0)):
-            sel = _select_window(s, p, h, scale)
+            sel = select_window(s, p, h, scale)
             key = (not sel.accepted, -sel.n, -sel.pvalue)
             if out is None or key < out[0]:
                 out = (key, (p, h, sel))

@@ -168,7 +168,7 @@ def _profile(
     """
     packed = _pack(mu_w, comps)
     only68 = only68 and with_interval
-    memo = _MEMO.get()
+    memo = fit_cache()
     if memo is None:
         return _profile_uncached(
             mu_w, comps, packed, scale, level, inflate, with_interval, xatol, only68, hint
@@ -189,21 +189,81 @@ def _profile(
     return hit
 
 
-_MEMO: contextvars.ContextVar[dict[tuple, _Profile] | None] = contextvars.ContextVar(
+class FitCache:
+    """The fits of one prediction (or classification), memoised by their exact inputs: the
+    value a :func:`profile_memo` scope opens and every fit inside it looks up
+    (:func:`fit_cache`). Model selection, the exponent profiles, the interval's refits and the
+    damping's search revisit the same windows and laws: each is computed once.
+
+    Entries, by the first element of their key: ``"scan"`` a profile search's grid scan
+    (:func:`_search`), ``"grid"`` a law's search grid (:func:`_search_grid`), ``"screen"`` a
+    window's goodness-of-fit screen, ``"damping"`` the damping identified on rate data
+    (:func:`.damping.identify_damping`); otherwise a profile (:func:`profile`, keyed by
+    :func:`_memo_key`). Keys hold the inputs' bytes: equal keys are equal inputs, so a hit
+    is the same result to the bit. ``hits`` and ``misses`` count the look-ups."""
+
+    __slots__ = ("_entries", "hits", "misses")
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple, object] = {}
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key: tuple) -> object | None:
+        """The entry under ``key`` (None: not computed yet)."""
+        hit = self._entries.get(key)
+        if hit is None:
+            self.misses += 1
+        else:
+            self.hits += 1
+        return hit
+
+    def __contains__(self, key: tuple) -> bool:
+        return key in self._entries
+
+    def __getitem__(self, key: tuple) -> object:
+        self.hits += 1
+        return self._entries[key]
+
+    def __setitem__(self, key: tuple, value: object) -> None:
+        self._entries[key] = value
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def kinds(self) -> dict[str, int]:
+        """Number of entries per kind (``"profile"`` for the profiles)."""
+        out: dict[str, int] = {}
+        for key in self._entries:
+            kind = key[0] if key and isinstance(key[0], str) else "profile"
+            out[kind] = out.get(kind, 0) + 1
+        return out
+
+
+_MEMO: contextvars.ContextVar[FitCache | None] = contextvars.ContextVar(
     "profile_memo", default=None
 )
 
 
+def fit_cache() -> FitCache | None:
+    """The :class:`FitCache` of the enclosing :func:`profile_memo` scope (None outside one:
+    every fit is computed)."""
+    return _MEMO.get()
+
+
 @contextmanager
-def profile_memo() -> Iterator[None]:
-    """Scope (one ``predict`` or ``classify_sweep`` call) inside which equal profiles are computed
-    once; nested scopes share the outer one, and nothing outlives the outermost."""
-    if _MEMO.get() is not None:
-        yield
+def profile_memo() -> Iterator[FitCache]:
+    """Scope (one ``predict`` or ``classify_sweep`` call) inside which equal fits are computed
+    once: yields its :class:`FitCache`; nested scopes share the outer one, and nothing
+    outlives the outermost."""
+    outer = _MEMO.get()
+    if outer is not None:
+        yield outer
         return
-    token = _MEMO.set({})
+    cache = FitCache()
+    token = _MEMO.set(cache)
     try:
-        yield
+        yield cache
     finally:
         _MEMO.reset(token)
 
@@ -286,7 +346,7 @@ def _search(
     t = np.ascontiguousarray(t)
     ht, hlu = hint if hint is not None else (math.nan, math.nan)
     hj = _u_index(hlu) if math.isfinite(hlu) else -1
-    memo = _MEMO.get()
+    memo = fit_cache()
     if memo is None:
         return profile_search(
             t, packed, last, _LOGU, cf, tol, d95, d68, _POLISH, ht, hj, hlu
@@ -340,7 +400,7 @@ def _search_grid(mu_w: np.ndarray, c: _Comp, scale: float, cf: bool) -> np.ndarr
     profiles the secondary fold at every mu* (some 25 fits each): a coarser grid around the
     same seeds keeps its cost near the plain laws'. Memoised
     in a :func:`profile_memo` scope (a window's joint fits share their eigenvalue law's)."""
-    memo = _MEMO.get()
+    memo = fit_cache()
     key = None
     if memo is not None:
         key = ("grid", mu_w.tobytes(), c.y.tobytes(), c.exps.tobytes(), c.lead, scale, cf)
@@ -510,7 +570,7 @@ def _profile_screen(
     log fold parameter near there (NaN for plain laws)."""
     last = float(mu_w[-1])
     packed = _pack(mu_w, comps)
-    memo = _MEMO.get()
+    memo = fit_cache()
     key = None
     if memo is not None:  # the per-law refits of a prediction repeat the same screens
         key = ("screen", *_memo_key(mu_w, comps, packed, scale, 0.0, 1.0, False, t0), lu0, crit)

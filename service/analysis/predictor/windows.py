@@ -2,7 +2,7 @@
 
 The window of "informative" points of a law (the nearest points where it holds with at most
 ``_KMAX`` corrections) is chosen by a chi-square goodness-of-fit test against the measurement
-noise (:func:`_select_window`); the static law gets its own, usually wider window
+noise (:func:`select_window`); the static law gets its own, usually wider window
 (:func:`_static_window`). Without a given noise the relative noise of ``|sigma^2|`` is estimated
 from the scatter about the best candidate (:func:`_estimate_noise`); observed rates of a damped
 strip are mapped to ``|sigma^2|`` (:func:`_with_damping`). Used by :mod:`.compare`.
@@ -34,6 +34,8 @@ from service.analysis.predictor.likelihood import (
 )
 from service.analysis.predictor.sweep import Sweep
 
+__all__ = ["Window", "select_window"]
+
 _KMAX = 3  # most correction terms in the sigma^2 law
 _KW_MAX = 3  # most terms beyond the constant in the static law
 _ALPHA = 0.05  # goodness-of-fit level for accepting a window
@@ -48,16 +50,31 @@ def _window_sizes(n: int) -> list[int]:
 
 
 @dataclass(frozen=True)
-class _Sel:
-    """The informative window and number of correction terms for a sigma^2 law."""
+class Window:
+    """The informative window of a sigma^2 law, a value (:func:`select_window` chooses it).
+
+    Attributes
+    ----------
+    n : int
+        Nearest points in it.
+    K : int
+        Number of correction terms of the law on it.
+    accepted : bool
+        Whether the law holds on it (chi-square at ``_ALPHA``); else the best window tried.
+    pvalue : float
+        The goodness-of-fit p-value read.
+    conformal : bool
+        Whether the law is the conformal (secondary-fold) form.
+    t, log_u : float
+        The optimum the verdict was read at: ``log(mu* - mu_last)`` and a conformal law's log
+        fold parameter (a later fit of the same law on the window searches from there too).
+    """
 
     n: int
     K: int
     accepted: bool
     pvalue: float
     conformal: bool = False
-    # the optimum the verdict was read at: log(mu* - mu_last) and a conformal law's log u (a
-    # later fit of the same law on the window searches from there too)
     t: float = math.nan
     log_u: float = math.nan
 
@@ -76,7 +93,7 @@ def _chi2_isf(alpha: float, dof: int) -> float:
 
 
 class _Screens:
-    """The tests of one law's windows (:func:`_select_window`) and what they carry from one
+    """The tests of one law's windows (:func:`select_window`) and what they carry from one
     window to the next: the last optimum (continuation of the searches), the (K, variant)
     that passed on the last window tried, the lower bounds of nested windows and the best
     failing window so far."""
@@ -88,7 +105,7 @@ class _Screens:
         self.lu_prev = math.nan  # and a conformal law's log fold parameter there
         self.held: set[tuple[int, bool]] = set()
         self.floor: dict[tuple[int, bool], float] = {}  # (K, variant) -> bound of -2 log L
-        self.fallback: _Sel | None = None
+        self.fallback: Window | None = None
 
     def ruled_out(self, n: int, K: int, cf: bool) -> bool:
         """Whether a lower bound of -2 log L fails the test on ``n`` points, with no better
@@ -144,7 +161,7 @@ class _Screens:
             self.floor[(K, cf)] = prof.nll
         return prof.nll
 
-    def record(self, n: int, K: int, cf: bool, nll: float) -> _Sel:
+    def record(self, n: int, K: int, cf: bool, nll: float) -> Window:
         """The test's verdict on ``nll`` (the fallback kept: the best p-value seen)."""
         pv = _chi2_sf(nll, n - K - 2 - int(cf))
         ok = pv >= _ALPHA
@@ -155,13 +172,13 @@ class _Screens:
         t = self.t_prev if self.t_prev is not None else math.nan
         lu = self.lu_prev if cf else math.nan
         if self.fallback is None or pv > self.fallback.pvalue:
-            self.fallback = _Sel(n, K, False, pv, cf, t, lu)
-        return _Sel(n, K, ok, pv, cf, t, lu)
+            self.fallback = Window(n, K, False, pv, cf, t, lu)
+        return Window(n, K, ok, pv, cf, t, lu)
 
-    def window(self, n: int) -> tuple[_Sel | None, list[tuple[int, bool]]]:
+    def window(self, n: int) -> tuple[Window | None, list[tuple[int, bool]]]:
         """Whether some (K, variant) passes on the nearest ``n`` points: the passing one (or
         None) and the fewer ones not proven to fail (searched fully only for the window
-        :func:`_select_window` returns).
+        :func:`select_window` returns).
 
         The (K, variant) that held on the last window are screened first, by local searches
         (the law usually holds on, its optimum close by); then the others, fewest
@@ -191,7 +208,7 @@ class _Screens:
         return None, []
 
 
-def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> _Sel:
+def select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 4) -> Window:
     """Largest window of nearest points where the law + <= _KMAX corrections passes chi^2,
     with the fewest corrections that pass there.
 
@@ -202,7 +219,7 @@ def _select_window(sw: Sweep, p: float, h: float, scale: float, patience: int = 
     the symmetric bench sweep: some 8 full searches of the conformal law fewer)."""
     N = sw.mu.size
     scr = _Screens(sw, p, h, scale)
-    best: _Sel | None = None
+    best: Window | None = None
     below: list[tuple[int, bool]] = []
     misses = 0
     for n in _window_sizes(N):
