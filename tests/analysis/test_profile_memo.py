@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.analysis.predict import predict
+from service.analysis.predictor import cache as fc
 from service.analysis.predictor import likelihood as lk
 
 
@@ -20,20 +21,20 @@ def test_memo_does_not_change_the_fit_and_is_scoped() -> None:
     mu, s2 = _sweep()
     comp = lk._Comp(s2, 1.0 / (1e-3 * np.abs(s2)), np.array([1.0, 2.0]), True, True)
     plain = lk._profile(mu, [comp], 1.0)
-    with lk.profile_memo():
+    with fc.profile_memo():
         first = lk._profile(mu, [comp], 1.0)
         again = lk._profile(mu, [comp], 1.0)
         assert again is first  # computed once inside a scope
         other = lk._profile(mu, [comp], 1.0, with_interval=False)
         assert other is not first  # options are part of the key
     assert first == plain
-    assert lk._MEMO.get() is None  # nothing outlives the scope
+    assert fc._MEMO.get() is None  # nothing outlives the scope
 
 
 def test_predict_twice_gives_the_same_answer() -> None:
     mu, s2 = _sweep()
     a = predict(mu, -s2, sigma2_std=1e-3 * np.abs(s2))
-    assert lk._MEMO.get() is None
+    assert fc._MEMO.get() is None
     b = predict(mu, -s2, sigma2_std=1e-3 * np.abs(s2))
     assert a.mu_star == b.mu_star and a.mu_star_interval == b.mu_star_interval
     assert a.probabilities == b.probabilities
@@ -44,10 +45,10 @@ def test_the_cache_is_a_value_the_scope_yields() -> None:
     (a repeated profile is a hit, each kind of entry counted), and none is current outside."""
     mu, s2 = _sweep()
     comp = lk._Comp(s2, 1.0 / (1e-3 * np.abs(s2)), np.array([1.0, 2.0]), True, True)
-    assert lk.fit_cache() is None
-    with lk.profile_memo() as cache:
-        assert isinstance(cache, lk.FitCache) and lk.fit_cache() is cache and len(cache) == 0
-        with lk.profile_memo() as inner:
+    assert fc.fit_cache() is None
+    with fc.profile_memo() as cache:
+        assert isinstance(cache, fc.FitCache) and fc.fit_cache() is cache and len(cache) == 0
+        with fc.profile_memo() as inner:
             assert inner is cache
         lk._profile(mu, [comp], 1.0)
         n, hits = len(cache), cache.hits
@@ -55,6 +56,6 @@ def test_the_cache_is_a_value_the_scope_yields() -> None:
         assert len(cache) == n and cache.hits == hits + 1
         kinds = cache.kinds()
         assert kinds.get("profile") == 1 and sum(kinds.values()) == n
-    assert lk.fit_cache() is None
-    with lk.profile_memo() as fresh:
+    assert fc.fit_cache() is None
+    with fc.profile_memo() as fresh:
         assert fresh is not cache and len(fresh) == 0

@@ -138,7 +138,7 @@ def test_window_choice_with_the_nested_bound_equals_the_full_scan(
     window's minimum and the polynomial bound skip the searches they rule out or every search
     is run."""
     from service.analysis.predictor import windows as _windows
-    from service.analysis.predictor.likelihood import profile_memo
+    from service.analysis.predictor.cache import profile_memo
 
     sw = _beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)
     scale = float(sw.mu[-1] - sw.mu[0])
@@ -212,7 +212,7 @@ def test_window_choice_equals_the_plain_one(
     and terms of the plain choice (:func:`_plain_selection`) on the lab plans and on the
     bench's geometric sweeps of every actuation."""
     from service.analysis.predictor import windows as _windows
-    from service.analysis.predictor.likelihood import profile_memo
+    from service.analysis.predictor.cache import profile_memo
 
     sweeps = [_beam_sweep(act, 60, rel, seed, with_w=False, step=step, stop=stop)]
     if seed == 3:
@@ -250,7 +250,7 @@ def test_free_exponent_walk_equals_the_whole_grid(
     point is searched (reference: ``_FAR = inf``)."""
     from service.analysis.predictor import compare as _laws
     from service.analysis.predictor import exponents as _exponents
-    from service.analysis.predictor.likelihood import profile_memo
+    from service.analysis.predictor.cache import profile_memo
 
     sw = _beam_sweep(act, 25, 1e-4, 5)
     _, fits, n_c, _ = _laws.analyse(sw)
@@ -270,7 +270,8 @@ def test_a_fit_searches_from_the_optimum_its_window_was_accepted_on() -> None:
     the hint finds it too, where its scan's walk over the fold parameter's grid can pass over
     that valley. A hint never makes a search worse: from a far point it changes nothing."""
     from service.analysis.predictor import windows as _windows
-    from service.analysis.predictor.likelihood import _nll_u, _sigma_comp, profile_memo
+    from service.analysis.predictor.cache import profile_memo
+    from service.analysis.predictor.likelihood import _nll_u, _sigma_comp
 
     sw = _beam_sweep("symmetric", 60, 0.0003858145395579972, 853510190, with_w=False,
                      step=0.08807646349095118, stop=0.0021586462116093513)  # fmt: skip

@@ -22,7 +22,8 @@ Pipeline, top to bottom (each module imports only from the ones below it)::
     damping          the damping of rate (omega) data, kept only on decisive evidence
     windows          informative window and number of corrections (chi-square), noise estimate
     exponents        free exponents a and b (profile over the exponent)
-    likelihood       the profile likelihood over mu* (variable projection), its FitCache
+    likelihood       the profile likelihood over mu* (variable projection)
+    cache            FitCache: every fit of one call memoised by its exact inputs
     laws             the laws as values in one table (exponents, corrections, what they predict)
     paper_rule       the paper's two-point rule (the baseline every result carries)
     sweep            Sweep: validation at the door, repeated controls averaged, rows past the

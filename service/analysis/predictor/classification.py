@@ -40,6 +40,7 @@ import numpy as np
 
 from service.analysis.common import Flag
 from service.analysis.errors import ParameterError
+from service.analysis.predictor.cache import profile_memo
 from service.analysis.predictor.compare import (
     CANDIDATES,
     ModelFit,
@@ -48,7 +49,6 @@ from service.analysis.predictor.compare import (
     free_exponent_b,
     probabilities,
 )
-from service.analysis.predictor.likelihood import profile_memo
 from service.analysis.predictor.rules import MIN_T_RATIO, Evidence, withhold
 from service.analysis.predictor.sweep import Sweep, average_repeats, prepare_sweep
 

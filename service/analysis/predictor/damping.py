@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy import optimize
 
-from service.analysis.predictor.likelihood import fit_cache
+from service.analysis.predictor.cache import fit_cache
 from service.analysis.predictor.sweep import Sweep
 from service.analysis.predictor.windows import (
     _KMAX,

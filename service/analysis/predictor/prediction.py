@@ -28,11 +28,11 @@ import numpy as np
 from service.analysis.alarm import Alarm, alarm_for, next_measurement
 from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
+from service.analysis.predictor.cache import profile_memo
 from service.analysis.predictor.classification import Classification
 from service.analysis.predictor.cusp import assess
 from service.analysis.predictor.imperfect import Verdict, decide
 from service.analysis.predictor.interval import Fits, fit_sweep, interval
-from service.analysis.predictor.likelihood import profile_memo
 from service.analysis.predictor.paper_rule import PaperRule, check_exponent, paper_rule
 from service.analysis.predictor.rules import Evidence, withhold
 from service.analysis.predictor.sweep import (
