@@ -84,6 +84,23 @@ def test_predict_imports_no_web_stack_no_charts(files: dict[str, Path]) -> None:
     assert _absent(loaded, (*WEB_AND_CHARTS, "scipy.stats")) == []  # stats: ~0.25 s CPU
 
 
+def test_plain_predict_imports_no_wire_models_and_prints_the_wires_line(
+    files: dict[str, Path], capsys: pytest.CaptureFixture
+) -> None:
+    """The line alone needs no pydantic; it is the line the wire document gives."""
+    from service.cli import main
+
+    loaded = _loaded("predict", str(files["table"]))
+    assert "service.analysis.predict" in loaded
+    assert _absent(loaded, ("pydantic", "service.convert", "service.schemas")) == []
+    assert main(["predict", str(files["table"])]) == 0
+    line = capsys.readouterr().out.strip()
+    assert main(["predict", str(files["table"]), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    lo, hi = doc["mu_star_interval"]
+    assert line == f"{doc['transition']}: mu* = {doc['mu_star']} (95%: [{lo}, {hi}])"
+
+
 def test_the_parsers_vocabulary_is_its_owners() -> None:
     from service.cli import _vocab
     from service.recordings import FORMATS
@@ -153,3 +170,40 @@ def test_detect_runs_one_blas_thread_as_the_api_workers_unless_the_user_says(
     assert _env_after("detect", str(files["record"]), OPENBLAS_NUM_THREADS="2")[
         "OPENBLAS_NUM_THREADS"] == "2"
     assert _env_after("--help")["OPENBLAS_NUM_THREADS"] is None
+
+
+def test_detect_and_predict_run_with_the_cyclic_collector_paused_and_restore_it(
+    files: dict[str, Path], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """Paused while the command runs, enabled again when it returns (also on an error);
+    other commands leave it alone; the answer is the same line as with it running."""
+    import gc
+
+    from service.analysis import detect as detect_pkg
+    from service.cli import _main, main
+
+    seen: list[bool] = []
+    real = detect_pkg.detect
+
+    def spy(*a, **k):  # noqa: ANN002, ANN003, ANN202
+        seen.append(gc.isenabled())
+        return real(*a, **k)
+
+    assert gc.isenabled()
+    assert _main(["detect", str(files["record"])]) == 0  # the collector running throughout
+    running_line = capsys.readouterr().out
+    monkeypatch.setattr(detect_pkg, "detect", spy)
+    assert main(["detect", str(files["record"])]) == 0
+    assert seen == [False] and gc.isenabled()
+    assert capsys.readouterr().out == running_line
+    assert main(["detect", str(files["record"].parent / "missing.csv")]) == 2
+    assert gc.isenabled()
+    assert main(["predict", str(files["table"])]) == 0
+    assert gc.isenabled()
+    gc.disable()  # a caller's own setting is kept
+    try:
+        assert main(["detect", str(files["record"])]) == 0
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+    capsys.readouterr()

@@ -8,6 +8,7 @@ every command prints exactly one JSON document on stdout; progress goes to stder
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 from collections.abc import Sequence
@@ -65,8 +66,26 @@ ONE_BLAS_THREAD = ("detect", "predict")
 _BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
+#: Commands over one record or one table that run with Python's cyclic garbage collector
+#: paused (turned back on when they return: ``main`` may run inside a longer-lived process).
+#: In a ``snapwarn detect`` it made ~150 collections, one of them full, over the objects the
+#: imports of numpy and numba leave alive: ~55 ms CPU, for cycles the command hardly makes
+#: (the peak memory is the same on a warm kernel cache, ~60 MB more when numba compiles).
+PAUSE_GC = ("detect", "predict")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in PAUSE_GC and gc.isenabled():
+        gc.disable()
+        try:
+            return _main(argv)
+        finally:
+            gc.enable()
+    return _main(argv)
+
+
+def _main(argv: list[str]) -> int:
     if argv and argv[0] in ONE_BLAS_THREAD and "numpy" not in sys.modules:
         for var in _BLAS_THREADS:
             os.environ.setdefault(var, "1")

@@ -186,16 +186,17 @@ def detection_text(fund: Any, n_modes: int, codes: list[str], unit: str | None) 
     ) + f"; {n_modes} modes; flags: {codes or 'none'}"
 
 
+def _num(x: Any) -> float | None:
+    """A number as the wire has it (non-finite: ``None``, see ``service.convert.plain``)."""
+    v = float(x)
+    return v if math.isfinite(v) else None
+
+
 def _finite(mode: Any) -> argparse.Namespace:
     """A numerics mode's fields of the line as the wire has them (non-finite numbers ``None``,
     see ``service.convert.plain``)."""
-
-    def num(x: Any) -> float | None:
-        v = float(x)
-        return v if math.isfinite(v) else None
-
-    return argparse.Namespace(omega=num(mode.omega), sigma2=num(mode.sigma2),
-                              sigma2_std=num(mode.sigma2_std), regime=mode.regime)  # fmt: skip
+    return argparse.Namespace(omega=_num(mode.omega), sigma2=_num(mode.sigma2),
+                              sigma2_std=_num(mode.sigma2_std), regime=mode.regime)  # fmt: skip
 
 
 def _flag_codes(items: list[Any]) -> list[str]:
@@ -214,7 +215,6 @@ def _flag_codes(items: list[Any]) -> list[str]:
 
 
 def _predict(args: argparse.Namespace) -> int:
-    from service import convert
     from service.analysis.predict import predict
 
     table = _read_table(args.file, "SWEEP")
@@ -256,6 +256,12 @@ def _predict(args: argparse.Namespace) -> int:
         raise error_from(exc, f"SWEEP {args.file!r}") or CliError(
             f"SWEEP {args.file!r}: {exc}", field="SWEEP"
         ) from None
+    if not (args.json or args.plot):  # the line alone: the wire models (pydantic) not loaded
+        lo, hi = (_num(x) for x in pred.mu_star_interval)
+        emit({}, json_mode=False, text=prediction_text(pred.transition, _num(pred.mu_star), lo, hi))
+        return 0
+    from service import convert
+
     doc = convert.prediction(pred)
     if args.plot:
         from service.charts.cli import plot_prediction_table
@@ -264,9 +270,14 @@ def _predict(args: argparse.Namespace) -> int:
                               control_unit=args.control_unit or table.units.get(mu_name),
                               time_unit=args.time_unit)  # fmt: skip
     lo, hi = doc.mu_star_interval
-    emit(doc, json_mode=args.json,
-         text=f"{doc.transition}: mu* = {doc.mu_star} (95%: [{lo}, {hi}])")  # fmt: skip
+    emit(doc, json_mode=args.json, text=prediction_text(doc.transition, doc.mu_star, lo, hi))
     return 0
+
+
+def prediction_text(transition: str, mu_star: Any, lo: Any, hi: Any) -> str:
+    """``snapwarn predict``'s line: the transition, mu* and its interval (as the wire's
+    ``Prediction`` has them: non-finite numbers ``None``)."""
+    return f"{transition}: mu* = {mu_star} (95%: [{lo}, {hi}])"
 
 
 def _progress_printer(enabled: bool, models: tuple[str, ...] = ()):
