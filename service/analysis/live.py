@@ -60,7 +60,7 @@ LivePlan = SweepPlan
 LiveRecord = SweepRecord
 #: Distinct usable controls before the predictor runs (the policy's).
 MIN_PREDICT = sweep_policy.MIN_RECORDS
-__all__ += ["MIN_PREDICT", "SIGMA4_MIN_T_RATIO"]
+__all__ += ["MIN_PREDICT", "NOT_ANALYSED", "SIGMA4_MIN_T_RATIO"]
 #: Relative tolerance when comparing a control value with the advised one.
 _RTOL = 1e-12
 
@@ -160,8 +160,11 @@ def measure(
     Returns
     -------
     detection, measurement, flags
-        ``measurement`` is None (flag ``no_mode`` or ``past_transition``) when the record
-        gives no point of the sweep.
+        ``measurement`` is None (flag ``no_mode``, ``past_transition`` or
+        ``record_set_aside``) when the record gives no point of the sweep. A record whose
+        samples the detector refuses (``w``: too short, non-finite) is set aside by name
+        (flag ``record_set_aside`` with the reason) and its detection has no mode and method
+        :data:`NOT_ANALYSED`; any other parameter the detector refuses raises.
     """
     c = float(control)
     if not math.isfinite(c):
@@ -169,11 +172,32 @@ def measure(
     arr = np.asarray(w, dtype=float)
     opts = dict(options or {})
     exclude = bool(opts.pop("exclude", False))
-    det = detect(arr, dt=float(dt), method=method, **opts)
+    try:
+        det = detect(arr, dt=float(dt), method=method, **opts)
+    except ParameterError as exc:
+        if exc.parameter != "w":  # the request is wrong (dt, an option): the caller hears it
+            raise
+        # samples the detector refuses (too short, non-finite): set aside by name, as a batch
+        # sweep sets them aside; the sweep goes on with the other records
+        flag = sweep_policy.unanalysed(c, name, sweep_policy.samples_refused(exc)).flags
+        return _not_analysed(arr.size, float(dt), method, flag), None, flag
     if exclude:
         det = set_aside(det, name or f"at control {c:.6g}", "excluded by the user")
     m, flags = sweep_policy.reduce_detection(det, c, (arr.size - 1) * float(dt), float(dt))
     return det, m, flags
+
+
+#: The method of a record's detection when the detector refused its samples (no mode).
+NOT_ANALYSED = "none"
+
+
+def _not_analysed(n: int, dt: float, method: str, flags: tuple[Flag, ...]) -> Detection:
+    """The detection document of a record whose samples could not be analysed: no mode, the
+    reason in its flags."""
+    nan = math.nan
+    return Detection(modes=(), fundamental=None, static_level=nan, static_level_std=nan,
+                     flags=flags, method=NOT_ANALYSED, noise_std=nan, snr_db=nan,
+                     n_samples=int(n), dt=dt)  # fmt: skip
 
 
 def _record_flags(
@@ -253,9 +277,11 @@ def assess(
     control = float(control)
     rflags = _record_flags(previous, control, measurement, detection_flags)
     policy = SweepPolicy(plan, previous)
+    # a record set aside before detection carries none into the sweep (as in a batch)
+    kept = None if detection.method == NOT_ANALYSED else detection
     u = policy.add(
         LiveRecord(0, control, measurement, rflags, time_unit=time_unit, name=name,
-                   detection=detection),
+                   detection=kept),
         timings=timings,
     )  # fmt: skip
     return LiveUpdate(

@@ -31,16 +31,17 @@ from service.analysis.detect import Detection, detect
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, paper_rule
-from service.analysis.reconcile import SET_ASIDE, set_aside
+from service.analysis.reconcile import set_aside
 from service.analysis.sampling import PERIODS
 from service.analysis.sweep_policy import (
     PolicyUpdate,
     SetAside,
     SweepPlan,
     SweepPolicy,
-    SweepRecord,
     record_of,
     reduce_detection,
+    samples_refused,
+    unanalysed,
 )
 
 Progress = Callable[[float, str], None]
@@ -218,7 +219,9 @@ def warn(
             stopped = "converged"
             break
         cand = u.next_control
-        if not cand > mu_next or not math.isfinite(u.record_duration):
+        # the advice may repeat the control just recorded (a record set aside there, or the
+        # interval reaching down to it: more evidence where it is needed), never go back
+        if not cand >= mu_next or not math.isfinite(u.record_duration):
             stopped = "no-safe-step"
             break
         duration, dt = u.record_duration, u.record_dt
@@ -321,10 +324,9 @@ def sweep_from_signals(
                     where = f"{name} (control {control!r})" if name else label
                     raise ParameterError(exc.parameter, exc.value,
                                          f"record {where}: {exc}") from None  # fmt: skip
-                why = f"its samples cannot be analysed ({exc})"
+                why = samples_refused(exc)
         if why is not None:
-            policy.append(SweepRecord(0, float(control), None, (Flag(
-                SET_ASIDE, f"record {label} set aside: {why}"),), name=name))  # fmt: skip
+            policy.append(unanalysed(float(control), name, why))
             if progress is not None:
                 progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
             continue

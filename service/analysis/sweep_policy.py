@@ -59,6 +59,8 @@ __all__ = [
     "fit_points",
     "record_of",
     "reduce_detection",
+    "samples_refused",
+    "unanalysed",
 ]
 
 #: Distinct usable controls from which the sweep answers (a prediction).
@@ -169,7 +171,9 @@ class SweepRecord:
         Record flags (``past_transition``, ``no_mode``, ``out_of_order``, ``repeated_control``,
         ``past_safe_value``, ``record_set_aside``).
     interval : tuple of float or None
-        The interval of mu* after this record (the next update's trust test compares with it).
+        The records' own interval of mu* after this record (``PolicyUpdate.fit_interval``,
+        never a converged hull): the next update's trust test compares with it, as a batch
+        compares with the interval of its records but the last.
     next_control : float
         The control advised after this record (NaN: none).
     time_unit : str or None
@@ -234,6 +238,12 @@ class PolicyUpdate:
     flags : tuple of Flag
         Sweep flags: the predictor's, ``record_set_aside``, ``past_transition``,
         ``no_safe_step``, ``predictor_failed``, ``too_few_records``.
+    fit_interval : tuple of float or None
+        The interval the records give by themselves: ``interval`` before a converged sweep
+        joins it with the interval without its newest record (flag ``converged_hull``). It
+        depends on the records alone, never on earlier updates, so the next record's trust
+        test compares with the same interval in every door (a live sweep stores it with the
+        record; a batch computes it from its records but the last).
     """
 
     measurements: tuple[Measurement, ...]
@@ -250,6 +260,7 @@ class PolicyUpdate:
     record_dt: float = math.nan
     record_advice: str = ""
     flags: tuple[Flag, ...] = ()
+    fit_interval: tuple[float, float] | None = None
 
     @property
     def n_set_aside(self) -> int:
@@ -643,6 +654,7 @@ def evaluate(
     t_ratio = ms[0].omega / last.omega if last is not None and last.omega > 0 else math.nan
     has_pred = pred is not None and math.isfinite(pred.mu_star)
     interval = tuple(pred.mu_star_interval) if has_pred else None
+    fit_interval = interval  # the records' own (the hull below may join another to it)
     step = lab_step(ms, plan)
     last_mu = last.mu if last is not None else (records[-1].control if records else math.nan)
     alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
@@ -697,7 +709,7 @@ def evaluate(
             1 for r in usable if r.measurement is not None),
         set_aside=tuple(aside), past=past, prediction=pred, alarm=alarm, next=nxt,
         trusted=trusted, converged=converged, record_duration=duration, record_dt=dt,
-        record_advice=why, flags=tuple(unique_flags(flags)),
+        record_advice=why, flags=tuple(unique_flags(flags)), fit_interval=fit_interval,
     )  # fmt: skip
 
 
@@ -802,13 +814,13 @@ class SweepPolicy:
         prev = self._prev
         self.records.append(replace(record, seq=len(self.records) + 1))
         u = evaluate(self.records, self.plan, previous_interval=prev, timings=timings)  # type: ignore[arg-type]
-        self.records[-1] = replace(self.records[-1], interval=u.interval,
+        self.records[-1] = replace(self.records[-1], interval=u.fit_interval,
                                    next_control=u.next_control)  # fmt: skip
-        self._last, self._prev = u, u.interval
+        self._last, self._prev = u, u.fit_interval
         return u
 
     def _interval_before_last(self) -> tuple[float, float] | None:
-        return evaluate(self.records, self.plan).interval
+        return evaluate(self.records, self.plan).fit_interval
 
     def result(self, *, strict: bool = False) -> PolicyUpdate:
         """The sweep after every record added (the last :meth:`add`'s update, or assessed
@@ -818,7 +830,7 @@ class SweepPolicy:
         prev = None
         if len(self.records) > 1:
             prev = (self.records[-2].interval if self._stored
-                    else evaluate(self.records[:-1], self.plan).interval)  # fmt: skip
+                    else evaluate(self.records[:-1], self.plan).fit_interval)  # fmt: skip
         self._last = evaluate(self.records, self.plan, previous_interval=prev, strict=strict)
         return self._last
 
@@ -842,6 +854,21 @@ def reduce_detection(
     except ValueError as exc:
         return None, (*own, Flag("no_mode", str(exc)))
     return m, own
+
+
+def samples_refused(exc: Exception) -> str:
+    """The reason a record is set aside when the detector refuses its samples (its
+    ``ParameterError`` on ``w``: too short, non-finite)."""
+    return f"its samples cannot be analysed ({exc})"
+
+
+def unanalysed(control: float, name: str | None, why: str) -> SweepRecord:
+    """A record set aside before detection (its file cannot be read, or the detector refuses
+    its samples): flag ``record_set_aside`` naming it (its file's name) with ``why``; it has no
+    measurement and no detection, and the other records answer (every door alike)."""
+    label = name or f"at control {float(control)!r}"
+    flag = Flag("record_set_aside", f"record {label} set aside: {why}")
+    return SweepRecord(0, float(control), None, (flag,), name=name)
 
 
 def record_of(
