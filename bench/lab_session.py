@@ -51,7 +51,7 @@ def session(camp: LL.F.Campaign, bad_at: int | None) -> list[dict]:
     rows: list[dict] = []
 
     def add(k: int, y: np.ndarray, dt: float, mu: float) -> LL.Answer:
-        u = live.update(recs, y, dt=dt, control=mu, plan=plan)
+        u = live.update(recs, y, dt=dt, control=mu, plan=plan, time_unit="s")
         recs.append(u.record)
         p = u.prediction
         lo, hi = p.mu_star_interval if p is not None else (math.nan, math.nan)

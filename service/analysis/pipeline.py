@@ -270,6 +270,7 @@ def sweep_from_signals(
     progress: Progress | None = None,
     plan: SweepPlan | None = None,
     options: Sequence[Mapping[str, Any] | None] | None = None,
+    time_unit: str | None = None,
 ) -> WarnResult:
     """Detect every recorded signal, then classify and predict (the lab-data path).
 
@@ -294,6 +295,9 @@ def sweep_from_signals(
         not be read: its ``w`` is None, it is set aside with that reason). A record whose
         samples the detector refuses (parameter ``w``: non-finite, too short, constant) is
         set aside with the detector's reason; the sweep goes on with the others.
+    time_unit : str, optional
+        The records' common time unit (their ``dt``'s), for the next record's advice as a
+        live sweep gives it.
     """
     if options is not None and len(options) != len(records):
         raise ParameterError(
@@ -334,7 +338,7 @@ def sweep_from_signals(
             det = set_aside(det, name or f"at control {control!r}", "excluded by the user")
         dets.append((det, float(control), name))
         m, rflags = reduce_detection(det, float(control), (w.size - 1) * float(dt), float(dt))
-        policy.append(record_of(control, det, m, rflags, name=name))
+        policy.append(record_of(control, det, m, rflags, name=name, time_unit=time_unit))
         if progress is not None:
             progress((i + 1) / len(records), f"detected {i + 1}/{len(records)}")
     u = policy.result(strict=True)

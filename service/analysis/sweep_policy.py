@@ -43,7 +43,7 @@ from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement, measurement_from_detection
 from service.analysis.predict import Prediction, bounded_by, predict
 from service.analysis.predictor.sweep import group_mean
-from service.analysis.sampling import PERIODS, next_record_sampling
+from service.analysis.sampling import PERIODS, mains_clear_dt, next_record_sampling
 
 if TYPE_CHECKING:
     from service.analysis.detect import Detection
@@ -575,14 +575,19 @@ def _advise(
 
 
 def _record_advice(
-    last: Measurement | None, nxt: NextMeasurement | None, pred: Prediction | None
+    last: Measurement | None,
+    nxt: NextMeasurement | None,
+    pred: Prediction | None,
+    time_unit: str | None = None,
 ) -> tuple[float, float, str]:
     """Length and step of the next record (:func:`service.analysis.sampling.next_record_sampling`)
     at most :data:`MAX_RECORD_GROWTH` times 40 periods of the last frequency; NaN without a time
-    scale."""
+    scale. With a known ``time_unit`` the step keeps mains aliases clear of the fundamental."""
     if last is None or not (last.omega > 0 and math.isfinite(last.omega)):
         return math.nan, math.nan, "no advice: the last record gives no time scale"
     target = nxt.mu if nxt is not None and math.isfinite(nxt.mu) else last.mu
+    from service.recordings._time_units import seconds_per
+
     try:
         duration, dt = next_record_sampling(last, target, pred)
     except (ArithmeticError, ValueError):
@@ -596,6 +601,13 @@ def _record_advice(
         why += f", bounded to {MAX_RECORD_GROWTH:g} x {PERIODS} periods of the last one"
     if last.regime == "overdamped":
         why = "the last overdamped record's length grown by the expected slowdown (at most 4x)"
+    spu = seconds_per(time_unit)
+    if spu is not None and last.regime != "overdamped":
+        cleared = mains_clear_dt(dt, duration, last.omega, spu)
+        if cleared < dt:
+            why += (f"; step shortened {dt / cleared:.3g}x so that 50/60 Hz mains and harmonics "
+                    "do not alias onto or below the fundamental")  # fmt: skip
+            dt = cleared
     return float(duration), float(dt), why
 
 
@@ -696,7 +708,8 @@ def evaluate(
                 pred = replace(pred, mu_star_interval=hull)
                 alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
                 nxt = _advise(ms, pred, trusted, past, plan)
-    duration, dt, why = _record_advice(last, nxt, pred)
+    unit = next((r.time_unit for r in reversed(records) if r.measurement is not None), None)
+    duration, dt, why = _record_advice(last, nxt, pred, unit)
     if pred is not None:
         flags.extend(pred.flags)
         cls = pred.classification

@@ -474,7 +474,8 @@ def _sweep(args: argparse.Namespace) -> int:
     try:
         plan = SweepPlan(step=args.step, margin=args.margin, band=args.band,
                          control_resolution=args.control_resolution)  # fmt: skip
-        res = sweep_from_signals(records, names=names, progress=cb, plan=plan, options=options)
+        res = sweep_from_signals(records, names=names, progress=cb, plan=plan, options=options,
+                                 time_unit=time_unit)  # fmt: skip
     except ValueError as exc:
         err = error_from(exc, f"MANIFEST {args.manifest!r}")
         raise err or CliError(f"MANIFEST {args.manifest!r}: {exc}", field="MANIFEST") from None

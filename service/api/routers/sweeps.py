@@ -333,6 +333,7 @@ def run_signal_sweep_job(ctx: JobContext) -> dict[str, Any]:
         res = sweep_from_signals(
             items, names=names, progress=lambda f, msg: progress(0.1 + 0.9 * f, msg),
             options=options, plan=SweepPlan(band=tuple(band) if band else None),
+            time_unit=time_unit,
         )  # fmt: skip
     doc = convert.sweep_result(res, record_flags=notes, time_unit=time_unit,
                                signal_ids=dict(zip(names, ids)))  # fmt: skip
