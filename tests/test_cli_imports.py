@@ -207,3 +207,30 @@ def test_detect_and_predict_run_with_the_cyclic_collector_paused_and_restore_it(
     finally:
         gc.enable()
     capsys.readouterr()
+
+
+_FREEZE = """
+import gc, json, sys
+from service.cli import main
+sys.argv = ["snapwarn", *sys.argv[1:]]
+rc = main()
+sys.stdout.flush()
+sys.stderr.write("GC " + json.dumps([rc, gc.isenabled(), gc.get_freeze_count() > 0]) + "\\n")
+"""
+
+
+def test_run_as_the_program_the_objects_left_are_frozen_before_the_collector_resumes(
+    files: dict[str, Path],
+) -> None:
+    """main() with argv from sys.argv (the console script): the objects alive at the end are
+    frozen (the exit's collection does not walk them again), the collector is on; the same line
+    is printed as with an explicit argv (which freezes nothing: test above)."""
+    r = subprocess.run([sys.executable, "-c", _FREEZE, "detect", str(files["record"])],
+                       capture_output=True, text=True, timeout=600)  # fmt: skip
+    line = [s for s in r.stderr.splitlines() if s.startswith("GC ")]
+    assert line, r.stderr
+    assert json.loads(line[-1][3:]) == [0, True, True]
+    code = "import sys; from service.cli import main; main(sys.argv[1:])"
+    plain = subprocess.run([sys.executable, "-c", code, "detect", str(files["record"])],
+                           capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert r.stdout == plain.stdout and r.stdout.startswith("fundamental: ")
