@@ -49,6 +49,11 @@ LAB_CASES: dict[str, tuple[str, str, int, dict, str | None]] = {
         "10 controls; predict on the exact sigma2: saddle-node [2716.93, 2722.59]")),
     "truss_friction-far-0": ("truss_friction", "far", 0, {}, None),
     "truss_friction-veryfar-0": ("truss_friction", "veryfar", 0, {}, None),
+    # an imperfect high arch (its fold 10.7 % below the perfect bifurcation) recorded by a geophone
+    # (velocity through its own 4.5 Hz, zeta 0.7 high-pass, in V): right and covering (the
+    # detector's sigma2 within its stated errors: sum z^2 14.8 over 14 controls)
+    "arch_imperfect-lab-1-geophone": ("arch_imperfect", "lab", 1, {
+        "sensor": "geophone", "unit": "V", "rate_hz": 2000.0, "duration_s": 1.0}, None),
     # the critical mode's damping ratio grows as 1/omega0 (0.25 at the first record): overdamped
     # at the end; passes (withheld, [0.977, 5.934] N covers 1.01655) although the detector takes
     # the stiff mode 2 in the 7 records from zeta >= 0.56 on (z -100 to -227)
