@@ -96,8 +96,9 @@ class SweepPlan:
         default :data:`TARGET_OF_SPAN` times the controls travelled.
     control_resolution : float or None
         The finest control step the lab can set: ``converged`` once the advised step is
-        smaller. Default: the decimals the controls are written with, at least
-        ``1e-4 * step``.
+        smaller, and no side of the interval is nearer mu* than half of it (flag
+        ``resolution_floor``). Default: the decimals the controls are written with, at least
+        ``1e-4 * step`` (:func:`resolution`).
     step_fraction : float
         Fraction of the room to the bound that a step takes, in (0, 1).
     max_step_growth : float or None
@@ -508,7 +509,8 @@ def lab_step(ms: Sequence[Measurement], plan: SweepPlan) -> float:
 
 
 def _decimals(controls: Iterable[float]) -> float:
-    """The finest decimal the controls are written with (inf when more than 9 decimals)."""
+    """The finest decimal the controls are written with (0 when more than 9 decimals)."""
+    controls = list(controls)  # (read once per decimal: a generator would be spent)
     for k in range(10):
         q = 10.0**-k
         if all(abs(c / q - round(c / q)) < 1e-6 for c in controls):
@@ -655,7 +657,9 @@ def evaluate(
         flags.append(Flag("record_set_aside", f"{len(aside)} record(s) set aside: "
                           + "; ".join(a.reason for a in aside)))  # fmt: skip
     pred, unconfirmed = _growth(pred, ms, past, len(beyond), n_grew, flags)
-    pred = _resolution_floor(pred, ms, plan)
+    step = lab_step(ms, plan)
+    res = resolution(ms, plan, step)
+    pred = _resolution_floor(pred, ms, res, past, flags)
     if len(ms) < MIN_RECORDS:
         flags.append(Flag(
             "too_few_records",
@@ -667,7 +671,6 @@ def evaluate(
     has_pred = pred is not None and math.isfinite(pred.mu_star)
     interval = tuple(pred.mu_star_interval) if has_pred else None
     fit_interval = interval  # the records' own (the hull below may join another to it)
-    step = lab_step(ms, plan)
     last_mu = last.mu if last is not None else (records[-1].control if records else math.nan)
     alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
     trusted = bool(
@@ -695,7 +698,6 @@ def evaluate(
         width = plan.target_width
         if width is None:
             width = TARGET_OF_SPAN * (ms[-1].mu - ms[0].mu)
-        res = resolution(ms, plan, step)
         small = nxt is not None and (not math.isfinite(nxt.mu) or nxt.mu - last.mu < res)
         # narrow twice in a row: one record that narrows the interval suddenly is not enough
         narrow = interval[1] - interval[0] < width and previous_interval is not None and (
@@ -743,19 +745,28 @@ def _alarm(
 
 
 def _resolution_floor(
-    pred: Prediction | None, ms: Sequence[Measurement], plan: SweepPlan
-) -> Prediction | None:
-    """The prediction with each side of its interval at least half the lab's
-    ``control_resolution`` (when the lab gave one) from mu*: a lab that sets its control to
-    that resolution knows each control only to half of it, and so mu* (never below the last
-    stable control)."""
-    res = plan.control_resolution
-    if res is None or pred is None or not math.isfinite(pred.mu_star) or not ms:
+    pred: Prediction | None, ms: Sequence[Measurement], res: float, past: float,
+    flags: list[Flag],
+) -> Prediction | None:  # fmt: skip
+    """The prediction with each side of its interval at least half the control resolution
+    ``res`` (:func:`resolution`: the lab's, else its controls' grid) from mu*: a lab that sets
+    its control to that resolution knows each control only to half of it, and so mu* (never
+    below the last stable control, never above a record that grew: ``past``). Flag
+    ``resolution_floor`` when it widens a side."""
+    if not (res > 0) or pred is None or not math.isfinite(pred.mu_star) or not ms:
         return pred
     lo, hi = pred.mu_star_interval
     m, half = pred.mu_star, 0.5 * float(res)
-    new = (max(min(lo, m - half), min(lo, ms[-1].mu)), max(hi, m + half))
-    return pred if new == (lo, hi) else replace(pred, mu_star_interval=new)
+    new = (max(min(lo, m - half), min(lo, ms[-1].mu)), max(hi, min(m + half, past)))
+    if new == (lo, hi):
+        return pred
+    flags.append(Flag(
+        "resolution_floor",
+        f"the interval [{lo:.6g}, {hi:.6g}] is finer than the control resolution {res:.3g} "
+        f"allows: each side is at least half of it from mu* (now [{new[0]:.6g}, "
+        f"{new[1]:.6g}]); give control_resolution when your control is set more finely",
+    ))  # fmt: skip
+    return replace(pred, mu_star_interval=new)
 
 
 def _without_newest(

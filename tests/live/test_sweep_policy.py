@@ -220,13 +220,53 @@ def test_a_converged_interval_does_not_rest_on_the_newest_record() -> None:
 
 def test_no_side_of_the_interval_is_finer_than_the_control_resolution() -> None:
     """A lab that sets its control to 0.2 knows each control only to half of that: no side of
-    the interval is narrower than 0.1 (never below the last stable control, 1.76); without a
-    resolution given the interval is the records' own."""
+    the interval is narrower than 0.1 (never below the last stable control, 1.76); with a
+    resolution finer than the interval the interval is the records' own."""
     controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72, 1.76]
     recs = [SweepRecord(k + 1, c, point(c)) for k, c in enumerate(controls)]
-    own = evaluate(recs, SweepPlan(step=0.3)).prediction
+    own = evaluate(recs, SweepPlan(step=0.3, control_resolution=1e-9)).prediction
     got = evaluate(recs, SweepPlan(step=0.3, control_resolution=0.2)).prediction
     assert got.mu_star == own.mu_star
     (lo0, hi0), (lo, hi) = own.mu_star_interval, got.mu_star_interval
     assert hi0 - own.mu_star < 0.1 and hi == pytest.approx(own.mu_star + 0.1)
     assert lo0 > 1.76 and lo == 1.76
+
+
+def test_the_default_control_resolution_is_the_grid_and_floors_the_interval() -> None:
+    """Without a resolution given, the controls' grid is the lab's: written to 0.01 (1.76),
+    each is known to 0.005, and so no side of the interval is nearer mu* than that (flag
+    resolution_floor says so), exactly as when the lab gives 0.01; controls written to full
+    precision (a lab following the advice) give 1e-4 of the lab's step. A session that follows
+    the advice converges on an interval no side of which is finer than that, covering mu*."""
+    from service.analysis.sweep_policy import SweepPolicy, resolution
+
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72, 1.76]
+    recs = [SweepRecord(k + 1, c, point(c)) for k, c in enumerate(controls)]
+    own = evaluate(recs, SweepPlan(step=0.3, control_resolution=1e-9))
+    grid = evaluate(recs, SweepPlan(step=0.3))
+    given = evaluate(recs, SweepPlan(step=0.3, control_resolution=0.01))
+    assert "resolution_floor" not in [f.code for f in own.flags]
+    assert own.interval[0] > MU_STAR - 0.005  # finer than the grid allows ...
+    assert grid.interval == given.interval == (MU_STAR - 0.005, own.interval[1])  # ... floored
+    assert "resolution_floor" in [f.code for f in grid.flags]
+    assert grid.prediction.mu_star == own.prediction.mu_star
+    # a lab that can set its control to 0.001 follows the advice rounded down to that: its
+    # controls' grid is its resolution; it converges (the next step would be finer than it
+    # can set) on an interval no side of which is nearer mu* than half of it
+    plan = SweepPlan(step=0.3)
+    pol, mu = SweepPolicy(plan), 0.0
+    for _ in range(40):
+        u = pol.add(SweepRecord(0, mu, point(mu)))
+        if u.converged or not math.isfinite(u.next_control):
+            break
+        mu = math.floor(u.next_control * 1000) / 1000
+    assert u.converged and mu < MU_STAR
+    assert resolution(u.measurements, plan, 0.3) == pytest.approx(1e-3)
+    lo, hi = u.interval
+    m = u.prediction.mu_star
+    assert lo <= MU_STAR <= hi
+    assert m - lo >= 5e-4 - 1e-12 or lo == mu
+    assert hi - m >= 5e-4 - 1e-12 and "resolution_floor" in [f.code for f in u.flags]
+    # written to full precision (the advice as given), the controls give 1e-4 of the step
+    assert resolution([point(0.0), point(0.3), point(0.3 + 1.234567e-7)], plan,
+                      0.3) == pytest.approx(3e-5)  # fmt: skip
