@@ -17,6 +17,10 @@ give the same alarm, advice and answer through every door. For the records so fa
    (:func:`service.analysis.predict.predict`): one mu* and interval for the whole document;
 4. raises the alarm (:func:`service.analysis.alarm.alarm_for`), advises the next control
    (:func:`service.analysis.alarm.next_measurement`) and the next record's length.
+
+The records (steps 1-3's choosing, sorting and averaging) are :mod:`.sweep_records`'s; the
+interval as the records bound it (a record that grew, the control resolution) is
+:mod:`.sweep_interval`'s; their public names are also importable from here.
 """
 
 from __future__ import annotations
@@ -25,9 +29,8 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,13 +43,26 @@ from service.analysis.alarm import (
 )
 from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
-from service.analysis.measurement import Measurement, measurement_from_detection
+from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, bounded_by, predict
-from service.analysis.predictor.sweep import group_mean
 from service.analysis.sampling import PERIODS, mains_clear_dt, next_record_sampling
-
-if TYPE_CHECKING:
-    from service.analysis.detect import Detection
+from service.analysis.sweep_interval import (
+    _growth,
+    _resolution_floor,
+    lab_step,
+    resolution,
+)
+from service.analysis.sweep_records import (
+    SetAside,
+    SweepRecord,
+    _reconciled,
+    _sort_out,
+    fit_points,
+    record_of,
+    reduce_detection,
+    samples_refused,
+    unanalysed,
+)
 
 __all__ = [
     "MIN_RECORDS",
@@ -74,9 +90,6 @@ MAX_RECORD_GROWTH = 4.0
 #: Default target width: this fraction of the controls travelled (ten times narrower than the
 #: "narrow" of docs/lab-guide.md, an interval under 1 % of the distance travelled).
 TARGET_OF_SPAN = 1e-3
-#: Default control resolution: this fraction of the lab's step, unless the controls are
-#: written with fewer decimals.
-RESOLUTION_OF_STEP = 1e-4
 
 
 @dataclass(frozen=True)
@@ -157,56 +170,6 @@ class SweepPlan:
 
 
 @dataclass(frozen=True)
-class SweepRecord:
-    """One record of a sweep as the policy keeps it (a live sweep stores it).
-
-    Attributes
-    ----------
-    seq : int
-        Position in arrival order (1, 2, ...).
-    control : float
-        Control value the record was taken at (user unit).
-    measurement : Measurement or None
-        Its fundamental and static level; None when the detector found none, or it grew.
-    flags : tuple of Flag
-        Record flags (``past_transition``, ``no_mode``, ``out_of_order``, ``repeated_control``,
-        ``past_safe_value``, ``record_set_aside``).
-    interval : tuple of float or None
-        The records' own interval of mu* after this record (``PolicyUpdate.fit_interval``,
-        never a converged hull): the next update's trust test compares with it, as a batch
-        compares with the interval of its records but the last.
-    next_control : float
-        The control advised after this record (NaN: none).
-    time_unit : str or None
-        The time unit of its measurement.
-    name : str or None
-        The record's name (file name) for the reasons a record is set aside.
-    detection : Detection or None
-        Its detection, for the sweep-wide choice of the fundamental (not stored).
-    """
-
-    seq: int
-    control: float
-    measurement: Measurement | None
-    flags: tuple[Flag, ...] = ()
-    interval: tuple[float, float] | None = None
-    next_control: float = math.nan
-    time_unit: str | None = None
-    name: str | None = None
-    detection: Detection | None = field(default=None, repr=False, compare=False)
-
-
-@dataclass(frozen=True)
-class SetAside:
-    """A record left out of the prediction, with its reason."""
-
-    seq: int
-    control: float
-    name: str | None
-    reason: str
-
-
-@dataclass(frozen=True)
 class PolicyUpdate:
     """The sweep after its records so far.
 
@@ -280,127 +243,6 @@ class PolicyUpdate:
         return tuple(p.mu_star_interval) if p is not None and math.isfinite(p.mu_star) else None
 
 
-# ------------------------------------------------------------------------------ the records
-def _label(r: SweepRecord) -> str:
-    at = f"control {r.control:.6g}"
-    return f"{r.name} ({at})" if r.name else f"the record at {at}"
-
-
-def _reconciled(
-    records: Sequence[SweepRecord], band: tuple[float, float] | None = None
-) -> list[SweepRecord]:
-    """The records with each fundamental chosen across the sweep
-    (:func:`service.analysis.reconcile.reconcile`), when it exists and every record with a
-    measurement kept its detection (a record set aside before detection has none); else the
-    records as they are."""
-    try:
-        from service.analysis.reconcile import reconcile
-    except ImportError:  # the sweep-wide choice has not landed: each record's own fundamental
-        return list(records)
-    # a record without a detection (a file that could not be read, a record stored without
-    # it) keeps its own reading; the others are chosen together
-    have = [r for r in records if r.detection is not None]
-    if not have or any(r.detection is None and r.measurement is not None for r in records):
-        return list(records)
-    dets = reconcile(
-        [r.detection for r in have],
-        np.array([r.control for r in have], dtype=float),
-        names=[r.name or f"#{r.seq}" for r in have],
-        band=band,
-    )
-    chosen = dict(zip((id(r) for r in have), dets, strict=True))
-    out = []
-    for r in records:
-        d = chosen.get(id(r))
-        if d is None:
-            out.append(r)
-            continue
-        if d is r.detection:
-            out.append(r)
-            continue
-        m = r.measurement
-        flags = tuple(f for f in d.flags if f.code == "record_set_aside")
-        try:
-            dur = m.duration if m is not None else (d.n_samples - 1) * d.dt
-            dt = m.dt if m is not None else d.dt
-            m = measurement_from_detection(r.control, d, dur, dt)
-        except ValueError:
-            m = None
-        out.append(replace(r, measurement=m, flags=r.flags + flags, detection=d))
-    return out
-
-
-def _sort_out(
-    records: Sequence[SweepRecord],
-) -> tuple[list[SweepRecord], list[SetAside], float, list[float], int]:
-    """(usable records, set aside, lowest control past the transition, its left-out controls,
-    the number of records that grew with no stable record at or above their control)."""
-    aside: list[SetAside] = []
-    usable: list[SweepRecord] = []
-    grew: list[SweepRecord] = []
-    for r in records:
-        m = r.measurement
-        codes = {f.code for f in r.flags} | {f.code for f in (m.flags if m is not None else ())}
-        why = next((f.message for f in (*r.flags, *(m.flags if m else ()))
-                    if f.code == "record_set_aside"), None)  # fmt: skip
-        if "past_transition" in codes:  # it grew: evidence of the transition, not a doubt
-            grew.append(r)
-        elif why is not None:
-            aside.append(SetAside(r.seq, r.control, r.name, why))
-        elif m is None:
-            msg = next((f.message for f in r.flags if f.code == "no_mode"), "no fundamental found")
-            aside.append(SetAside(r.seq, r.control, r.name, f"{_label(r)}: {msg}"))
-        elif not (math.isfinite(m.sigma2) and m.sigma2 < 0):
-            aside.append(SetAside(r.seq, r.control, r.name, (
-                f"{_label(r)}: its fundamental has sigma2 = {m.sigma2:.4g} >= 0 (no stable mode) "
-                "and the record does not grow: it cannot enter the sweep")))  # fmt: skip
-        else:
-            usable.append(r)
-    top = max((r.control for r in usable), default=-math.inf)
-    past = math.inf
-    n_grew = 0
-    for r in grew:  # a record that grew at or below a stable one is contradicted by it
-        if r.control <= top:
-            n = sum(u.control >= r.control for u in usable)
-            aside.append(SetAside(r.seq, r.control, r.name, (
-                f"{_label(r)} grows (flag unstable) but {n} stable record(s) lie at or above "
-                "its control: it is not past the transition")))  # fmt: skip
-        else:
-            past = min(past, r.control)
-            n_grew += 1
-    beyond = [r.control for r in usable if r.control >= past]
-    usable = [r for r in usable if r.control < past]
-    aside.sort(key=lambda a: a.seq)
-    return usable, aside, past, beyond, n_grew
-
-
-def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
-    """The measurements of the usable records, one per control in increasing control: the
-    records at one control averaged as the predictor averages a table's repeated rows
-    (:func:`service.analysis.predictor.sweep.group_mean`: weights ``1/std^2`` when every record
-    has its std, else plain means)."""
-    ms = sorted((r.measurement for r in records if r.measurement is not None), key=lambda m: m.mu)
-    if len({m.mu for m in ms}) == len(ms):
-        return ms
-    mu = np.array([m.mu for m in ms])
-    starts = np.flatnonzero(np.r_[True, np.diff(mu) != 0])
-
-    def mean(name: str, std: str) -> tuple[np.ndarray, np.ndarray]:
-        v, sd = np.array([getattr(m, name) for m in ms]), np.array([getattr(m, std) for m in ms])
-        ok = bool(np.all(np.isfinite(sd) & (sd > 0)))
-        avg, avg_sd = group_mean(v, sd if ok else None, starts)
-        return avg, (avg_sd if avg_sd is not None else np.full(starts.size, np.nan))
-
-    s2, s2_sd = mean("sigma2", "sigma2_std")
-    w, w_sd = mean("w_static", "w_static_std")
-    return [
-        replace(ms[i], sigma2=float(s2[g]), sigma2_std=float(s2_sd[g]),
-                omega=math.sqrt(abs(float(s2[g]))), w_static=float(w[g]),
-                w_static_std=float(w_sd[g]))  # fmt: skip
-        for g, i in enumerate(starts)
-    ]
-
-
 #: The last predictions, by their exact inputs (:func:`_predict`'s key): ``predict`` is
 #: deterministic in them, and a sweep asks for the same one again: the converged hull
 #: (:func:`_without_newest`) predicts the records but the newest, which the previous record's
@@ -458,75 +300,7 @@ def _failed(ms: Sequence[Measurement]) -> tuple[None, list[Flag]]:
     return None, [Flag("predictor_failed", f"no prediction from {len(ms)} records: {exc}")]
 
 
-def _growth(
-    pred: Prediction | None, ms: Sequence[Measurement], past: float, n_beyond: int,
-    n_grew: int, flags: list[Flag],
-) -> tuple[Prediction | None, bool]:  # fmt: skip
-    """The prediction with the records that grew (``past``: the lowest of them) taken in, and
-    whether that growth is unconfirmed.
-
-    One record that grew below the lower end of the interval the stable records give is
-    unconfirmed (one record must not derail a sweep: a detector can read a spurious growing
-    pole): the interval spans both readings, from the last stable control to its upper end,
-    and the lab records again at that control. Two records that grew, or one the interval does
-    not contradict, confirm the transition: mu* and the interval end at ``past`` (between the
-    last stable record and ``past`` when the interval lay wholly above it)."""
-    if not math.isfinite(past):
-        return pred, False
-    has_pred = pred is not None and math.isfinite(pred.mu_star)
-    if has_pred and n_grew == 1 and ms and pred.mu_star_interval[0] > past:
-        lo, hi = pred.mu_star_interval
-        flags.append(Flag(
-            "growth_unconfirmed",
-            f"the record at control {past:.6g} grows (flag unstable), but the stable records "
-            f"put mu* in [{lo:.6g}, {hi:.6g}], above it: one record is not enough; record "
-            f"again at {past:.6g} (a second record that grows confirms the transition, a "
-            "stable one sets this one aside); meanwhile the interval spans both readings",
-        ))  # fmt: skip
-        return replace(pred, mu_star_interval=(ms[-1].mu, hi)), True
-    flags.append(Flag(
-        "past_transition",
-        f"the record at control {past:.6g} grows (flag unstable): the strip is unstable "
-        f"there, past its transition (mu* < {past:.6g}); it"
-        + (f" and the {n_beyond} record(s) beyond it are" if n_beyond else " is")
-        + " left out of the prediction",
-    ))  # fmt: skip
-    if not has_pred:
-        return pred, False
-    out = bounded_by(pred, past)
-    if pred.mu_star_interval[0] >= past and ms:  # the bracket the records give, not a point
-        out = replace(out, mu_star_interval=(ms[-1].mu, past))
-    return out, False
-
-
 # ------------------------------------------------------------------------------- the policy
-def lab_step(ms: Sequence[Measurement], plan: SweepPlan) -> float:
-    """The lab's step: the plan's, else the largest step between the usable controls."""
-    if plan.step is not None:
-        return float(plan.step)
-    mu = [m.mu for m in ms]
-    return float(np.max(np.diff(mu))) if len(mu) >= 2 else math.nan
-
-
-def _decimals(controls: Iterable[float]) -> float:
-    """The finest decimal the controls are written with (0 when more than 9 decimals)."""
-    controls = list(controls)  # (read once per decimal: a generator would be spent)
-    for k in range(10):
-        q = 10.0**-k
-        if all(abs(c / q - round(c / q)) < 1e-6 for c in controls):
-            return q
-    return 0.0
-
-
-def resolution(ms: Sequence[Measurement], plan: SweepPlan, step: float) -> float:
-    """The control resolution: the plan's, else the decimals of the controls, at least
-    :data:`RESOLUTION_OF_STEP` times the lab's step."""
-    if plan.control_resolution is not None:
-        return float(plan.control_resolution)
-    floor = RESOLUTION_OF_STEP * step if math.isfinite(step) else 0.0
-    return max(_decimals(m.mu for m in ms), floor)
-
-
 def _advise(
     ms: Sequence[Measurement], pred: Prediction | None, trusted: bool, past: float,
     plan: SweepPlan,
@@ -613,29 +387,28 @@ def _record_advice(
     return float(duration), float(dt), why
 
 
-def evaluate(
-    records: Sequence[SweepRecord],
-    plan: SweepPlan | None = None,
-    *,
-    previous_interval: tuple[float, float] | None = None,
-    timings: dict[str, tuple[float, float]] | None = None,
-    strict: bool = False,
-) -> PolicyUpdate:
-    """The sweep after ``records`` (arrival order).
+@dataclass
+class _Answer:
+    """The records' answer before the alarm and the advice (:func:`_answer`)."""
 
-    Parameters
-    ----------
-    records : sequence of SweepRecord
-    plan : SweepPlan, optional
-    previous_interval : tuple of float, optional
-        The interval after the records but the last (the trust test's second interval).
-    timings : dict, optional
-        Gets ``"predict"``: (wall, CPU) seconds of the prediction.
-    strict : bool
-        Raise the predictor's ``ParameterError`` (a batch of records: the user must hear why)
-        instead of flagging ``predictor_failed`` (a live sweep goes on).
-    """
-    plan = plan or SweepPlan()
+    recs: list[SweepRecord]
+    usable: list[SweepRecord]
+    aside: list[SetAside]
+    past: float
+    ms: list[Measurement]
+    pred: Prediction | None
+    flags: list[Flag]
+    unconfirmed: bool
+    step: float
+    res: float
+
+
+def _answer(
+    records: Sequence[SweepRecord], plan: SweepPlan,
+    timings: dict[str, tuple[float, float]] | None, strict: bool,
+) -> _Answer:  # fmt: skip
+    """The records chosen, sorted and predicted: the prediction with its interval bounded by a
+    record that grew and floored at the control resolution, and the sweep's flags so far."""
     recs = _reconciled(records, plan.band)
     usable, aside, past, beyond, n_grew = _sort_out(recs)
     ms = fit_points(usable)
@@ -666,19 +439,46 @@ def evaluate(
             f"{len(ms)} usable control(s) below the transition ({len(aside)} record(s) set "
             f"aside): a prediction needs at least {MIN_RECORDS}",
         ))  # fmt: skip
+    return _Answer(recs, usable, aside, past, ms, pred, flags, unconfirmed, step, res)
+
+
+def evaluate(
+    records: Sequence[SweepRecord],
+    plan: SweepPlan | None = None,
+    *,
+    previous_interval: tuple[float, float] | None = None,
+    timings: dict[str, tuple[float, float]] | None = None,
+    strict: bool = False,
+) -> PolicyUpdate:
+    """The sweep after ``records`` (arrival order).
+
+    Parameters
+    ----------
+    records : sequence of SweepRecord
+    plan : SweepPlan, optional
+    previous_interval : tuple of float, optional
+        The interval after the records but the last (the trust test's second interval).
+    timings : dict, optional
+        Gets ``"predict"``: (wall, CPU) seconds of the prediction.
+    strict : bool
+        Raise the predictor's ``ParameterError`` (a batch of records: the user must hear why)
+        instead of flagging ``predictor_failed`` (a live sweep goes on).
+    """
+    plan = plan or SweepPlan()
+    a = _answer(records, plan, timings, strict)
+    ms, pred, past, flags = a.ms, a.pred, a.past, a.flags
     last = ms[-1] if ms else None
     t_ratio = ms[0].omega / last.omega if last is not None and last.omega > 0 else math.nan
     has_pred = pred is not None and math.isfinite(pred.mu_star)
     interval = tuple(pred.mu_star_interval) if has_pred else None
-    fit_interval = interval  # the records' own (the hull below may join another to it)
     last_mu = last.mu if last is not None else (records[-1].control if records else math.nan)
-    alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
+    alarm = _alarm(ms, pred, last_mu, t_ratio, a.step, past)
     trusted = bool(
         has_pred and last is not None and previous_interval is not None
         and interval_trusted(interval, previous_interval, last.mu, t_ratio)
     )  # fmt: skip
     nxt = _advise(ms, pred if has_pred else None, trusted, past, plan)
-    if unconfirmed:  # record again where the one record grew: it confirms or sets it aside
+    if a.unconfirmed:  # record again where the one record grew: it confirms or sets it aside
         nxt = NextMeasurement(past, past, "past_transition", "confirm")
         alarm = replace(alarm, reason=(
             f"the record at {past:.6g} grows, but the stable records put mu* above it: "
@@ -690,26 +490,12 @@ def evaluate(
             f"({nxt.source}) minus the margin {plan.margin:g}",
         ))  # fmt: skip
     converged = False
-    # an interval of no width, or one reaching down to the last record, is no convergence: the
-    # data say mu* may lie right there (a record read wrongly, or the lab at the transition)
-    # ... nor is a newest record set aside: it added no evidence (the same interval again)
-    newest_used = bool(recs) and any(r.seq == recs[-1].seq for r in usable)
-    if trusted and newest_used and interval is not None and interval[1] > interval[0] > last.mu:
-        width = plan.target_width
-        if width is None:
-            width = TARGET_OF_SPAN * (ms[-1].mu - ms[0].mu)
-        small = nxt is not None and (not math.isfinite(nxt.mu) or nxt.mu - last.mu < res)
-        # narrow twice in a row: one record that narrows the interval suddenly is not enough
-        narrow = interval[1] - interval[0] < width and previous_interval is not None and (
-            previous_interval[1] - previous_interval[0] < width)  # fmt: skip
-        converged = bool(narrow or small)
-        if narrow and not unconfirmed:
-            # the sweep stops on this answer: it must not rest on the newest record alone
-            hull = _without_newest(recs, usable, past, plan, interval, last.mu, flags)
-            if hull != interval:
-                pred = replace(pred, mu_star_interval=hull)
-                alarm = _alarm(ms, pred, last_mu, t_ratio, step, past)
-                nxt = _advise(ms, pred, trusted, past, plan)
+    if trusted:
+        converged, hull = _converged(a, plan, interval, previous_interval, nxt)
+        if hull is not None:  # the answer the sweep stops on: not the newest record's alone
+            pred = replace(pred, mu_star_interval=hull)
+            alarm = _alarm(ms, pred, last_mu, t_ratio, a.step, past)
+            nxt = _advise(ms, pred, trusted, past, plan)
     unit = next((r.time_unit for r in reversed(records) if r.measurement is not None), None)
     duration, dt, why = _record_advice(last, nxt, pred, unit)
     if pred is not None:
@@ -721,11 +507,41 @@ def evaluate(
                        classification=cls)  # fmt: skip
     return PolicyUpdate(
         measurements=tuple(ms), n_records=len(records), n_used=sum(
-            1 for r in usable if r.measurement is not None),
-        set_aside=tuple(aside), past=past, prediction=pred, alarm=alarm, next=nxt,
+            1 for r in a.usable if r.measurement is not None),
+        set_aside=tuple(a.aside), past=past, prediction=pred, alarm=alarm, next=nxt,
         trusted=trusted, converged=converged, record_duration=duration, record_dt=dt,
-        record_advice=why, flags=tuple(unique_flags(flags)), fit_interval=fit_interval,
+        record_advice=why, flags=tuple(unique_flags(flags)), fit_interval=interval,
     )  # fmt: skip
+
+
+def _converged(
+    a: _Answer, plan: SweepPlan, interval: tuple[float, float] | None,
+    previous_interval: tuple[float, float] | None, nxt: NextMeasurement | None,
+) -> tuple[bool, tuple[float, float] | None]:  # fmt: skip
+    """Whether a trusted sweep converged, and the interval it converged on when that is not
+    the records' own (the hull with the interval without the newest record; None: its own).
+
+    An interval of no width, or one reaching down to the last record, is no convergence: the
+    data say mu* may lie right there (a record read wrongly, or the lab at the transition);
+    nor is a newest record set aside: it added no evidence (the same interval again)."""
+    ms, recs = a.ms, a.recs
+    last = ms[-1] if ms else None
+    newest_used = bool(recs) and any(r.seq == recs[-1].seq for r in a.usable)
+    if not (newest_used and interval is not None and interval[1] > interval[0] > last.mu):
+        return False, None
+    width = plan.target_width
+    if width is None:
+        width = TARGET_OF_SPAN * (ms[-1].mu - ms[0].mu)
+    small = nxt is not None and (not math.isfinite(nxt.mu) or nxt.mu - last.mu < a.res)
+    # narrow twice in a row: one record that narrows the interval suddenly is not enough
+    narrow = interval[1] - interval[0] < width and previous_interval is not None and (
+        previous_interval[1] - previous_interval[0] < width)  # fmt: skip
+    hull = None
+    if narrow and not a.unconfirmed:
+        # the sweep stops on this answer: it must not rest on the newest record alone
+        joined = _without_newest(recs, a.usable, a.past, plan, interval, last.mu, a.flags)
+        hull = joined if joined != interval else None
+    return bool(narrow or small), hull
 
 
 def _alarm(
@@ -742,31 +558,6 @@ def _alarm(
         transition=pred.transition if pred is not None else None,
         past=past if math.isfinite(past) else math.nan,
     )  # fmt: skip
-
-
-def _resolution_floor(
-    pred: Prediction | None, ms: Sequence[Measurement], res: float, past: float,
-    flags: list[Flag],
-) -> Prediction | None:  # fmt: skip
-    """The prediction with each side of its interval at least half the control resolution
-    ``res`` (:func:`resolution`: the lab's, else its controls' grid) from mu*: a lab that sets
-    its control to that resolution knows each control only to half of it, and so mu* (never
-    below the last stable control, never above a record that grew: ``past``). Flag
-    ``resolution_floor`` when it widens a side."""
-    if not (res > 0) or pred is None or not math.isfinite(pred.mu_star) or not ms:
-        return pred
-    lo, hi = pred.mu_star_interval
-    m, half = pred.mu_star, 0.5 * float(res)
-    new = (max(min(lo, m - half), min(lo, ms[-1].mu)), max(hi, min(m + half, past)))
-    if new == (lo, hi):
-        return pred
-    flags.append(Flag(
-        "resolution_floor",
-        f"the interval [{lo:.6g}, {hi:.6g}] is finer than the control resolution {res:.3g} "
-        f"allows: each side is at least half of it from mu* (now [{new[0]:.6g}, "
-        f"{new[1]:.6g}]); give control_resolution when your control is set more finely",
-    ))  # fmt: skip
-    return replace(pred, mu_star_interval=new)
 
 
 def _without_newest(
@@ -859,46 +650,3 @@ class SweepPolicy:
         return self._last
 
 
-def reduce_detection(
-    detection: Any, control: float, duration: float, dt: float
-) -> tuple[Measurement | None, tuple[Flag, ...]]:
-    """A record's measurement and flags from its detection: a record that grows (flag
-    ``unstable``) is past the transition, not a point of the sweep; one without a fundamental
-    gets ``no_mode``; the detector's ``record_set_aside`` is kept as a record flag."""
-    c = float(control)
-    own = tuple(f for f in detection.flags if f.code == "record_set_aside")
-    if "unstable" in {f.code for f in detection.flags}:
-        return None, (*own, Flag(
-            "past_transition",
-            f"the record at control={c!r} grows (flag unstable): the strip is unstable there, "
-            "past its transition; it is left out of the fit",
-        ))  # fmt: skip
-    try:
-        m = measurement_from_detection(c, detection, duration, dt)
-    except ValueError as exc:
-        return None, (*own, Flag("no_mode", str(exc)))
-    return m, own
-
-
-def samples_refused(exc: Exception) -> str:
-    """The reason a record is set aside when the detector refuses its samples (its
-    ``ParameterError`` on ``w``: too short, non-finite)."""
-    return f"its samples cannot be analysed ({exc})"
-
-
-def unanalysed(control: float, name: str | None, why: str) -> SweepRecord:
-    """A record set aside before detection (its file cannot be read, or the detector refuses
-    its samples): flag ``record_set_aside`` naming it (its file's name) with ``why``; it has no
-    measurement and no detection, and the other records answer (every door alike)."""
-    label = name or f"at control {float(control)!r}"
-    flag = Flag("record_set_aside", f"record {label} set aside: {why}")
-    return SweepRecord(0, float(control), None, (flag,), name=name)
-
-
-def record_of(
-    control: float, detection: Any, measurement: Measurement | None, flags: Sequence[Flag] = (),
-    *, name: str | None = None, time_unit: str | None = None,
-) -> SweepRecord:  # fmt: skip
-    """A record for the policy from one detection and its measurement."""
-    return SweepRecord(0, float(control), measurement, tuple(flags), name=name,
-                       time_unit=time_unit, detection=detection)  # fmt: skip
