@@ -480,6 +480,13 @@ def _result(
             lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
                                                            trend | combos, lead_T,
                                                            peak, base is not None)  # fmt: skip
+            # the combination tones as the result lists them (stationary lines are no
+            # parents): a component the first pass took for one (a hum line its parent) is
+            # told from lines, drift and transients like any other
+            final = frozenset(_combinations(out.modes, lines))
+            if final != combos:
+                lines, drift, transient = _lab.lines_and_drift(
+                    out.modes, n * dt, seeds, trend | final, lead_T, peak, base is not None)
             if base is not None and base[1] is not None:
                 # a slow component the lead-in already holds was not kicked: a drift
                 before = _lab.before_kick(out.modes, n * dt, base[1] / rec.unit - rec.mean,

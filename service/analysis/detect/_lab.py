@@ -432,7 +432,8 @@ TRANSIENT_DECAY = 8.0
 #: (two terms that cancel: a component that large cannot be in the record otherwise).
 TRANSIENT_HUGE = 10.0
 #: ... or (a lab window) an overdamped mode whose ``p`` (the sum of its decay rates) exceeds
-#: this many times the largest ``p`` of the ringing modes.
+#: this many times the smallest ``p`` of the (faster) ringing modes: with Rayleigh damping
+#: ``p = alpha + beta omega^2`` a slower mode's ``p`` is below every faster mode's.
 TRANSIENT_P = 100.0
 #: A slow oscillation of fewer than FEW_PERIODS cycles, or a slow real pole, that decays by
 #: less than this many e-folds over the window beside a ringing mode is the baseline's drift.
@@ -446,6 +447,11 @@ DRIFT_SMALL, DRIFT_RELATIVE = 0.1, 0.2
 #: mode's amplitude (a wobble of the baseline; flagged ``fundamental_ambiguous`` when it
 #: rings a cycle or more: the record is too short to tell it from a slow fundamental).
 DRIFT_WEAK = 0.15
+#: ... or below DRIFT_WEAK of it with fewer than WOBBLE_CYCLES cycles and no significant decay
+#: (not ringing, :func:`_rings`), or a decay as slight as DRIFT_DECAY / DRIFT_RELATIVE allow
+#: (:func:`_wobbles`): a kicked mode decays, a wobble of the baseline does not (flagged
+#: ``fundamental_ambiguous`` by :func:`ambiguity`: the window is too short to tell).
+WOBBLE_CYCLES = 2 * FEW_PERIODS
 #: A growing mode whose largest amplitude over the window stays below this fraction of the
 #: largest mode's is not evidence of instability (a fit's by-product beside a loud ringing).
 GROWTH_NEGLIGIBLE = 1e-2
@@ -480,6 +486,25 @@ def _from_rest(m: Mode, T: float) -> bool:
     return not size > 0 or abs(ra[0] + ra[1]) < DRIFT_REST * size
 
 
+def _wobbles(modes: list[Mode], T: float, rings: list[int]) -> set[int]:
+    """Among the ringing modes ``rings``, those that are a wobble of the baseline beside a
+    faster one: fewer than :data:`WOBBLE_CYCLES` cycles in the window, below
+    :data:`DRIFT_WEAK` of the strongest faster ringing mode's amplitude, and a decay as slight
+    as the :data:`DRIFT_DECAY` / :data:`DRIFT_RELATIVE` rule allows against the faster modes'
+    least."""
+    out = set()
+    for k in rings:
+        m = modes[k]
+        faster = [modes[j] for j in rings if abs(modes[j].sigma2) > abs(m.sigma2)]
+        if not faster or _cycles(m, T) >= WOBBLE_CYCLES:
+            continue
+        if (m.amplitude < DRIFT_WEAK * max(f.amplitude for f in faster)
+                and abs(m.damping) * T < DRIFT_DECAY
+                and abs(m.damping) < DRIFT_RELATIVE * min(f.damping for f in faster)):
+            out.add(k)
+    return out
+
+
 def lines_and_drift(
     modes: list[Mode], T: float, seeds: np.ndarray, exclude: frozenset[int] | set[int],
     lead_T: float = 0.0, peak: float = math.inf, window: bool = False,
@@ -502,14 +527,15 @@ def lines_and_drift(
       oscillation of less than one cycle in the window, one of less than FEW_PERIODS that
       decays by less than :data:`DRIFT_DECAY` e-folds at a rate below :data:`DRIFT_RELATIVE`
       of the ringing modes', or one that grows while staying below :data:`DRIFT_SMALL` of
-      the ringing (a slow wobble), or one of fewer than FEW_PERIODS cycles below
-      :data:`DRIFT_WEAK` of the ringing mode's amplitude;
+      the ringing (a slow wobble), or one of fewer than FEW_PERIODS cycles (of fewer than
+      :data:`WOBBLE_CYCLES` that does not decay significantly, or as slightly as the
+      :data:`DRIFT_DECAY` rule allows) below :data:`DRIFT_WEAK` of the ringing mode's amplitude;
     * transient: beside a kicked ringing mode a slower one that dies within the window
       (:data:`TRANSIENT_DECAY` e-folds): the hammer's contact, a forced part the fit absorbed;
       or an overdamped one whose terms exceed :data:`TRANSIENT_HUGE` times the record's
       largest deviation ``peak`` (they cancel: a pair the fit made of the contact); on a
       record read through a lab ``window`` (a kick located), also an overdamped one whose
-      ``p`` exceeds :data:`TRANSIENT_P` times the ringing modes' largest.
+      ``p`` exceeds :data:`TRANSIENT_P` times the ringing modes' smallest.
     """
     lines: set[int] = set()
     for k, m in enumerate(modes):
@@ -538,6 +564,9 @@ def lines_and_drift(
         j for j, m in enumerate(modes)
         if j not in exclude and j not in lines and _rings(m, T)
     ]  # fmt: skip
+    wobble = _wobbles(modes, T, rings)
+    drift |= wobble
+    rings = [j for j in rings if j not in wobble]
     transient: set[int] = set()
     if rings:
         fastest_ring = min(abs(modes[j].sigma2) for j in rings)
@@ -561,6 +590,9 @@ def lines_and_drift(
                     < DRIFT_SMALL * max(modes[j].amplitude for j in rings))
                 or (_cycles(m, T) < FEW_PERIODS
                     and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings))
+                or (_cycles(m, T) < WOBBLE_CYCLES
+                    and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings)
+                    and not _rings(m, T))
             ):  # fmt: skip
                 drift.add(k)
         # (also where the first pass read it as a combination tone)
@@ -569,8 +601,10 @@ def lines_and_drift(
                       and k not in lines and k not in drift and k not in rings}  # fmt: skip
         # an overdamped pair whose decay rates sum (its p) far above the ringing modes' p:
         # no mode of the structure (Rayleigh damping p = alpha + beta omega^2 grows with the
-        # frequency: a slower mode is not damped harder), a forced part the fit absorbed
-        p_ring = max(2.0 * modes[j].damping for j in rings)
+        # frequency: a slower mode is not damped harder than any faster one, so the least
+        # damped ringing mode bounds it; a fast, heavily damped ringing mode the fit made of
+        # the contact says nothing), a forced part the fit absorbed
+        p_ring = min(2.0 * modes[j].damping for j in rings)
         transient |= {k for k, m in enumerate(modes)
                       if window and m.regime == "overdamped" and m.real_poles is not None
                       and -(m.real_poles[0] + m.real_poles[1]) > TRANSIENT_P * p_ring
