@@ -486,10 +486,21 @@ def _from_rest(m: Mode, T: float) -> bool:
     return not size > 0 or abs(ra[0] + ra[1]) < DRIFT_REST * size
 
 
+def _size(m: Mode, T: float) -> float:
+    """The mode's rms envelope over the window ``T`` (its amplitude times the rms of
+    ``exp(-gamma t)``): a transient's large initial amplitude counts for the short time it
+    lasts."""
+    x = 2.0 * m.damping * T
+    if m.regime != "underdamped" or abs(x) < 1e-12:
+        return m.amplitude
+    return m.amplitude * math.sqrt(max(-math.expm1(-min(x, 700.0)) / x, 0.0))
+
+
 def _wobbles(modes: list[Mode], T: float, rings: list[int]) -> set[int]:
     """Among the ringing modes ``rings``, those that are a wobble of the baseline beside a
     faster one: fewer than :data:`WOBBLE_CYCLES` cycles in the window, below
-    :data:`DRIFT_WEAK` of the strongest faster ringing mode's amplitude, and a decay as slight
+    :data:`DRIFT_WEAK` of the strongest faster ringing mode's rms envelope over the window
+    (:func:`_size`), and a decay as slight
     as the :data:`DRIFT_DECAY` / :data:`DRIFT_RELATIVE` rule allows against the faster modes'
     least."""
     out = set()
@@ -498,7 +509,7 @@ def _wobbles(modes: list[Mode], T: float, rings: list[int]) -> set[int]:
         faster = [modes[j] for j in rings if abs(modes[j].sigma2) > abs(m.sigma2)]
         if not faster or _cycles(m, T) >= WOBBLE_CYCLES:
             continue
-        if (m.amplitude < DRIFT_WEAK * max(f.amplitude for f in faster)
+        if (_size(m, T) < DRIFT_WEAK * max(_size(f, T) for f in faster)
                 and abs(m.damping) * T < DRIFT_DECAY
                 and abs(m.damping) < DRIFT_RELATIVE * min(f.damping for f in faster)):
             out.add(k)
@@ -590,9 +601,8 @@ def lines_and_drift(
                     < DRIFT_SMALL * max(modes[j].amplitude for j in rings))
                 or (_cycles(m, T) < FEW_PERIODS
                     and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings))
-                or (_cycles(m, T) < WOBBLE_CYCLES
-                    and m.amplitude < DRIFT_WEAK * max(modes[j].amplitude for j in rings)
-                    and not _rings(m, T))
+                or (_cycles(m, T) < WOBBLE_CYCLES and not _rings(m, T)
+                    and _size(m, T) < DRIFT_WEAK * max(_size(modes[j], T) for j in rings))
             ):  # fmt: skip
                 drift.add(k)
         # (also where the first pass read it as a combination tone)
