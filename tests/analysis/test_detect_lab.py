@@ -197,8 +197,9 @@ def test_the_quantity_a_unit_measures(unit: str | None, quantity: str | None) ->
     assert quantity_of(unit) == quantity
 
 
-def _campaign(n: int, seed: int) -> tuple[int, int, list]:
-    """(right, silent wrong, the wrong ones) over ``n`` random records, every impairment on."""
+def _campaign(n: int, seed: int, z: list | None = None) -> tuple[int, int, list]:
+    """(right, silent wrong, the wrong ones) over ``n`` random records, every impairment on;
+    ``z`` (when given) gets the right ones' standardised sigma^2 errors."""
     right = silent = 0
     wrong = []
     for i in range(n):
@@ -207,6 +208,9 @@ def _campaign(n: int, seed: int) -> tuple[int, int, list]:
         det = detect(rec.y, dt=rec.dt, quantity=rec.quantity)
         if _right(det, rec):
             right += 1
+            if z is not None:
+                f = det.fundamental
+                z.append((f.sigma2 + rec.truth.omega0**2) / f.sigma2_std)
             continue
         warned = [c for c in det.flag_codes if c in WARNING_FLAGS]
         silent += not warned
@@ -221,16 +225,84 @@ def test_a_fast_sample_of_lab_records_with_every_impairment() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 27's target not met on this test's records: on its 300 records (seed 2702, "
-    "quantity given) the detector of e2b9591 finds the fundamental within 1 % in 278 (92.7 %, "
-    "95 % needed; 264 before) and is wrong without a warning flag in 0 (<= 3 allowed); "
-    "bench/results/lab_records_after_all300.md (seed 2026): 95.0 % right, 1 silent. The misses "
-    "are mostly slow overdamped or relaxation picks on clipped records (a slow component the "
-    "censored fit leaves) and false later kicks that shorten the window",
-)
 def test_300_lab_records_fundamental_right_in_95_percent_silent_wrong_below_1_percent() -> None:
+    """Issue 27's acceptance (seed 2702, quantity given): measured 286/300 right (95.3 %), 0
+    silent; and the reported sigma^2 errors are honest: the right ones' standardised errors
+    ``(sigma2 - truth) / sigma2_std`` lie within 1.96 in >= 90 % (measured 94.1 %; 83.5 %
+    with the Gauss-Newton errors alone)."""
     n = 300
-    right, silent, wrong = _campaign(n, 2702)
+    z: list[float] = []
+    right, silent, wrong = _campaign(n, 2702, z)
     assert right >= 0.95 * n and silent <= 0.01 * n, (right, silent, wrong)
+    assert np.mean(np.abs(z) < 1.96) >= 0.90, np.percentile(np.abs(z), [50, 90, 95, 99])
+
+
+def _ring(rng: np.random.Generator, phi: float, n: int = 3000) -> tuple[np.ndarray, float]:
+    """A damped sine (6 Hz, 1 kHz) kicked after a quiet 20 % lead-in, plus AR(1) noise of
+    coefficient ``phi`` (white when 0) at 1 % of the peak; and its true ``sigma^2``."""
+    fs, f0, g = 1000.0, 6.0, 0.5
+    t = np.arange(n) / fs
+    k0 = n // 5
+    u = np.clip(t - t[k0], 0.0, None)
+    x = np.where(t >= t[k0], np.exp(-g * u) * np.sin(2 * math.pi * f0 * u), 0.0)
+    e = rng.standard_normal(n) * 0.01 * math.sqrt(1 - phi * phi)
+    for i in range(1, n):
+        e[i] += phi * e[i - 1]
+    return x + e, -((2 * math.pi * f0) ** 2 + g * g)
+
+
+def test_the_sandwich_keeps_the_fits_errors_on_white_noise() -> None:
+    """White noise: the sandwich's factor stays near 1 (the errors were right already)."""
+    from service.analysis.detect import _uncertainty
+
+    y, _ = _ring(np.random.default_rng(5), 0.0)
+    det = detect(y, dt=1e-3)
+    assert "pretrigger" in det.flag_codes
+    orig = _uncertainty.inflation
+    try:
+        _uncertainty.inflation = lambda modes, *a, **k: [{} for _ in modes]
+        plain = detect(y, dt=1e-3)
+    finally:
+        _uncertainty.inflation = orig
+    ratio = det.fundamental.sigma2_std / plain.fundamental.sigma2_std
+    assert 1.0 <= ratio < 1.3, ratio
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.9])
+def test_the_sandwich_is_the_scatter_of_least_squares_estimates(phi: float) -> None:
+    """Monte Carlo reference: a ring-down's linearised least-squares estimate (amplitude,
+    phase, decay rate, frequency, a level and a slope: the exact linear problem, its Jacobian
+    written here) from 300 draws of AR(1) noise of coefficient ``phi``. The variance of
+    sigma^2's estimate over the draws matches the mean of the variances the sandwich predicts
+    from each draw's residual within 0.75-1.4x (measured: 1.01 white, 1.30 at phi = 0.9: the
+    residual the sandwich reads lacks the part of the noise the fit absorbed, ~14 % in std);
+    for phi = 0.9 (its spectrum near the line ~10x its mean) the white-noise formula alone is
+    18x too small in variance."""
+    from service.analysis.detect import _uncertainty
+
+    n, dt, w, g, a = 3000, 1e-3, 2 * math.pi * 6.0, 0.5, 1.0
+    m = Mode(w, w / (2 * math.pi), g, -(w * w + g * g), a, 0.3, 1e-4, 1e-4, 1e-3)
+    u = np.arange(n) * dt
+    env = np.exp(-g * u)
+    c, s = env * np.cos(w * u + 0.3), env * np.sin(w * u + 0.3)
+    J = np.column_stack((np.ones(n), u, c, -a * s, -a * u * c, -a * u * s))
+    grad = np.array([0.0, 0.0, 0.0, 0.0, -2 * g, -2 * w])  # sigma^2 = -(w^2 + g^2)
+    JtJi = np.linalg.inv(J.T @ J)
+    rng = np.random.default_rng(2027)
+    est, pred, white = [], [], []
+    for _ in range(300):
+        e = rng.standard_normal(n)
+        for i in range(1, n):
+            e[i] += phi * e[i - 1]
+        theta, *_ = np.linalg.lstsq(J, e, rcond=None)
+        r = e - J @ theta
+        s2 = float(r @ r) / (n - J.shape[1])
+        v0 = s2 * float(grad @ JtJi @ grad)
+        f = _uncertainty.inflation([m], r, dt, math.sqrt(s2))[0]["sigma2"]
+        est.append(float(grad @ theta))
+        pred.append(v0 * f * f)
+        white.append(v0)
+    emp = float(np.var(est))
+    assert 0.75 <= emp / float(np.mean(pred)) <= 1.4, (emp, np.mean(pred), np.mean(white))
+    if phi:
+        assert emp > 4.0 * float(np.mean(white))

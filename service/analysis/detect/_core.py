@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from service.analysis.common import Flag
-from service.analysis.detect import _censored, _lab
+from service.analysis.detect import _censored, _lab, _uncertainty
 from service.analysis.detect._flags import _record_flags
 from service.analysis.detect._methods import (
     ALIASES,
@@ -381,6 +381,7 @@ def detect(
         return (a, *_fit(a, dt, kind, mm, resolved, opts, detrend))
 
     arr, rec, out = fit(detrend)
+    cens = None if hi is None or lo is None else hi | lo
     lab = kind == "impulse" and (win is not None or resolved == "varpro")
     if not detrend and lab and _suspect(out.modes, arr.size * dt):
         # a growing or slow fundamental that is not kicked beside a ringing mode: refit with
@@ -392,6 +393,7 @@ def detect(
         if skip and arr.size - skip >= max(4 * MIN_SAMPLES, arr.size // 2):
             arr = arr[skip:]
             first += skip
+            cens = None if cens is None else cens[skip:]
             rec, out = _fit(arr, dt, kind, mm, resolved, opts, detrend)
             pre = [*pre, Flag(
                 "forced_part",
@@ -403,7 +405,7 @@ def detect(
     base = (arr, lead) if win is not None and rec.scale > 0 else None
     lead_T = lead.size * dt if lead is not None else 0.0
     return _result(rec, out, arr.size, dt, kind, resolved, first, quantity, seeds_w / dt, lab,
-                   base, lead_T)
+                   base, lead_T, cens)
 
 
 def _suspect(modes: list, T: float) -> bool:
@@ -462,6 +464,7 @@ def _result(
     rec: Record, out: Outcome, n: int, dt: float, kind: str, resolved: str, start: int,
     quantity: str | None, seeds: np.ndarray, lab: bool = True,
     base: tuple[np.ndarray, np.ndarray | None] | None = None, lead_T: float = 0.0,
+    censored: np.ndarray | None = None,
 ) -> Detection:  # fmt: skip
     """The Detection of a fit: lines, drift and trends set aside, the fundamental, flags.
     ``lab``: tell lines, drift, transients and negligible growth (varpro, or a lab window:
@@ -469,7 +472,9 @@ def _result(
     record read through a lab window (a lead-in, a later kick, clipped samples, the user's
     start): the window as given (no slope removed) and the lead-in before the kick (None:
     none), where the fundamental is checked for ambiguity and the baseline for drift;
-    ``lead_T``: the duration of the lead-in before the kick (lines are looked for there)."""
+    ``lead_T``: the duration of the lead-in before the kick (lines are looked for there);
+    ``censored``: the window's clipped samples read as censored (None: none). On a lab
+    window the standard errors are the sandwich's where larger (:mod:`._uncertainty`)."""
     trend = frozenset()
     lines = drift = tiny = transient = frozenset()
     if kind == "impulse":
@@ -496,6 +501,10 @@ def _result(
             tiny = _lab.negligible_growth(out.modes, n * dt)
     modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
                                 aside=lines)
+    if base is not None and modes:
+        factors = _uncertainty.inflation(out.modes, _residual(rec, out, dt), dt,
+                                         out.noise_std, censored)  # fmt: skip
+        modes = [_uncertainty.inflated(m, factors[k]) for m, k in zip(modes, order)]
     growth = None if out.growth is None else [out.growth[k] for k in order]
     at = {k: i for i, k in enumerate(order)}
     trend_at = frozenset(at[k] for k in trend)

@@ -110,7 +110,8 @@ class Mode:
     phase : float
         Phase at the first sample, rad (0 for an overdamped mode).
     omega_std, damping_std, sigma2_std, amplitude_std : float
-        Standard errors (same units).
+        Standard errors (same units); on a lab window the sandwich's where larger
+        (module ``_uncertainty``: misfit, coloured residual, censored samples).
     regime : str
         ``"underdamped"`` or ``"overdamped"``.
     real_poles : tuple of float or None
