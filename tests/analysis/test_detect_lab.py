@@ -22,7 +22,7 @@ from service.analysis.detect import (  # noqa: E402
     FLAG_CODES,
     WARNING_FLAGS,
     Mode,
-    _lab,  # noqa: E402
+    _aside,  # noqa: E402
     detect,
 )
 from service.analysis.errors import ParameterError  # noqa: E402
@@ -181,10 +181,10 @@ def test_a_tiny_growing_component_beside_a_loud_ringing_is_not_an_instability() 
     ring = Mode(40.0, 40.0 / (2 * math.pi), 0.5, -1600.25, 0.3, 0.0, 1e-4, 1e-4, 1e-3)
     tiny = Mode(0.0, 0.0, -0.1, 1e-4, 5e-10, 0.0, 0.0, 1e-3, 1e-5, regime="overdamped",
                 real_poles=(0.3, -0.1), real_amplitudes=(5e-10, 0.0))  # fmt: skip
-    assert _lab.negligible_growth([ring, tiny], 10.0) == frozenset({1})
+    assert _aside.negligible_growth([ring, tiny], 10.0) == frozenset({1})
     big = Mode(0.0, 0.0, -0.1, 1e-4, 0.05, 0.0, 0.0, 1e-3, 1e-5, regime="overdamped",
                real_poles=(0.3, -0.1), real_amplitudes=(0.05, 0.0))  # fmt: skip
-    assert _lab.negligible_growth([ring, big], 10.0) == frozenset()
+    assert _aside.negligible_growth([ring, big], 10.0) == frozenset()
 
 
 @pytest.mark.parametrize(

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from service.analysis.common import Flag
-from service.analysis.detect import _censored, _lab, _uncertainty
+from service.analysis.detect import _aside, _censored, _lab, _uncertainty
 from service.analysis.detect._flags import _record_flags
 from service.analysis.detect._methods import (
     ALIASES,
@@ -411,15 +411,15 @@ def detect(
 def _suspect(modes: list, T: float) -> bool:
     """Whether the slowest mode of a fit may be a drift rather than the fundamental: it grows
     (``sigma^2 >= 0`` or a growing envelope) beside a faster ringing mode
-    (:func:`_lab._rings`)."""
+    (:func:`_aside._rings`)."""
     if len(modes) < 2:
         return False
     m0 = modes[0]
     if not (m0.sigma2 >= 0 or m0.damping < 0):
         return False
-    if m0.regime == "overdamped" and _lab._from_rest(m0, T):
+    if m0.regime == "overdamped" and _aside._from_rest(m0, T):
         return False  # a kicked growing mode (past the transition): the physics
-    return any(_lab._rings(m, T) and abs(m.sigma2) > abs(m0.sigma2) for m in modes[1:])
+    return any(_aside._rings(m, T) and abs(m.sigma2) > abs(m0.sigma2) for m in modes[1:])
 
 
 def _detrended(arr: np.ndarray) -> np.ndarray:
@@ -482,7 +482,7 @@ def _result(
         combos = frozenset(_combinations(out.modes))
         if lab:
             peak = float(np.max(np.abs(rec.x))) if rec.x.size else math.inf
-            lines, drift, transient = _lab.lines_and_drift(out.modes, n * dt, seeds,
+            lines, drift, transient = _aside.lines_and_drift(out.modes, n * dt, seeds,
                                                            trend | combos, lead_T,
                                                            peak, base is not None)  # fmt: skip
             # the combination tones as the result lists them (stationary lines are no
@@ -490,15 +490,15 @@ def _result(
             # told from lines, drift and transients like any other
             final = frozenset(_combinations(out.modes, lines))
             if final != combos:
-                lines, drift, transient = _lab.lines_and_drift(
+                lines, drift, transient = _aside.lines_and_drift(
                     out.modes, n * dt, seeds, trend | final, lead_T, peak, base is not None)
             if base is not None and base[1] is not None:
                 # a slow component the lead-in already holds was not kicked: a drift
-                before = _lab.before_kick(out.modes, n * dt, base[1] / rec.unit - rec.mean,
+                before = _aside.before_kick(out.modes, n * dt, base[1] / rec.unit - rec.mean,
                                           start, dt, trend | lines | drift | transient,
                                           lines)  # fmt: skip
                 drift = drift | before
-            tiny = _lab.negligible_growth(out.modes, n * dt)
+            tiny = _aside.negligible_growth(out.modes, n * dt)
     modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
                                 aside=lines)
     if base is not None and modes:
@@ -541,8 +541,8 @@ def _result(
         modes, n=n, dt=dt, spec=rec.spec, static=out.static, static_std=out.static_std,
         growth=growth, trend=trend_at, aside=aside | tiny_at,
     )  # fmt: skip
-    flags += _lab.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
-    doubt = _lab.ambiguity(modes, n * dt) if base is not None and fund is not None else None
+    flags += _aside.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
+    doubt = _aside.ambiguity(modes, n * dt) if base is not None and fund is not None else None
     if doubt is not None:
         flags.append(doubt)
     static, static_std = out.static * u, out.static_std * u
