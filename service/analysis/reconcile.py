@@ -39,7 +39,7 @@ from service.analysis.common import Flag
 from service.analysis.detect import Detection, Fundamental, Mode
 from service.analysis.errors import ParameterError
 
-__all__ = ["SET_ASIDE", "reconcile", "set_aside"]
+__all__ = ["SET_ASIDE", "SWEEP_DOUBT", "reconcile", "set_aside", "withhold_type"]
 
 #: The flag code of a record left out of a sweep (its message gives the reason and the name).
 SET_ASIDE = "record_set_aside"
@@ -176,6 +176,7 @@ def reconcile(
             det = moved
         why = _stable(det)
         out.append(det if why is None else set_aside(det, name, why))
+    out = _critical_line(out, c, names)
     return tuple(_branch(out, c, names))
 
 
@@ -329,3 +330,211 @@ def _candidate(m: Mode) -> bool:
         m.combination is None and getattr(m, "kind", "mode") == "mode"
         and math.isfinite(m.sigma2) and m.sigma2 < 0
     )  # fmt: skip
+
+
+# ------------------------------------------------------------------ the critical line of a sweep
+#: The message of the sweep-level ``fundamental_ambiguous`` flag starts with this (the
+#: detector's own flag of that code concerns one record and does not withhold the type).
+SWEEP_DOUBT = "across the sweep"
+#: A line is followed from one record to the next when its ``r = sqrt|sigma^2|`` lies within
+#: this relative distance of the value its track expects there (a second pass allows
+#: :data:`TRACK_TOL_SOFT` for a line that went softer than expected: the critical one).
+TRACK_TOL = 0.15
+TRACK_TOL_SOFT = 0.45
+#: The most a mode's own uncertainty widens those tolerances (in ``log r``).
+MAX_TRACK_SPREAD = 0.05
+#: A line that reaches ``sigma^2 = 0`` within this fraction of the distance the records' own
+#: line needs replaces it without doubt; up to the records' own distance it replaces it with
+#: the flag ``fundamental_ambiguous`` (two lines plausible, the type withheld).
+CLEARLY = 0.5
+#: ... and below this fraction it is no rival at all: lines proportional to one another (a
+#: harmonic, a mode shape's overtone) reach zero together.
+AGREE = 0.9
+#: A line must soften by at least this fraction of its ``|sigma^2|`` across the records it is
+#: seen in to be a candidate (a sensor's or a rig's line stays put).
+MIN_SOFTENING = 0.1
+#: A line is a candidate for the sweep's critical line once seen at this many controls (a
+#: quadratic continuation needs them; three records cannot tell a line's bend).
+MIN_CONTROLS = 4
+
+
+def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[int, int]]:
+    """The lines of the usable records ``idx`` (sorted by control) followed by continuity:
+    each track maps a record to the index of its mode on the line. A track expects at the next
+    record the ``sigma^2`` its last two points (distinct controls) extrapolate to (its last
+    value otherwise); modes are matched one to one, nearest first (in ``log r``), within
+    :data:`TRACK_TOL` (plus the mode's own 4 standard errors), then within
+    :data:`TRACK_TOL_SOFT` for a mode softer than expected. A track missing one record goes on;
+    one missing two ends. Only a candidate mode (:func:`_candidate`) starts a track; a
+    transient (:func:`_continues`) may continue one within :data:`TRACK_TOL`."""
+    tracks: list[dict[int, int]] = []
+    ends: list[int] = []  # position in idx of each track's last record
+    for pos, k in enumerate(idx):
+        cands = [j for j, m in enumerate(out[k].modes) if _candidate(m) or _continues(m)]
+        live = [t for t in range(len(tracks)) if pos - ends[t] <= 2]
+        expect = {}
+        for t in live:
+            ks = list(tracks[t])
+            s_last = out[ks[-1]].modes[tracks[t][ks[-1]]].sigma2
+            s_exp = s_last
+            prev = [a for a in ks[:-1] if c[a] != c[ks[-1]]]
+            if prev and c[k] != c[ks[-1]]:
+                a = prev[-1]
+                s_a = out[a].modes[tracks[t][a]].sigma2
+                slope = (s_last - s_a) / (c[ks[-1]] - c[a])
+                guess = s_last + slope * (c[k] - c[ks[-1]])
+                s_exp = guess if guess < 0 else s_last
+            expect[t] = 0.5 * math.log(abs(s_exp))
+        pairs = []
+        for t in live:
+            for j in cands:
+                m = out[k].modes[j]
+                d = math.log(_r(m)) - expect[t]
+                pairs.append((abs(d), d, t, j))
+        pairs.sort()
+        used_t: set[int] = set()
+        used_j: set[int] = set()
+        for soft in (False, True):
+            for ad, d, t, j in pairs:
+                if t in used_t or j in used_j:
+                    continue
+                m = out[k].modes[j]
+                tol = math.log1p(TRACK_TOL) + _track_spread(m)
+                ok = ad <= tol or (soft and d < 0 and _candidate(m)
+                                   and -d <= math.log1p(TRACK_TOL_SOFT) + _track_spread(m))
+                if ok:
+                    tracks[t][k] = j
+                    ends[t] = pos
+                    used_t.add(t)
+                    used_j.add(j)
+        for j in cands:
+            if j not in used_j and _candidate(out[k].modes[j]):
+                tracks.append({k: j})
+                ends.append(pos)
+    return tracks
+
+
+def _track_spread(m: Mode) -> float:
+    """A mode's own part of the tracking tolerance: its 4 standard errors of ``log r``, at most
+    :data:`MAX_TRACK_SPREAD` (a mode read with a 100 % error would otherwise join any line)."""
+    return min(_spread(m), MAX_TRACK_SPREAD)
+
+
+def _continues(m: Mode) -> bool:
+    """A mode the detector set aside as a transient (heavily damped, gone early in the record)
+    may continue a line that ringing modes began: a critical mode whose damping grows as it
+    softens ends so (it is never the start of a line)."""
+    return getattr(m, "kind", "mode") == "transient" and math.isfinite(m.sigma2) and m.sigma2 < 0
+
+
+def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
+    """The control where the line's ``sigma^2``, continued by a quadratic in the control
+    fitted to all its points (least squares), first reaches 0 beyond its last control; inf for
+    a line seen at fewer than :data:`MIN_CONTROLS` controls, one that does not soften by
+    :data:`MIN_SOFTENING` of its level, or one whose continuation does not reach 0. The
+    quadratic tells a line that bends toward zero (the critical mode near a fold or a
+    pitchfork) from one whose softening slows down (a line that a straight continuation of
+    its first records would wrongly take to zero first)."""
+    ks = list(track)
+    s = np.array([out[k].modes[track[k]].sigma2 for k in ks])
+    x = np.array([c[k] for k in ks])
+    if np.unique(x).size < MIN_CONTROLS or (s[-1] - s[0]) < MIN_SOFTENING * abs(s[0]):
+        return math.inf
+    last = float(x.max())
+    scale = float(np.ptp(x))
+    p = np.polyfit((x - last) / scale, s / abs(s[0]), 2)
+    if np.polyval(p, 0.0) >= 0:  # the fit is at zero already at the line's last control
+        return last
+    roots = [r.real for r in np.roots(p) if abs(r.imag) <= 1e-9 * max(1.0, abs(r.real))]
+    ahead = [r for r in roots if r > 0]
+    return last + scale * min(ahead) if ahead else math.inf
+
+
+def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) -> list[Detection]:
+    """Each usable record's fundamental on the sweep's critical line: the line (followed from
+    record to record, :func:`_tracks`) whose ``sigma^2`` reaches zero first (:func:`_zero`),
+    seen in at least :data:`MIN_CONTROLS` records and half of them. Nothing changes when that
+    line is the one the records' own fundamentals mostly follow, or reaches zero with it
+    (:data:`AGREE`).
+    Otherwise the records take their mode on it (flag ``fundamental_reconciled``) and those
+    without one are set aside, when it reaches zero clearly first (:data:`CLEARLY`); when only
+    somewhat first, the same, and every record carries the flag ``fundamental_ambiguous``
+    (message starting :data:`SWEEP_DOUBT`): two lines are plausible and lead to different
+    answers, so the type is withheld (:func:`withhold_type`)."""
+    idx = [k for k in np.argsort(c, kind="stable") if _usable(out[k])]
+    if np.unique(c[idx]).size < MIN_CONTROLS:
+        return out
+    tracks = _tracks(out, idx, c)
+    need = max(MIN_CONTROLS, math.ceil(0.5 * len(idx)))
+    seen = [t for t in tracks if len(t) >= need]
+    if not seen:
+        return out
+    own = max(seen, key=lambda t: sum(out[k].fundamental.index == j for k, j in t.items()))
+    n_own = sum(out[k].fundamental.index == j for k, j in own.items())
+    zeros = [_zero(t, out, c) for t in seen]
+    i_c = int(np.argmin(zeros))
+    crit = seen[i_c]
+    if crit is own or not math.isfinite(zeros[i_c]):
+        return out
+    last = max(c[k] for k in idx)
+    d_c = max(zeros[i_c] - last, 0.0)
+    z_own = _zero(own, out, c) if n_own * 2 >= len(idx) else math.inf
+    d_own = z_own - last
+    if not d_c < AGREE * d_own:
+        return out
+    doubt = not d_c < CLEARLY * d_own
+    lo_c, hi_c = min(c[k] for k in crit), max(c[k] for k in crit)
+    r_c = [_r(out[k].modes[j]) for k, j in crit.items()]
+    r_o = [_r(out[k].modes[j]) for k, j in own.items()]
+    line = (f"the line softening toward sigma^2 = 0 first across the sweep (sqrt|sigma^2| "
+            f"{r_c[0]:.6g} to {r_c[-1]:.6g}, reaching 0 near control {zeros[i_c]:.6g}) rather "
+            f"than the records' slowest line ({r_o[0]:.6g} to {r_o[-1]:.6g}, "
+            + (f"near {z_own:.6g}" if math.isfinite(z_own) else "not softening toward 0")
+            + ")")  # fmt: skip
+    res = list(out)
+    for k in idx:
+        det = res[k]
+        j = crit.get(k)
+        if j is None:
+            res[k] = set_aside(det, names[k], (
+                f"the sweep's critical line (the one softening toward sigma^2 = 0 first, seen "
+                f"from control {lo_c:.6g} to {hi_c:.6g}) is not found in it"
+                if lo_c <= c[k] <= hi_c else
+                f"the sweep's critical line is seen from control {lo_c:.6g} to {hi_c:.6g} "
+                "only, not in it"))  # fmt: skip
+            continue
+        flags = list(det.flags)
+        if det.fundamental.index != j:
+            flags.append(Flag("fundamental_reconciled", (
+                f"the fundamental is modes[{j}] (sqrt|sigma^2| = {_r(det.modes[j]):.6g}), on "
+                f"{line}, not the record's own choice (sqrt|sigma^2| = "
+                f"{_r(det.fundamental.mode):.6g})")))  # fmt: skip
+        if doubt:
+            flags.append(Flag("fundamental_ambiguous", (
+                f"{SWEEP_DOUBT}: two lines are plausible and lead to different answers: "
+                f"{line}; their controls of sigma^2 = 0 differ by less than a factor "
+                f"{1 / CLEARLY:.3g} in distance from the last record: the type is withheld")))
+        res[k] = replace(det, fundamental=Fundamental(det.modes[j], j), flags=tuple(flags))
+    return res
+
+
+def sweep_doubt(flags: Sequence[Flag]) -> Flag | None:
+    """The sweep-level ``fundamental_ambiguous`` flag among ``flags`` (None: none)."""
+    return next((f for f in flags if f.code == "fundamental_ambiguous"
+                 and f.message.startswith(SWEEP_DOUBT)), None)  # fmt: skip
+
+
+def withhold_type(pred, measurements: Sequence, flags: list[Flag]):
+    """``pred`` (a Prediction or None) with its type withheld (``"undetermined"``) when a
+    measurement carries the sweep-level ``fundamental_ambiguous`` flag (:func:`_critical_line`);
+    that flag is then appended to ``flags``. The sweep policy calls it after the prediction."""
+    doubt = next((d for m in measurements if (d := sweep_doubt(m.flags)) is not None), None)
+    if doubt is None:
+        return pred
+    flags.append(doubt)
+    if pred is None or pred.transition == "undetermined":
+        return pred
+    cls = pred.classification
+    if cls is not None:
+        cls = replace(cls, transition="undetermined")
+    return replace(pred, transition="undetermined", classification=cls)

@@ -45,6 +45,7 @@ from service.analysis.common import Flag, unique_flags
 from service.analysis.errors import ParameterError
 from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, bounded_by, predict
+from service.analysis.reconcile import withhold_type
 from service.analysis.sampling import PERIODS, mains_clear_dt, next_record_sampling
 from service.analysis.sweep_interval import (
     _growth,
@@ -414,6 +415,7 @@ def _answer(
     ms = fit_points(usable)
     t0, c0 = time.perf_counter(), time.process_time()
     pred, flags = _predict(ms, plan.level, strict)
+    pred = withhold_type(pred, [r.measurement for r in usable], flags)  # reconcile's doubt
     if timings is not None:
         timings["predict"] = (time.perf_counter() - t0, time.process_time() - c0)
     if len(ms) < len(usable):

@@ -1,0 +1,151 @@
+"""reconcile: the sweep's critical line among each record's modes (issue 27 item 4).
+
+References are closed-form two-line tables: each line's ``sigma^2(mu)`` is linear in the control,
+``-(a - b mu)``, so the line that reaches zero first and its exact ``sigma^2`` at every record
+are known without the product; the records' own fundamental is their slowest line, as the
+detector picks it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from service.analysis.common import Flag
+from service.analysis.detect import Detection, Fundamental, Mode
+from service.analysis.reconcile import SET_ASIDE, SWEEP_DOUBT, reconcile, withhold_type
+
+
+def _mode(s2: float, std: float = 0.1) -> Mode:
+    root = math.sqrt(-s2)
+    return Mode(root, root / (2 * math.pi), 0.05, s2, 1.0, 0.0, 1e-4, 1e-4, std, 1e-3)
+
+
+def _det(*s2: float) -> Detection:
+    """A record's detection with its modes; the fundamental is the slowest (the detector's
+    choice)."""
+    modes = tuple(_mode(v) for v in s2)
+    k = int(np.argmin([abs(v) for v in s2]))
+    return Detection(modes, Fundamental(modes[k], k), 0.1, 1e-3, (), "varpro", 1e-3, 40.0, 1000,
+                     1e-3)  # fmt: skip
+
+
+def _line(a: float, b: float):
+    return lambda mu: -(a - b * mu)
+
+
+# Winkler-like column: line 1 (slowest far from mu*) reaches 0 at 2.0, line 2 at 1.0
+SLOW = _line(1000.0, 500.0)
+CRIT = _line(4000.0, 4000.0)
+MU = np.array([0.0, 0.2, 0.4, 0.55, 0.65, 0.72, 0.78, 0.83, 0.88, 0.92])
+
+
+def _names(n: int) -> list[str]:
+    return [f"rec{i:02d}.csv" for i in range(n)]
+
+
+def test_the_line_that_reaches_zero_first_is_followed_not_the_lowest():
+    dets = [_det(SLOW(m), CRIT(m)) for m in MU]
+    # the lowest line is the records' own fundamental except at the last two controls
+    assert sum(d.fundamental.index == 0 for d in dets) == 8
+    out = reconcile(dets, MU, names=_names(MU.size))
+    for d, m in zip(out, MU, strict=True):
+        assert SET_ASIDE not in d.flag_codes
+        assert d.fundamental.sigma2 == pytest.approx(CRIT(m), rel=1e-12)
+        assert "fundamental_ambiguous" not in d.flag_codes
+    assert "fundamental_reconciled" in out[0].flag_codes
+    assert "first across the sweep" in out[0].flags[-1].message
+
+
+def test_records_in_any_order_and_a_stationary_sensor_line():
+    # a geophone's pole pair at -800 stays put: never the critical line, even when lowest
+    order = np.array([3, 0, 6, 1, 9, 7, 4, 2, 8, 5])
+    mu = MU[order]
+    dets = [_det(-800.0, SLOW(m), CRIT(m)) for m in mu]
+    out = reconcile(dets, mu, names=_names(mu.size))
+    for d, m in zip(out, mu, strict=True):
+        assert d.fundamental.sigma2 == pytest.approx(CRIT(m), rel=1e-12)
+
+
+def test_the_lowest_line_when_it_is_the_critical_one_is_unchanged():
+    # a pinned column: mode 2 reaches zero at 4x mu*; the records' own choice stands
+    crit, stiff = _line(1000.0, 1000.0), _line(16000.0, 4000.0)
+    dets = [_det(crit(m), stiff(m), -800.0) for m in MU]
+    out = reconcile(dets, MU, names=_names(MU.size))
+    assert out == tuple(dets)
+
+
+def test_a_record_without_the_critical_line_is_set_aside_by_name():
+    dets = [_det(SLOW(m), CRIT(m)) for m in MU]
+    dets[3] = _det(SLOW(MU[3]))  # the detector missed the critical line there
+    names = _names(MU.size)
+    out = reconcile(dets, MU, names=names)
+    (f,) = [f for f in out[3].flags if f.code == SET_ASIDE]
+    assert names[3] in f.message and "critical line" in f.message
+    for i in (0, 1, 2, 4, 5, 6, 7, 8, 9):
+        assert out[i].fundamental.sigma2 == pytest.approx(CRIT(MU[i]), rel=1e-12)
+
+
+def test_two_plausible_lines_are_flagged_and_withhold_the_type():
+    # line 2 reaches 0 at 1.3, line 1 at 1.5: from the last control (0.92) 0.38 against 0.58
+    slow, crit = _line(1500.0, 1000.0), _line(5200.0, 4000.0)
+    dets = [_det(slow(m), crit(m)) for m in MU]
+    out = reconcile(dets, MU, names=_names(MU.size))
+    for d, m in zip(out, MU, strict=True):
+        (f,) = [f for f in d.flags if f.code == "fundamental_ambiguous"]
+        assert f.message.startswith(SWEEP_DOUBT) and "withheld" in f.message
+        assert d.fundamental.sigma2 == pytest.approx(crit(m), rel=1e-12)  # the earlier one
+
+    class _M:  # what the sweep policy hands over: its measurements' flags
+        def __init__(self, flags):
+            self.flags = flags
+
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class P:
+        transition: str
+        classification: object = None
+
+    flags: list[Flag] = []
+    got = withhold_type(P("pitchfork"), [_M(d.flags) for d in out], flags)
+    assert got.transition == "undetermined"
+    assert [f.code for f in flags] == ["fundamental_ambiguous"]
+    # a record's own (detector's) ambiguity does not withhold the sweep's type
+    own = Flag("fundamental_ambiguous", "two lines within 2 std in this record")
+    flags = []
+    assert withhold_type(P("pitchfork"), [_M((own,))], flags).transition == "pitchfork"
+    assert flags == []
+
+
+def test_a_noisy_stiff_line_does_not_take_over():
+    # the stiff line is read with 2 % scatter; it does not soften: the own choice stands
+    rng = np.random.default_rng(3)
+    crit = _line(1000.0, 1000.0)
+    dets = [_det(crit(m), -20000.0 * (1 + 0.02 * rng.standard_normal())) for m in MU]
+    out = reconcile(dets, MU, names=_names(MU.size))
+    assert out == tuple(dets)
+
+
+@pytest.mark.parametrize("n", [4, 6, 9, 12])
+def test_a_line_whose_softening_slows_down_does_not_replace_one_bending_to_zero(n):
+    # the demo strip's pattern: the lowest line bends toward 0 at mu* = 2 (sigma^2 = -2000
+    # (1 - (mu/2)^2)); the second line softens fast at first and then slower (-5500 e^-mu:
+    # never 0), so a straight continuation of its first records reaches 0 before the lowest
+    # line's does. The records' own (lowest) line stays.
+    mu = np.linspace(0.0, 1.7, n)
+    low = [-2000.0 * (1 - (m / 2) ** 2) for m in mu]
+    fast = [-5500.0 * math.exp(-m) for m in mu]
+    b = np.polyfit(mu[:3], fast[:3], 1)[0]  # the straight continuation misleads here
+    assert mu[2] - fast[2] / b < 2.0
+    dets = [_det(a, f) for a, f in zip(low, fast, strict=True)]
+    out = reconcile(dets, mu, names=_names(n))
+    assert out == tuple(dets)
+
+
+def test_three_records_change_nothing():
+    # three controls cannot tell a line's bend: the records' own choice stands
+    dets = [_det(SLOW(m), CRIT(m)) for m in MU[:3]]
+    assert reconcile(dets, MU[:3], names=_names(3)) == tuple(dets)
