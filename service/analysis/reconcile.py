@@ -341,6 +341,9 @@ SWEEP_DOUBT = "across the sweep"
 #: :data:`TRACK_TOL_SOFT` for a line that went softer than expected: the critical one).
 TRACK_TOL = 0.15
 TRACK_TOL_SOFT = 0.45
+#: ... only for a track whose last step softened its ``|sigma^2|`` by at least this fraction
+#: (a line that stays put does not jump onto a softer one).
+SOFT_STEP = 0.02
 #: The most a mode's own uncertainty widens those tolerances (in ``log r``).
 MAX_TRACK_SPREAD = 0.05
 #: A line that reaches ``sigma^2 = 0`` within this fraction of the distance the records' own
@@ -356,6 +359,9 @@ MIN_SOFTENING = 0.1
 #: A line is a candidate for the sweep's critical line once seen at this many controls (a
 #: quadratic continuation needs them; three records cannot tell a line's bend).
 MIN_CONTROLS = 4
+#: ... and its quadratic continuation must fit its points within this fraction (rms) of their
+#: range (a track that stays put and then drops has jumped onto other lines).
+MAX_BEND_MISFIT = 0.05
 
 
 def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[int, int]]:
@@ -364,7 +370,8 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
     record the ``sigma^2`` its last two points (distinct controls) extrapolate to (its last
     value otherwise); modes are matched one to one, nearest first (in ``log r``), within
     :data:`TRACK_TOL` (plus the mode's own 4 standard errors), then within
-    :data:`TRACK_TOL_SOFT` for a mode softer than expected. A track missing one record goes on;
+    :data:`TRACK_TOL_SOFT` for a mode softer than expected on a track that softens
+    (:data:`SOFT_STEP`) or is seen at one control so far. A track missing one record goes on;
     one missing two ends. Only a candidate mode (:func:`_candidate`) starts a track; a
     transient (:func:`_continues`) may continue one within :data:`TRACK_TOL`."""
     tracks: list[dict[int, int]] = []
@@ -373,16 +380,21 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
         cands = [j for j, m in enumerate(out[k].modes) if _candidate(m) or _continues(m)]
         live = [t for t in range(len(tracks)) if pos - ends[t] <= 2]
         expect = {}
+        softening: set[int] = set()  # tracks whose last step softened: they may drop faster
         for t in live:
             ks = list(tracks[t])
             s_last = out[ks[-1]].modes[tracks[t][ks[-1]]].sigma2
             s_exp = s_last
             prev = [a for a in ks[:-1] if c[a] != c[ks[-1]]]
+            if not prev:  # a line seen at one control: its trend is not known yet
+                softening.add(t)
             if prev and c[k] != c[ks[-1]]:
                 a = prev[-1]
                 s_a = out[a].modes[tracks[t][a]].sigma2
                 slope = (s_last - s_a) / (c[ks[-1]] - c[a])
                 guess = s_last + slope * (c[k] - c[ks[-1]])
+                if s_last - s_a > SOFT_STEP * abs(s_a):
+                    softening.add(t)
                 s_exp = guess if guess < 0 else s_last
             expect[t] = 0.5 * math.log(abs(s_exp))
         pairs = []
@@ -400,7 +412,7 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
                     continue
                 m = out[k].modes[j]
                 tol = math.log1p(TRACK_TOL) + _track_spread(m)
-                ok = ad <= tol or (soft and d < 0 and _candidate(m)
+                ok = ad <= tol or (soft and d < 0 and _candidate(m) and t in softening
                                    and -d <= math.log1p(TRACK_TOL_SOFT) + _track_spread(m))
                 if ok:
                     tracks[t][k] = j
@@ -431,7 +443,8 @@ def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
     """The control where the line's ``sigma^2``, continued by a quadratic in the control
     fitted to all its points (least squares), first reaches 0 beyond its last control; inf for
     a line seen at fewer than :data:`MIN_CONTROLS` controls, one that does not soften by
-    :data:`MIN_SOFTENING` of its level, or one whose continuation does not reach 0. The
+    :data:`MIN_SOFTENING` of its level, one the quadratic does not fit
+    (:data:`MAX_BEND_MISFIT`), or one whose continuation does not reach 0. The
     quadratic tells a line that bends toward zero (the critical mode near a fold or a
     pitchfork) from one whose softening slows down (a line that a straight continuation of
     its first records would wrongly take to zero first)."""
@@ -442,7 +455,11 @@ def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
         return math.inf
     last = float(x.max())
     scale = float(np.ptp(x))
-    p = np.polyfit((x - last) / scale, s / abs(s[0]), 2)
+    u, v = (x - last) / scale, s / abs(s[0])
+    p = np.polyfit(u, v, 2)
+    rms = float(np.sqrt(np.mean((np.polyval(p, u) - v) ** 2)))
+    if rms > MAX_BEND_MISFIT * float(np.ptp(v)):  # not one smooth line: a jump onto another
+        return math.inf
     if np.polyval(p, 0.0) >= 0:  # the fit is at zero already at the line's last control
         return last
     roots = [r.real for r in np.roots(p) if abs(r.imag) <= 1e-9 * max(1.0, abs(r.real))]

@@ -149,3 +149,16 @@ def test_three_records_change_nothing():
     # three controls cannot tell a line's bend: the records' own choice stands
     dets = [_det(SLOW(m), CRIT(m)) for m in MU[:3]]
     assert reconcile(dets, MU[:3], names=_names(3)) == tuple(dets)
+
+
+def test_a_line_that_stays_put_does_not_jump_onto_other_lines():
+    # a saddle-node lab (ten-lab saddle-node seed 4, measured): the slowest line bends toward its
+    # fold; a stiff line stays put at -888000 and the last records show other stiff lines at
+    # -736000 and -513000 (17 % and 30 % softer): followed from the stiff line they made a
+    # "line" that drops toward zero first. The records' own line stays.
+    mu = np.array([0.0, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0, 28.0, 32.0])
+    low = [-2119.5 * math.sqrt(1 - m / 46.3) for m in mu]
+    stiff = [-888200.0] * 7 + [-735859.0, -513477.0]
+    dets = [_det(a, b) for a, b in zip(low, stiff, strict=True)]
+    out = reconcile(dets, mu, names=_names(mu.size))
+    assert out == tuple(dets)
