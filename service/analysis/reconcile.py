@@ -344,6 +344,9 @@ TRACK_TOL_SOFT = 0.45
 #: ... only for a track whose last step softened its ``|sigma^2|`` by at least this fraction
 #: (a line that stays put does not jump onto a softer one).
 SOFT_STEP = 0.02
+#: Two tracks may share one mode where their lines meet (a crossing read as one line): when it
+#: lies within this relative distance of what each track expects.
+MEET_TOL = 0.07
 #: The most a mode's own uncertainty widens those tolerances (in ``log r``).
 MAX_TRACK_SPREAD = 0.05
 #: A line that reaches ``sigma^2 = 0`` within this fraction of the distance the records' own
@@ -371,7 +374,8 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
     value otherwise); modes are matched one to one, nearest first (in ``log r``), within
     :data:`TRACK_TOL` (plus the mode's own 4 standard errors), then within
     :data:`TRACK_TOL_SOFT` for a mode softer than expected on a track that softens
-    (:data:`SOFT_STEP`) or is seen at one control so far. A track missing one record goes on;
+    (:data:`SOFT_STEP`) or is seen at one control so far; where two lines meet and the record
+    shows one mode, both tracks take it (:data:`MEET_TOL`). A track missing one record goes on;
     one missing two ends. Only a candidate mode (:func:`_candidate`) starts a track; a
     transient (:func:`_continues`) may continue one within :data:`TRACK_TOL`."""
     tracks: list[dict[int, int]] = []
@@ -406,6 +410,7 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
         pairs.sort()
         used_t: set[int] = set()
         used_j: set[int] = set()
+        owner_cost: dict[int, float] = {}
         for soft in (False, True):
             for ad, d, t, j in pairs:
                 if t in used_t or j in used_j:
@@ -419,6 +424,16 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
                     ends[t] = pos
                     used_t.add(t)
                     used_j.add(j)
+                    owner_cost[j] = ad
+        # two lines that meet (a crossing) may be read as one mode: both tracks take it when
+        # it lies within MEET_TOL of what each expects
+        for ad, _d, t, j in pairs:
+            if t in used_t or j not in owner_cost:
+                continue
+            if ad <= math.log1p(MEET_TOL) and owner_cost[j] <= math.log1p(MEET_TOL):
+                tracks[t][k] = j
+                ends[t] = pos
+                used_t.add(t)
         for j in cands:
             if j not in used_j and _candidate(out[k].modes[j]):
                 tracks.append({k: j})
