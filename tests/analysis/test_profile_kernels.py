@@ -22,6 +22,7 @@ from service.analysis.predictor._kernels.profile import (
     profile_search,
     profile_search_scanned,
 )
+from service.analysis.predictor.cache import profile_memo
 from service.analysis.predictor.exponents import free_exponent
 from service.analysis.predictor.likelihood import (
     _GRID,
@@ -34,7 +35,6 @@ from service.analysis.predictor.likelihood import (
     _profile_screen,
     _range_grid,
     _sigma_exps,
-    profile_memo,
 )
 
 
