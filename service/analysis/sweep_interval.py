@@ -20,7 +20,7 @@ from service.analysis.measurement import Measurement
 from service.analysis.predict import Prediction, bounded_by
 
 if TYPE_CHECKING:
-    from service.analysis.sweep_policy import SweepPlan
+    from service.analysis.sweep_plan import SweepPlan
 
 __all__ = ["RESOLUTION_OF_STEP", "lab_step", "resolution"]
 
