@@ -95,3 +95,61 @@ def follow(
         else:
             duration, dt = None, None
     return answers
+
+
+@dataclass(frozen=True)
+class ImperfectCampaign(F.Campaign):
+    """A softening structure whose pitchfork is unfolded by an imperfection: it snaps at a fold.
+
+    Its buckling amplitude ``q`` (the stable branch from ``q = 0`` far away) obeys the cusp
+    ``x q - q^3 = eps`` with ``x = (mu_p - mu) / (mu_p - mu0)`` (``mu_p`` the perfect
+    structure's pitchfork); the fundamental's stiffness is ``x - 3 q^2`` (times its value at
+    ``mu0``), zero at the fold ``x_f = (3 sqrt(3) eps / 2)^(2/3)``. ``mu_star`` is the fold
+    ``mu_p - x_f (mu_p - mu0)``, the value a lab must not reach; the static level follows ``q``.
+    """
+
+    mu_perfect: float = 42.0
+    x_fold: float = 0.01
+
+    @property
+    def eps(self) -> float:
+        return 2.0 * self.x_fold**1.5 / (3.0 * math.sqrt(3.0))
+
+    def amplitude(self, mu: float) -> float:
+        """``q`` on the stable branch at control ``mu`` (bisection to 1e-15)."""
+        x = (self.mu_perfect - mu) / (self.mu_perfect - self.mu0)
+        if mu >= self.mu_star or x <= self.x_fold:
+            raise ValueError(f"control {mu} is at or past the fold {self.mu_star}")
+        lo, hi = 0.0, math.sqrt(x / 3.0)  # x q - q^3 - eps: < 0 at 0, >= 0 at the stiffness's zero
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if x * mid - mid**3 - self.eps < 0.0:
+                lo = mid
+            else:
+                hi = mid
+            if hi - lo < 1e-15:
+                break
+        return 0.5 * (lo + hi)
+
+    def modes(self, mu: float) -> L.Modes:
+        q = self.amplitude(mu)
+        x = (self.mu_perfect - mu) / (self.mu_perfect - self.mu0)
+        w0 = 2 * math.pi * self.f1_hz * math.sqrt(x - 3.0 * q * q)
+        f = [w0 / (2 * math.pi)] + [h[0] for h in self.higher]
+        z = [self.gamma / w0] + [h[1] for h in self.higher]
+        return L.Modes(tuple(f), tuple(z), (1.0,) + tuple(h[2] for h in self.higher))
+
+    def static(self, mu: float) -> float:
+        q_fold = math.sqrt(self.x_fold / 3.0)
+        return self.static_c + self.static_s * self.amplitude(mu) / q_fold
+
+
+def imperfect_campaign(seed: int) -> ImperfectCampaign:
+    """The lab of :func:`campaign` on an imperfect softening pitchfork: the perfect structure's
+    pitchfork drawn in 25..60 deg, the fold 0.5-3 % of the distance before it."""
+    base = campaign("subcritical-pitchfork", seed)
+    rng = np.random.default_rng([seed, 28])
+    mu_p, x_f = base.mu_star, float(rng.uniform(0.005, 0.03))
+    fields = {f: getattr(base, f) for f in base.__dataclass_fields__}
+    fields.update(mu_star=mu_p - x_f * (mu_p - base.mu0), mu_perfect=mu_p, x_fold=x_f)
+    return ImperfectCampaign(**fields)
