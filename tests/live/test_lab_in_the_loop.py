@@ -84,19 +84,27 @@ def test_a_lab_following_the_advice(ready) -> None:  # noqa: ANN001
     sessions(ready, ("saddle-node",), (1,), bad_at=5)
 
 
+_UNITLESS = [
+    ("supercritical-pitchfork", None),
+    pytest.param("subcritical-pitchfork", 6, marks=pytest.mark.xfail(strict=True, reason=(
+        "records without a time unit: the advice cannot keep mains aliases off the fundamental "
+        "(it cannot know seconds); record 17 is sampled near 59.9 Hz, the lab's 60 Hz hum "
+        "appears near 0.1 Hz and is read as the fundamental (sigma2 -1.66 for -33.41, "
+        "diagnosed on e21e7fb): the session ends covering mu* 43.0573 on [42.4674, 43.0892] "
+        "deg, 1.46 % of the distance travelled wide (1 % asked; the same in process on "
+        "3aefe95). The supercritical lab of the same "
+        "seed failed so on 083d4b7 and passes on 3aefe95"))),
+]
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "records without a time unit: the advice cannot keep mains aliases off the fundamental "
-    "(it cannot know seconds), record 16 is sampled at 59.904 Hz, the lab's 60 Hz hum appears "
-    "at 0.096 Hz (0.614 rad/s, 18.5 dB against the ringing mode's 52 dB) and the detector "
-    "takes that undamped line for the fundamental (sigma2 -0.377 for -33.16): the session "
-    "ends on [42.4716, 42.8879] deg for mu* 43.0573 (issue 27: a stationary line is never "
-    "the fundamental while a kicked ringing mode exists)"))
-def test_a_lab_whose_records_carry_no_time_unit(ready) -> None:  # noqa: ANN001
-    """The clean supercritical lab of seed 1 without a time unit on its records."""
+@pytest.mark.parametrize(("kind", "bad_at"), _UNITLESS)
+def test_a_lab_whose_records_carry_no_time_unit(ready, kind: str, bad_at) -> None:  # noqa: ANN001
+    """Seed 1's labs without a time unit on their records (the advice's rate then meets the
+    mains alias): the issue's criteria all the same."""
     with Client(ready.url, timeout=300.0) as c:
-        camp = campaign("supercritical-pitchfork", 1)
-        check(camp, session(c, camp, None, time_unit=None), None)
+        camp = campaign(kind, 1)
+        check(camp, session(c, camp, bad_at, time_unit=None), bad_at)
 
 
 CELLS = [(k, b) for b in (None, 6) for k in KINDS]
