@@ -150,6 +150,26 @@ def cli_predict(table: Path, *extra: str, timeout: float = 600) -> Answer:
                   tuple(f["code"] for f in (p.get("flags") or [])), (), [], seconds=dt)  # fmt: skip
 
 
+def assert_live_gives(url: str, truth: Any, cli: Answer, title: str) -> None:
+    """Feed ``truth``'s records one by one to a live sweep (SDK) and assert it ends on the
+    CLI's answer ``cli`` (type, mu* and interval to 1e-9)."""
+    import numpy as np
+
+    from service.client import Client
+
+    docs = []
+    with Client(url, timeout=600.0) as sdk:
+        live = sdk.live_sweep(title, control="P", unit=truth.control_unit)
+        for name, c in zip(truth.names, truth.controls, strict=True):
+            docs.append(live.add(file=truth.manifest.parent / name, control=c)
+                        .model_dump(mode="json"))  # fmt: skip
+        live.close()
+    last = docs[-1]
+    assert last["transition"] == cli.transition, (last["transition"], cli.transition)
+    assert math.isclose(last["mu_star"], cli.mu_star, rel_tol=1e-9), (last["mu_star"], cli.mu_star)
+    assert np.allclose(last["mu_star_interval"], cli.interval, rtol=1e-9)
+
+
 def http_sweep(url: str, manifest: Path, control_unit: str) -> Answer:
     """Upload each record with the SDK, create a sweep over HTTP, wait for it."""
     from service.client import Client

@@ -150,7 +150,6 @@ DOOR_CASES = ("truss_friction-lab-0", "arch_fold-lab-0-offset-step")
 
 @pytest.mark.parametrize("cid", DOOR_CASES)
 def test_http_and_live_doors_give_the_cli_answer_on_new_labs(cid: str, server, tmp_path: Path):
-    from service.client import Client
 
     truth = _truth(cid, tmp_path / "c")
     cli = T.cli_sweep(truth.manifest)
@@ -159,15 +158,5 @@ def test_http_and_live_doors_give_the_cli_answer_on_new_labs(cid: str, server, t
     assert http.transition == cli.transition
     assert http.mu_star == pytest.approx(cli.mu_star, rel=1e-9)
     assert np.allclose(http.interval, cli.interval, rtol=1e-9)
-    docs = []
-    with Client(server.url, timeout=600.0) as sdk:
-        live = sdk.live_sweep(f"blind {cid}", control="P", unit=truth.control_unit)
-        for name, c in zip(truth.names, truth.controls, strict=True):
-            docs.append(live.add(file=truth.manifest.parent / name, control=c)
-                        .model_dump(mode="json"))  # fmt: skip
-        live.close()
-    last = docs[-1]
-    assert last["transition"] == cli.transition, (last["transition"], cli.transition)
-    assert last["mu_star"] == pytest.approx(cli.mu_star, rel=1e-9)
-    assert np.allclose(last["mu_star_interval"], cli.interval, rtol=1e-9)
+    T.assert_live_gives(server.url, truth, cli, f"blind {cid}")
     assert not server.server_errors()

@@ -183,21 +183,9 @@ def test_cli_detect_json_on_blind_records_never_crashes(tmp_path: Path):
 
 def test_live_door_gives_the_cli_answer(server, tmp_path: Path):
     """The same campaign fed record by record to a live sweep (SDK) ends on the CLI's answer."""
-    from service.client import Client
-
     truth = S.campaign("threelink", "lab", 0).write(tmp_path / "c")
     cli = T.cli_sweep(truth.manifest)
-    docs = []
-    with Client(server.url, timeout=600.0) as sdk:
-        live = sdk.live_sweep("blind threelink lab 0", control="P", unit=truth.control_unit)
-        for name, c in zip(truth.names, truth.controls, strict=True):
-            docs.append(live.add(file=truth.manifest.parent / name, control=c)
-                        .model_dump(mode="json"))  # fmt: skip
-        live.close()
-    last = docs[-1]
-    assert last["transition"] == cli.transition, (last["transition"], cli.transition)
-    assert last["mu_star"] == pytest.approx(cli.mu_star, rel=1e-9)
-    assert np.allclose(last["mu_star_interval"], cli.interval, rtol=1e-9)
+    T.assert_live_gives(server.url, truth, cli, "blind threelink lab 0")
     assert not server.server_errors()
 
 
