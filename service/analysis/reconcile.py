@@ -385,6 +385,7 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
         live = [t for t in range(len(tracks)) if pos - ends[t] <= 2]
         expect = {}
         softening: set[int] = set()  # tracks whose last step softened: they may drop faster
+        trended: set[int] = set()  # tracks whose expectation continues their last step
         for t in live:
             ks = list(tracks[t])
             s_last = out[ks[-1]].modes[tracks[t][ks[-1]]].sigma2
@@ -399,6 +400,7 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
                 guess = s_last + slope * (c[k] - c[ks[-1]])
                 if s_last - s_a > SOFT_STEP * abs(s_a):
                     softening.add(t)
+                trended.add(t)
                 s_exp = guess if guess < 0 else s_last
             expect[t] = 0.5 * math.log(abs(s_exp))
         pairs = []
@@ -408,23 +410,22 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
                 d = math.log(_r(m)) - expect[t]
                 pairs.append((abs(d), d, t, j))
         pairs.sort()
-        used_t: set[int] = set()
-        used_j: set[int] = set()
-        owner_cost: dict[int, float] = {}
+        dist = {(t, j): d for _ad, d, t, j in pairs}
+        modes = out[k].modes
+        took: dict[int, int] = {}  # track -> mode
         for soft in (False, True):
-            for ad, d, t, j in pairs:
-                if t in used_t or j in used_j:
-                    continue
-                m = out[k].modes[j]
-                tol = math.log1p(TRACK_TOL) + _track_spread(m)
-                ok = ad <= tol or (soft and d < 0 and _candidate(m) and t in softening
-                                   and -d <= math.log1p(TRACK_TOL_SOFT) + _track_spread(m))
-                if ok:
-                    tracks[t][k] = j
-                    ends[t] = pos
-                    used_t.add(t)
-                    used_j.add(j)
-                    owner_cost[j] = ad
+            for _ad, d, t, j in pairs:
+                if (t not in took and j not in took.values()
+                        and _joins(modes[j], d, soft, t in softening)):  # fmt: skip
+                    took[t] = j
+        _untangle(took, dist, modes, softening, trended)
+        used_t: set[int] = set(took)
+        used_j: set[int] = set(took.values())
+        owner_cost: dict[int, float] = {}
+        for t, j in took.items():
+            tracks[t][k] = j
+            ends[t] = pos
+            owner_cost[j] = abs(dist[t, j])
         # two lines that meet (a crossing) may be read as one mode: both tracks take it when
         # it lies within MEET_TOL of what each expects
         for ad, _d, t, j in pairs:
@@ -441,6 +442,44 @@ def _tracks(out: list[Detection], idx: list[int], c: np.ndarray) -> list[dict[in
     return tracks
 
 
+def _joins(m: Mode, d: float, soft: bool, softens: bool) -> bool:
+    """Whether mode ``m``, at ``d`` (``log r``) from what a track expects, may join it: within
+    :data:`TRACK_TOL`, or (``soft`` pass) softer within :data:`TRACK_TOL_SOFT` for a track
+    that ``softens`` (each plus the mode's own spread, :func:`_track_spread`)."""
+    return abs(d) <= math.log1p(TRACK_TOL) + _track_spread(m) or (
+        soft and d < 0 and _candidate(m) and softens
+        and -d <= math.log1p(TRACK_TOL_SOFT) + _track_spread(m))  # fmt: skip
+
+
+def _untangle(took: dict[int, int], dist: dict[tuple[int, int], float], modes: Sequence[Mode],
+              softening: set[int], trended: set[int]) -> None:  # fmt: skip
+    """Exchange the modes of two tracks (in place) where each may join the other's mode and
+    the exchange brings both nearer to what they expect (sum of squared ``log r`` distances).
+    Only between tracks whose expectation continues a step of theirs (``trended``): a line
+    seen at one control expects its last value, which says nothing of where it goes (measured:
+    foundation lab 1's critical line, -1218 at 0 N, exchanged with a spurious -1043 +- 177 at
+    its first step).
+
+    The greedy match (nearest pair first) can swap two lines that both soften faster than their
+    straight continuations: near a transition the critical line drops onto where its neighbour
+    was expected, and the neighbour is then pushed onto the critical line's mode by the soft
+    pass (measured: a noise-free Euler-beam sweep's lowest two lines, exchanged at its last
+    record, made a kinked line that looked critical first)."""
+    changed = True
+    while changed:
+        changed = False
+        ts = sorted(t for t in took if t in trended)
+        for a_i, a in enumerate(ts):
+            for b in ts[a_i + 1 :]:
+                ja, jb = took[a], took[b]
+                now = dist[a, ja] ** 2 + dist[b, jb] ** 2
+                swapped = dist[a, jb] ** 2 + dist[b, ja] ** 2
+                if (swapped < now and _joins(modes[jb], dist[a, jb], True, a in softening)
+                        and _joins(modes[ja], dist[b, ja], True, b in softening)):  # fmt: skip
+                    took[a], took[b] = jb, ja
+                    changed = True
+
+
 def _track_spread(m: Mode) -> float:
     """A mode's own part of the tracking tolerance: its 4 standard errors of ``log r``, at most
     :data:`MAX_TRACK_SPREAD` (a mode read with a 100 % error would otherwise join any line)."""
@@ -454,15 +493,20 @@ def _continues(m: Mode) -> bool:
     return getattr(m, "kind", "mode") == "transient" and math.isfinite(m.sigma2) and m.sigma2 < 0
 
 
-def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
+def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray, *, fold: bool = False
+          ) -> float:  # fmt: skip
     """The control where the line's ``sigma^2``, continued by a quadratic in the control
     fitted to all its points (least squares), first reaches 0 beyond its last control; inf for
     a line seen at fewer than :data:`MIN_CONTROLS` controls, one that does not soften by
     :data:`MIN_SOFTENING` of its level, one the quadratic does not fit
     (:data:`MAX_BEND_MISFIT`), or one whose continuation does not reach 0. The
-    quadratic tells a line that bends toward zero (the critical mode near a fold or a
-    pitchfork) from one whose softening slows down (a line that a straight continuation of
-    its first records would wrongly take to zero first)."""
+    quadratic tells a line that bends toward zero (the critical mode near a pitchfork) from one
+    whose softening slows down (a line that a straight continuation of its first records would
+    wrongly take to zero first).
+
+    ``fold``: the quadratic continues ``(sigma^2)^2`` instead, the law of a line near a fold
+    (``sigma^2 ~ -sqrt(mu* - mu)``), which a quadratic in ``sigma^2`` continues too far
+    (measured: 2.24 for a fold at 2.0 seen from 0 to 1.95)."""
     ks = list(track)
     s = np.array([out[k].modes[track[k]].sigma2 for k in ks])
     x = np.array([c[k] for k in ks])
@@ -471,6 +515,8 @@ def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
     last = float(x.max())
     scale = float(np.ptp(x))
     u, v = (x - last) / scale, s / abs(s[0])
+    if fold:
+        v = -(v**2)  # negative while stable, like sigma^2
     p = np.polyfit(u, v, 2)
     rms = float(np.sqrt(np.mean((np.polyval(p, u) - v) ** 2)))
     if rms > MAX_BEND_MISFIT * float(np.ptp(v)):  # not one smooth line: a jump onto another
@@ -510,7 +556,10 @@ def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) ->
         return out
     last = max(c[k] for k in idx)
     d_c = max(zeros[i_c] - last, 0.0)
-    z_own = _zero(own, out, c) if n_own * 2 >= len(idx) else math.inf
+    # the switch needs the evidence it claims: the rival reaches 0 first even against the
+    # own line's earliest continuation (a fold's, or a pitchfork's quadratic)
+    z_own = (min(_zero(own, out, c), _zero(own, out, c, fold=True))
+             if n_own * 2 >= len(idx) else math.inf)  # fmt: skip
     d_own = z_own - last
     if not d_c < AGREE * d_own:
         return out
