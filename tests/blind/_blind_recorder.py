@@ -26,6 +26,11 @@ rig      a suspended sensor (or the frame) rings at a fixed frequency: a mode th
 hum      60 Hz mains and its harmonics (US lab); a 500 Hz rate folds the 5th onto 200 Hz.
 ADC      quantised to ``bits`` over a fixed range (a lab picks the range once for a sweep).
 gaps     dropped samples written as ``NaN``.
+AC       ``highpass_hz``: the sensor's AC coupling (an IEPE accelerometer's or an amplifier's
+         first-order high-pass ``s / (s + omega_c)``, ``highpass_order`` of them in cascade): an
+         LTI filter, so the structure's poles (the truth) are unchanged; it adds the real pole
+         ``-omega_c`` and shifts the slow modes' amplitude and phase; a laser behind it loses its
+         static level (DC is blocked).
 start    ``pretrigger`` (rest before the hit) or ``midring`` (the record starts after the hit:
          no pre-trigger, no contact).
 """
@@ -77,6 +82,9 @@ class Recording:
     jitter_s: float = 0.0
     jitter_stamped: bool = False
     time_unit: str = "s"  # s | ms
+    #: AC coupling: corner (Hz) of ``highpass_order`` first-order high-passes ``s/(s+omega_c)``
+    highpass_hz: float | None = None
+    highpass_order: int = 1
     seed: int = 0
 
 
@@ -129,6 +137,10 @@ def mode_output(t: np.ndarray, omega0_sq: float, gamma: float, c: float, rec: Re
         m = 3
     else:
         raise ValueError(f"sensor {rec.sensor!r}")
+    if rec.highpass_hz:
+        wc = 2 * math.pi * rec.highpass_hz
+        poles += [-wc] * rec.highpass_order
+        m += rec.highpass_order
     y = response(t, gain, m, poles)
     if rec.second_hit is not None:
         delay, rho = rec.second_hit
@@ -247,7 +259,7 @@ def finish(y: np.ndarray, t: np.ndarray, static_mm: float, rec: Recording,
     noise, offset, an offset step, the ADC and dropped samples. ``(values, value_unit, quantity,
     dynamic peak)``."""
     n = len(y)
-    if rec.sensor == "laser":
+    if rec.sensor == "laser" and not rec.highpass_hz:  # AC coupling blocks the static level
         y = y + static_mm
     vals, vunit, quantity = _to_unit(y, rec, deg_per_mm)
     dyn = vals - (vals[0] if rec.start == "pretrigger" else float(np.median(vals)))

@@ -172,7 +172,8 @@ class Campaign:
         """The hammer's force (fixed for the campaign): the first record peaks at
         ``rec.peak_mm`` on a noiseless laser."""
         quiet = replace(self.rec, sensor="laser", unit="mm", snr_db=None, hum_rel=0.0, rig=None,
-                        adc_bits=None, nan_gaps=0, offset=0.0, start="pretrigger", second_hit=None)
+                        adc_bits=None, nan_gaps=0, offset=0.0, start="pretrigger", second_hit=None,
+                        highpass_hz=None)
         s = self.state(self.controls[0])
         s = replace(s, static=0.0)
         r = record(s, self.omega_scale(), self.gamma(), quiet, 1.0)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -205,6 +206,36 @@ def test_free_ring_down_has_the_modes_rate_and_decay():
     # after the force decays the record is the free mode alone (force poles at 1e3, 1e4 /s)
     assert w == pytest.approx(wd, rel=1e-9)
     assert g == pytest.approx(gam, rel=1e-7)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_ac_coupling_is_the_high_pass_ode_applied_to_the_sensors_output(order: int):
+    """``highpass_hz``: the residues of ``s^order / (s + wc)^order`` times the laser's output equal
+    the filter's ODE ``z_k' = z_{k-1}' - wc z_k`` integrated beside the mode (``z_0 = x``)."""
+    rec = R.Recording(tau_decay_s=4e-3, tau_rise_s=4e-4, highpass_hz=1.5, highpass_order=order)
+    om2, gam, wc = (2 * math.pi * 2.0) ** 2, 0.3, 2 * math.pi * 1.5
+    a, b = 1.0 / rec.tau_decay_s, 1.0 / rec.tau_rise_s
+    t = np.linspace(0.0, 3.0, 601)
+    exact = R.mode_output(t, om2, gam, 1.0, rec)
+
+    def rhs(s, z):  # noqa: ANN001, ANN202
+        x, v, *h = z
+        acc = (math.exp(-a * s) - math.exp(-b * s)) - 2 * gam * v - om2 * x
+        d = [v]
+        for hk in h:  # each stage: its input's derivative minus wc times itself
+            d.append(d[-1] - wc * hk)
+        return [v, acc, *d[1:]]
+
+    sol = integrate.solve_ivp(rhs, (0.0, t[-1]), [0.0] * (2 + order), t_eval=t, rtol=1e-11,
+                              atol=1e-17, method="DOP853", max_step=rec.tau_rise_s)  # fmt: skip
+    assert np.max(np.abs(sol.y[-1] - exact)) < 1e-7 * np.max(np.abs(exact))
+    # a laser behind AC coupling has no static level: at rest before the hit it reads 0
+    st = B.Arch(e=math.sqrt(30.0)).state(2.0)
+    assert abs(st.static) > 0.1
+    rec = R.Recording(rate_hz=500.0, duration_s=2.0, snr_db=None)
+    dc = R.record(st, 2 * math.pi * 3.0, 0.5, rec, 1e4)
+    ac = R.record(st, 2 * math.pi * 3.0, 0.5, replace(rec, highpass_hz=0.5), 1e4)
+    assert dc.y[0] == pytest.approx(st.static) and ac.y[0] == 0.0
 
 
 def test_record_impairments_are_what_they_say():
