@@ -57,6 +57,7 @@ from service.analysis.sweep_plan import SweepPlan
 from service.analysis.sweep_records import (
     SetAside,
     SweepRecord,
+    _odd_leading,
     _reconciled,
     _sort_out,
     fit_points,
@@ -336,6 +337,9 @@ def _answer(
     record that grew and floored at the control resolution, and the sweep's flags so far."""
     recs = _reconciled(records, plan.band)
     usable, aside, past, beyond, n_grew = _sort_out(recs)
+    usable, odd = _odd_leading(usable)  # one odd first record does not turn the sweep round
+    if odd:
+        aside = sorted([*aside, *odd], key=lambda a: a.seq)
     ms = fit_points(usable)
     t0, c0 = time.perf_counter(), time.process_time()
     pred, flags = _predict(ms, plan.level, strict)

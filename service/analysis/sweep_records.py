@@ -179,6 +179,65 @@ def _sort_out(
     return usable, aside, past, beyond, n_grew
 
 
+def _reversed(ms: Sequence[Measurement]) -> bool:
+    """The predictor refuses these points as a sweep that approaches its transition from above
+    (:func:`service.analysis.predictor.sweep._check_direction`: the records slow down toward
+    the lowest control); the same rule, so that the policy sees what the predictor would."""
+    from service.analysis.errors import ParameterError
+    from service.analysis.predictor.sweep import _check_direction
+
+    if len(ms) < 2:
+        return False
+    try:
+        _check_direction(np.array([m.mu for m in ms]), np.array([abs(m.sigma2) for m in ms]))
+    except ParameterError:
+        return True
+    return False
+
+
+def _odd_leading(
+    usable: Sequence[SweepRecord],
+) -> tuple[list[SweepRecord], list[SetAside]]:
+    """The usable records without the few lowest controls that alone make the sweep read as
+    one approached from above, with the reasons they are set aside.
+
+    The predictor refuses a sweep whose records slow down toward its lowest control ("give
+    -mu"). One odd first record (a heavily damped mode read as its fundamental) must not
+    decide that for a sweep stepped up: the lowest ``k`` controls are set aside when every
+    record at them is slower than every record above them, the records above soften toward
+    the highest control (``|sigma^2|`` at the highest below its value at the lowest of them)
+    and no longer read as approached from above, and the ``k`` controls are fewer than those
+    above them. A sweep whose other records also slow down toward its lowest control is left
+    to the predictor's refusal, which is then true."""
+    ms = fit_points(usable)
+    if not _reversed(ms):
+        return list(usable), []
+    y = [abs(m.sigma2) for m in ms]
+    for k in range(1, len(ms)):
+        rest = ms[k:]
+        if len(rest) < 2 or k >= len(rest) or max(y[:k]) >= min(y[k:]):
+            break
+        if not y[-1] < y[k]:  # those above do not soften toward the top: no upward sweep
+            break
+        if _reversed(rest):  # the next lowest is as odd: try without it too
+            continue
+        odd = {m.mu for m in ms[:k]}
+        a, b = rest[0], rest[-1]
+        trend = (f"sqrt|sigma^2| {math.sqrt(y[k]):.6g} at control {a.mu:.6g} to "
+                 f"{math.sqrt(y[-1]):.6g} at {b.mu:.6g}")  # fmt: skip
+        aside = [
+            SetAside(r.seq, r.control, r.name, (
+                f"{_label(r)}: its fundamental (sqrt|sigma^2| = "
+                f"{math.sqrt(abs(r.measurement.sigma2)):.6g}) is slower than every record at a "
+                f"higher control, which soften toward the highest control ({trend}): it does "
+                "not follow the sweep's line (another mode read as its fundamental, e.g. a "
+                "heavily damped one) and does not decide the sweep's direction"))
+            for r in usable if r.measurement.mu in odd
+        ]  # fmt: skip
+        return [r for r in usable if r.measurement.mu not in odd], aside
+    return list(usable), []
+
+
 def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
     """The measurements of the usable records, one per control in increasing control: the
     records at one control averaged as the predictor averages a table's repeated rows

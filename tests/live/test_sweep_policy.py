@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -82,6 +83,67 @@ def test_a_record_whose_fundamental_cannot_enter_is_set_aside_by_name() -> None:
     u2 = evaluate([*few[:2], SweepRecord(3, 1.2, point(1.2, 5.03))])
     assert u2.prediction is None and "too_few_records" in [f.code for f in u2.flags]
     assert u2.alarm.level == "insufficient"
+
+
+def slow_damped(n: int = 4000) -> np.ndarray:
+    """A record that rings only in a slow, heavily damped mode (sigma^2 = -101: 10 rad/s,
+    decay rate 1): what a detector reads as the fundamental of a record whose hammer excited
+    the damped mode 1 and not the mode that goes soft."""
+    t = np.arange(n) * DT
+    return 1e-2 * np.exp(-1.0 * t) * np.sin(10.0 * t)
+
+
+def test_one_odd_first_record_does_not_turn_the_sweep_round(tmp_path, capsys) -> None:  # noqa: ANN001
+    """Audit (h), second part: a first record slower than every other (a heavily damped mode
+    picked) made the records 'slow down toward the lowest mu': the batch door refused the whole
+    sweep (CLI exit 2) with "approaches its transition from above: give -mu" (the lab stepped
+    up), the live door answered predictor_failed. Now that record is set aside by name with its
+    reason and the others answer, in every door; a sweep whose records all slow down toward
+    the lowest control is still refused with that advice (then true)."""
+    from service.analysis.errors import ParameterError
+    from service.cli import main
+
+    controls = [0.0, 0.3, 0.6, 0.9]
+    ws = [slow_damped(), *(record(mu)[1] for mu in controls[1:])]
+    names = [f"rec_{k:02d}.csv" for k in range(len(controls))]
+    plan = live.LivePlan(step=0.3)
+    b = sweep_from_signals([(w, DT, mu) for w, mu in zip(ws, controls, strict=True)],
+                           names=names, plan=plan)  # fmt: skip
+    assert [a.name for a in b.set_aside] == ["rec_00.csv"]
+    why = b.set_aside[0].reason
+    assert "rec_00.csv" in why and "slower than every record" in why and "direction" in why
+    p = b.prediction
+    assert p is not None and p.mu_star_interval[0] <= MU_STAR <= p.mu_star_interval[1]
+    assert "give -mu" not in json.dumps([f.message for f in b.flags])
+    recs: list = []
+    for w, mu, name in zip(ws, controls, names, strict=True):
+        u = live.update(recs, w, dt=DT, control=mu, plan=plan, name=name)
+        recs.append(u.record)
+    assert u.set_aside == b.set_aside and u.prediction.mu_star_interval == p.mu_star_interval
+    assert u.next_control == b.next_control and "predictor_failed" not in [f.code for f in u.flags]
+    # with three records the two others cannot answer: set aside all the same, too few
+    u3 = evaluate(recs[:3], plan)
+    assert [a.name for a in u3.set_aside] == ["rec_00.csv"]
+    assert "too_few_records" in [f.code for f in u3.flags]
+    # the CLI door (exit 0, the file named)
+    for name, w in zip(names, ws, strict=True):
+        t = np.arange(w.size) * DT
+        body = "".join(f"{float(a)!r},{float(v)!r}\n" for a, v in zip(t, w, strict=True))
+        (tmp_path / name).write_text("t [s],w\n" + body)
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("path,control\n" + "".join(f"{n},{c!r}\n"
+                                                    for n, c in zip(names, controls)))  # fmt: skip
+    assert main(["sweep", str(manifest), "--no-progress", "--json", "--step", "0.3"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [a["name"] for a in doc["set_aside"]] == ["rec_00.csv"]
+    # a sweep stepped the other way (every record slower than the one above it): refused,
+    # and the advice to give -mu is then true
+    down = [SweepRecord(k + 1, c, point(c)) for k, c in enumerate((0.0, 0.6, 1.2, 1.5, 1.65))]
+    rev = [SweepRecord(r.seq, -r.control, replace(r.measurement, mu=-r.control))
+           for r in down]  # fmt: skip
+    with pytest.raises(ParameterError, match="give -mu"):
+        evaluate(rev, SweepPlan(), strict=True)
+    assert evaluate(rev, SweepPlan()).n_set_aside == 0
 
 
 def test_the_advice_stays_below_every_bound() -> None:
