@@ -51,7 +51,10 @@ __all__ = [
     "assess",
     "finish",
     "measure",
+    "sweep_time_unit",
+    "unreadable",
     "update",
+    "update_unreadable",
 ]
 
 #: How a live sweep advises: the sweep policy's plan.
@@ -187,6 +190,28 @@ def measure(
     return det, m, flags
 
 
+def unreadable(
+    control: float, why: str, *, name: str | None = None
+) -> tuple[Detection, None, tuple[Flag, ...]]:
+    """What :func:`measure` gives for a record whose file cannot be read at all: no
+    measurement, flag ``record_set_aside`` naming the record (its file's name) with ``why``
+    (:func:`service.analysis.sweep_policy.file_unreadable`), a detection without modes (method
+    :data:`NOT_ANALYSED`, no samples). The sweep goes on with the other records, as a batch
+    sweep sets such a file aside."""
+    c = float(control)
+    if not math.isfinite(c):
+        raise ParameterError("control", control, f"control must be finite, got {control!r}")
+    flag = sweep_policy.unanalysed(c, name, why).flags
+    return _not_analysed(0, math.nan, NOT_ANALYSED, flag), None, flag
+
+
+def sweep_time_unit(records: Sequence[LiveRecord], unit: str | None = None) -> str | None:
+    """The sweep's time unit: its first record's that was read (a record whose file could not
+    be read has none, and is skipped); ``unit`` (the new record's) before any."""
+    return next((r.time_unit for r in records
+                 if r.measurement is not None or r.time_unit is not None), unit)  # fmt: skip
+
+
 #: The method of a record's detection when the detector refused its samples (no mode).
 NOT_ANALYSED = "none"
 
@@ -320,6 +345,22 @@ def update(
     plan = plan or LivePlan()
     det, m, fl = measure(w, dt=dt, control=control, method=plan.method, options=options,
                          name=name)  # fmt: skip
+    return assess(previous, det, m, control, plan=plan, detection_flags=fl, name=name,
+                  time_unit=time_unit)  # fmt: skip
+
+
+def update_unreadable(
+    previous: Sequence[LiveRecord],
+    control: float,
+    why: str,
+    *,
+    plan: LivePlan | None = None,
+    name: str | None = None,
+    time_unit: str | None = None,
+) -> LiveUpdate:
+    """Assess the sweep with a record whose file cannot be read (:func:`unreadable`): it is
+    kept, set aside by name with ``why``, and the other records answer."""
+    det, m, fl = unreadable(control, why, name=name)
     return assess(previous, det, m, control, plan=plan, detection_flags=fl, name=name,
                   time_unit=time_unit)  # fmt: skip
 

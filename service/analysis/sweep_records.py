@@ -31,6 +31,7 @@ __all__ = [
     "fit_points",
     "record_of",
     "reduce_detection",
+    "file_unreadable",
     "samples_refused",
     "unanalysed",
 ]
@@ -290,6 +291,13 @@ def samples_refused(exc: Exception) -> str:
     """The reason a record is set aside when the detector refuses its samples (its
     ``ParameterError`` on ``w``: too short, non-finite)."""
     return f"its samples cannot be analysed ({exc})"
+
+
+def file_unreadable(exc: Exception) -> str:
+    """The reason a record is set aside when its file cannot be read (the reader's
+    ``RecordingError``: a cell that is no number, an unknown format, a header that lies...);
+    every door words it so (the batch sweep, ``snapwarn watch``, the live door)."""
+    return f"its file cannot be read ({exc})"
 
 
 def unanalysed(control: float, name: str | None, why: str) -> SweepRecord:

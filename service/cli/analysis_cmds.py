@@ -423,7 +423,7 @@ def _manifest_options(
 def _sweep(args: argparse.Namespace) -> int:
     from service import convert
     from service.analysis.pipeline import sweep_from_signals
-    from service.analysis.sweep_policy import SweepPlan
+    from service.analysis.sweep_policy import SweepPlan, file_unreadable
     from service.recordings import RecordingError, common_time_base, manifest_columns
 
     table = _read_table(args.manifest, "MANIFEST")
@@ -468,8 +468,9 @@ def _sweep(args: argparse.Namespace) -> int:
                for (r, c), f in zip(recs, factors)]  # fmt: skip
     # a start in a record's own time unit is brought to the common one with its samples
     options = _manifest_options(table, args, [r for r, _ in recs], names, factors)
-    for k, exc in unread.items():
-        options[k] = {"unreadable": str(exc)}
+    for k, exc in unread.items():  # the reader's own words, as every door gives them
+        cause = exc.__context__ if isinstance(exc.__context__, RecordingError) else exc
+        options[k] = {"unreadable": file_unreadable(cause)}
     cb = _progress_printer(not args.no_progress)
     try:
         plan = SweepPlan(step=args.step, margin=args.margin, band=args.band,

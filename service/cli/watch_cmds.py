@@ -99,10 +99,17 @@ class InProcess:
 
     def add(self, path: Path, control: float) -> Any:
         from service import convert
-        from service.analysis.live import update
-        from service.recordings import read_file
+        from service.analysis.live import update, update_unreadable
+        from service.analysis.sweep_policy import file_unreadable
+        from service.recordings import RecordingError, read_file
 
-        rec = read_file(path, dt=self.dt)
+        try:
+            rec = read_file(path, dt=self.dt)
+        except RecordingError as exc:  # set aside by its name, as a batch sweep does
+            u = update_unreadable(self.records, control, file_unreadable(exc), plan=self.plan,
+                                  name=path.name, time_unit=self._unit(None))  # fmt: skip
+            self.records.append(u.record)
+            return convert.live_update(u)
         dt, unit = rec.dt * self._factor(rec.unit), self._unit(rec.unit)
         # the record as the service's live door reads an uploaded file: named by its file,
         # the quantity its value unit says
@@ -117,8 +124,10 @@ class InProcess:
         return convert.live_update(u, options=opts)
 
     def _unit(self, unit: str | None) -> str | None:
-        """The sweep's time unit: its first record's (as the service's live door)."""
-        return self.records[0].time_unit if self.records else unit
+        """The sweep's time unit: its first read record's (as the service's live door)."""
+        from service.analysis.live import sweep_time_unit
+
+        return sweep_time_unit(self.records, unit)
 
     def _factor(self, unit: str | None) -> float:
         """A record's step in the sweep's time unit (a file in ms after one in s is converted;
@@ -155,10 +164,25 @@ class Remote:
             unit=args.unit, **opts,
         )  # fmt: skip
         self.dt, self.quantity = args.dt, args.quantity
+        self.seq = 0  # the last record's seq the watch has seen
         sys.stderr.write(f"live sweep {self.live.id} on {args.server}\n")
 
     def add(self, path: Path, control: float) -> Any:
-        return self.live.add(path, control=control, dt=self.dt, quantity=self.quantity)
+        from service.client.errors import ApiError
+
+        try:
+            u = self.live.add(path, control=control, dt=self.dt, quantity=self.quantity)
+        except ApiError as exc:
+            # a file the server cannot read is refused (4xx) and kept in the sweep set aside
+            # by its name: that record's update, as the in-process sweep prints it
+            kept = [x for x in self.live.records(after=self.seq).items
+                    if x.record_name == path.name and not x.used_in_fit]  # fmt: skip
+            if not (400 <= exc.status < 500 and kept):
+                raise
+            sys.stderr.write(f"snapwarn watch: {path.name} set aside: {exc.problem.detail}\n")
+            u = kept[-1]
+        self.seq = max(self.seq, u.seq)
+        return u
 
     def close(self) -> None:
         try:

@@ -21,7 +21,8 @@ from service.api.routers._common import RECORDING_FORM_FIELDS
 from service.api.state import AppState
 from service.schemas.live import LiveRecordIn
 
-__all__ = ["RECORD_FORM_SCHEMA", "record_from_form", "record_from_json", "signal_for"]
+__all__ = ["RECORD_FORM_SCHEMA", "Unreadable", "record_from_form", "record_from_json",
+           "signal_for"]  # fmt: skip
 
 RECORD_FORM_SCHEMA = {
     "type": "object",
@@ -51,6 +52,17 @@ def _recording_problem(exc: recordings.RecordingError) -> ApiProblem:
     elif isinstance(exc, recordings.RecordingTooLarge):
         status = 413
     return ApiProblem(status, str(exc), field=exc.field, value=exc.value)
+
+
+class Unreadable(Exception):
+    """A record's file that cannot be read: the door answers ``problem`` (4xx naming the
+    field), and the sweep keeps the record set aside by ``name`` with ``why`` at ``control``
+    (as a batch sweep sets such a file aside). A file over the server's limits (413) is not
+    one: the request is refused, the lab sends the record cut or resampled."""
+
+    def __init__(self, problem: ApiProblem, control: float, name: str | None, why: str) -> None:
+        super().__init__(problem.detail)
+        self.problem, self.control, self.name, self.why = problem, control, name, why
 
 
 def _finite_control(value: Any, field: str = "control") -> float:
@@ -138,17 +150,21 @@ async def record_from_form(request: Request, state: AppState) -> dict[str, Any]:
                                      max_decompressed_bytes=s.max_decompressed_bytes,
                                      uniform_rtol=s.uniform_rtol, **opts)  # fmt: skip
 
+    name = _form_text(form, "name", 500) or (upload.filename or "")[:500] or None
     try:
         rec = await to_thread.run_sync(read)
-    except recordings.RecordingError as exc:
+    except recordings.RecordingTooLarge as exc:
         raise _recording_problem(exc) from None
+    except recordings.RecordingError as exc:
+        from service.analysis.sweep_policy import file_unreadable
+
+        raise Unreadable(_recording_problem(exc), control, name, file_unreadable(exc)) from None
     unit = _form_text(form, "unit", 100)
     if unit and rec.unit and unit != rec.unit:  # a unit the file states is not overridden
         raise invalid("unit", unit, f"contradicts the file's own time unit {rec.unit!r}")
     if unit:
         rec = recordings.Recording(rec.w, rec.t, rec.dt, rec.t0, unit, rec.value_unit,
                                    rec.source, rec.flags, rec.metadata)  # fmt: skip
-    name = _form_text(form, "name", 500) or (upload.filename or "")[:500] or None
     return {"recording": rec, "control": control, "name": name,
             "options": _form_options(form, rec.quantity),
             "metadata": {"file": {"filename": upload.filename, **rec.metadata}}}  # fmt: skip

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import threading
 import time
 from collections import OrderedDict
@@ -130,7 +131,10 @@ async def add_record(
 ) -> Response:
     """A stored ``signal_id``, inline ``w`` with ``t``/``dt``, or a multipart file, with its
     ``control`` value. Answers 201: the record's detection, the classification, mu* with its
-    interval, the alarm and the next safe control value.
+    interval, the alarm and the next safe control value. A file that cannot be read is
+    answered with the reader's problem (422, 415) and kept in the sweep as a record set aside
+    by its name with the reason (as a batch sweep of the same files sets it aside); the
+    problem's detail names that record. A file over the server's limits (413) is not kept.
 
     The ``Server-Timing`` header splits the server time: ``read`` (the body), ``state`` (the
     sweep's records: only those this process has not seen are read), ``detect``,
@@ -146,7 +150,10 @@ async def add_record(
     t0 = time.perf_counter()
     ctype = request.headers.get("content-type", "").lower()
     if ctype.startswith("multipart/form-data"):
-        item = await _live_input.record_from_form(request, state)
+        try:
+            item = await _live_input.record_from_form(request, state)
+        except _live_input.Unreadable as bad:
+            raise await _set_aside_unreadable(state, st, bad, timing) from None
     elif ctype.startswith("application/json") or ctype == "":
         item = await _live_input.record_from_json(request, state, caller)
     else:
@@ -190,6 +197,27 @@ async def add_record(
             "Server-Timing": f"{parts}, app;dur={ms:.2f}",
         },
     )
+
+
+async def _set_aside_unreadable(
+    state: AppState, st: _State, bad: _live_input.Unreadable, timing: dict[str, Any]
+) -> ApiProblem:
+    """A file that cannot be read: the sweep keeps it as a record set aside by its name with
+    the reason (as a batch sweep of the same files does, and ``snapwarn watch``), and the
+    upload is answered with the reader's problem (4xx naming the field), its detail saying
+    where the record is."""
+    item = {"unreadable": bad.why, "control": bad.control, "name": bad.name, "dt": math.nan,
+            "unit": None}  # fmt: skip
+    doc = await _append(state, st, item, None, timing)
+    notify(st.row.id)
+    p = bad.problem
+    seq = doc["seq"]
+    return ApiProblem(
+        p.status,
+        f"{p.detail}; the record is kept in the sweep set aside, as record {seq} "
+        f"(/v1/sweeps/{st.row.id}/records/{seq})",
+        title=p.title, errors=p.errors,
+    )  # fmt: skip
 
 
 def _settle(task: asyncio.Future) -> None:
@@ -300,7 +328,7 @@ async def _append(
     for _ in range(MAX_ATTEMPTS):
         if st.row.status != store_live.OPEN:
             raise _conflict(sweep_id, st.row.status)
-        factor, unit = _time_factor(st.records, unit0)
+        factor, unit = _time_factor(st.records, unit0, read="unreadable" not in item)
         if unit != base:  # (another first record came first: detect in its unit)
             measured, base, item["dt"] = None, unit, dt0 * factor
         budget = st.row.options.get("budget")
@@ -309,8 +337,12 @@ async def _append(
         job = partial(_update, st.records, item if measured is None else None, measured,
                       item["control"], plan, finishing, sweep_id, base,
                       item.get("name") or item.get("signal_id"), item.get("options"))  # fmt: skip
+        # a file that could not be read in a sweep that cannot predict yet: nothing to detect
+        # and no predictor to run (the same answer, in this thread: no wait for the pool)
+        light = "unreadable" in item and sum(
+            r.measurement is not None for r in st.records) < numerics.MIN_PREDICT
         try:
-            out = await state.run(job)
+            out = await (to_thread.run_sync(job) if light else state.run(job))
         except ValueError as exc:  # the detector's validation of the record
             raise invalid(getattr(exc, "parameter", "w"), getattr(exc, "value", None),
                           str(exc)) from None  # fmt: skip
@@ -352,12 +384,16 @@ def _since(t: tuple[float, float]) -> tuple[float, float]:
     return time.perf_counter() - t[0], time.process_time() - t[1]
 
 
-def _time_factor(records: list[numerics.LiveRecord], unit: str | None) -> tuple[float, Any]:
+def _time_factor(
+    records: list[numerics.LiveRecord], unit: str | None, read: bool = True
+) -> tuple[float, Any]:
     """``(factor, sweep unit)``: a record written in another known time unit than the sweep's
-    (its first record's) has its step converted to the sweep's; 422 when either is missing or
-    unknown (:func:`service.recordings.common_time_base`, as a batch sweep)."""
-    base = records[0].time_unit if records else unit
-    if unit == base:
+    (its first read record's: :func:`service.analysis.live.sweep_time_unit`) has its step
+    converted to the sweep's; 422 when either is missing or unknown
+    (:func:`service.recordings.common_time_base`, as a batch sweep). A record whose file could
+    not be read (``read`` false) has no time unit: it takes the sweep's."""
+    base = numerics.sweep_time_unit(records, unit)
+    if not read or unit == base:
         return 1.0, base
     a, b = recordings.seconds_per(unit), recordings.seconds_per(base)
     if a is None or b is None:
@@ -382,6 +418,8 @@ def _update(
     ``options``: the record's name and the detector's options it is read with. Each stage's
     (wall, CPU) seconds are returned under ``timing``."""
     timing: dict[str, tuple[float, float]] = {}
+    if measured is None and item.get("unreadable") is not None:  # its file: set aside
+        measured = numerics.unreadable(control, item["unreadable"], name=name)
     if measured is None:
         t = _clock()
         measured = numerics.measure(item["w"], dt=item["dt"], control=control,
