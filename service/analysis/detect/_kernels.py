@@ -528,9 +528,12 @@ def sym_eig(A: np.ndarray, w: np.ndarray, V: np.ndarray) -> None:
     """
     n = A.shape[0]
     M = A.copy()
+    # the eigenvectors accumulated in rows (VT = V^T): each rotation's update runs over
+    # contiguous memory (the same products and sums as on V's columns)
+    VT = np.empty((n, n))
     for i in range(n):
         for j in range(n):
-            V[i, j] = 1.0 if i == j else 0.0
+            VT[i, j] = 1.0 if i == j else 0.0
     for _sweep in range(60):
         off = 0.0
         diag = 0.0
@@ -569,17 +572,16 @@ def sym_eig(A: np.ndarray, w: np.ndarray, V: np.ndarray) -> None:
                     M[pi, k] = c * mpk - s * mqk
                     M[qi, k] = s * mpk + c * mqk
                 for k in range(n):
-                    vkp = V[k, pi]
-                    vkq = V[k, qi]
-                    V[k, pi] = c * vkp - s * vkq
-                    V[k, qi] = s * vkp + c * vkq
+                    vkp = VT[pi, k]
+                    vkq = VT[qi, k]
+                    VT[pi, k] = c * vkp - s * vkq
+                    VT[qi, k] = s * vkp + c * vkq
     order = np.argsort(np.diag(M).copy())
     d = np.diag(M).copy()
-    Vc = V.copy()
     for j in range(n):
         w[j] = d[order[j]]
         for i in range(n):
-            V[i, j] = Vc[i, order[j]]
+            V[i, j] = VT[order[j], i]
 
 
 @njit(cache=True)
@@ -602,13 +604,36 @@ def psd_pinv(A: np.ndarray, rcond: float, out: np.ndarray) -> None:
     V = np.empty((n, n))
     sym_eig(As, w, V)
     wmax = max(w[n - 1], 0.0) if n > 0 else 0.0
-    for i in range(n):
+    # out[i, j] = sum over the kept k (increasing) of V[i, k] V[j, k] / w[k], over d[i] d[j]:
+    # every sum formed term by term in that order as one dot product at a time would, but
+    # the terms of a row added across j at once (a loop over contiguous VT[k, :], which
+    # vectorises) and each symmetric pair once (the products commute exactly: out[j, i] is
+    # the same number)
+    keep = np.empty(n, np.int64)
+    nk = 0
+    for k in range(n):
+        if w[k] > rcond * wmax and w[k] > 0.0:
+            keep[nk] = k
+            nk += 1
+    VT = np.empty((n, n))
+    for k in range(n):
         for j in range(n):
-            s = 0.0
-            for k in range(n):
-                if w[k] > rcond * wmax and w[k] > 0.0:
-                    s += V[i, k] * V[j, k] / w[k]
-            out[i, j] = s / (d[i] * d[j])
+            VT[k, j] = V[j, k]
+    acc = np.empty(n)
+    for i in range(n):
+        for j in range(i, n):
+            acc[j] = 0.0
+        for r in range(nk):
+            k = keep[r]
+            vik = V[i, k]
+            wk = w[k]
+            for j in range(i, n):
+                acc[j] += vik * VT[k, j] / wk
+        di = d[i]
+        for j in range(i, n):
+            v = acc[j] / (di * d[j])
+            out[i, j] = v
+            out[j, i] = v
 
 
 @njit(cache=True)
