@@ -9,6 +9,7 @@ detector picks it.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -203,3 +204,56 @@ def test_a_line_bending_to_a_fold_is_not_replaced_by_a_straight_line_reaching_ze
     dets = [_det(a, b) for a, b in zip(low, straight, strict=True)]
     out = reconcile(dets, EULER_MU, names=_names(EULER_MU.size))
     assert out == tuple(dets)
+
+
+def _det_with(s2: list[float], damping: list[float], fundamental: int) -> Detection:
+    modes = tuple(replace(_mode(v), damping=g) for v, g in zip(s2, damping, strict=True))
+    return Detection(modes, Fundamental(modes[fundamental], fundamental), 0.1, 1e-3, (), "varpro",
+                     1e-3, 40.0, 1000, 1e-3)  # fmt: skip
+
+
+def test_a_stray_line_far_below_the_followed_line_does_not_replace_it():
+    # a live lab's records without a time unit (tests/live test_a_lab_whose_records_carry_no_
+    # time_unit, measured): the critical line -(1000 - 1000 mu) is followed to mu = 0.96
+    # (expected -40 there); the last record also shows its 60 Hz hum aliased near 0.2 Hz
+    # (sigma^2 -1.66, barely damped) as its slowest mode, 24x below the line's mode. That mode
+    # continues no line: the record's fundamental is the line's mode.
+    line = _line(1000.0, 1000.0)
+    mu = np.array([0.0, 0.2, 0.4, 0.55, 0.65, 0.72, 0.78, 0.83, 0.88, 0.92, 0.96])
+    dets = [_det(line(m), -16000.0) for m in mu[:-1]]
+    dets.append(_det_with([-1.66, line(mu[-1]), -16000.0], [0.02, 0.3, 0.3], 0))
+    out = reconcile(dets, mu, names=_names(mu.size))
+    assert out[:-1] == tuple(dets[:-1])
+    assert out[-1].fundamental.sigma2 == pytest.approx(line(mu[-1]), rel=1e-12)
+    (f,) = [f for f in out[-1].flags if f.code == "fundamental_reconciled"]
+    assert "continues no line" in f.message
+    assert SET_ASIDE not in out[-1].flag_codes
+
+
+@pytest.mark.parametrize("s_low", [-12.0, -25.0])
+def test_a_last_record_that_softened_faster_than_followed_keeps_its_own_mode(s_low):
+    # the same sweep, but the last record's slowest mode is only 3.3x or 1.6x below the line's
+    # continuation (a line bending to its transition faster than followed): no stray, the
+    # record's own choice stands
+    line = _line(1000.0, 1000.0)
+    mu = np.array([0.0, 0.2, 0.4, 0.55, 0.65, 0.72, 0.78, 0.83, 0.88, 0.92, 0.96])
+    dets = [_det(line(m), -16000.0) for m in mu[:-1]]
+    dets.append(_det(s_low, line(mu[-1]), -16000.0))
+    out = reconcile(dets, mu, names=_names(mu.size))
+    assert out == tuple(dets)
+
+
+def test_the_critical_line_keeps_its_first_point_where_two_lines_start_close():
+    # blind arch_pitchfork lab 100 with a rig mode (measured): a sensor's line stays put below
+    # the structure's (the records' own fundamental), the critical line -1900 (1 - mu/28) and a
+    # second line -2317 + 42 mu start 10 % apart in r. Followed from the first control, where
+    # no line's trend is known, the critical line's first point went to the second line
+    # (-1870 at 10.63 lies nearer -1900 than -1179 does). Continued backward from their next
+    # two controls, each line takes its own first point.
+    mu = np.array([0.0, 10.63, 12.94, 15.25, 21.07, 25.6, 26.4, 27.12, 27.5])
+    crit, second = _line(1900.0, 1900.0 / 28.0), _line(2317.0, 42.0)
+    dets = [_det(-14.2, crit(m), second(m)) for m in mu]
+    out = reconcile(dets, mu, names=_names(mu.size))
+    for d, m in zip(out, mu, strict=True):
+        assert SET_ASIDE not in d.flag_codes
+        assert d.fundamental.sigma2 == pytest.approx(crit(m), rel=1e-12)
