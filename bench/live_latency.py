@@ -27,6 +27,15 @@ timed) and then the timed one (``POST /v1/sweeps/{id}/records``, inline JSON). R
 Each timed record carries its own tiny noise (:func:`fresh`), so that no timing reuses a
 prediction of an earlier trial; the prior records' predictions are reused, as in a real sweep.
 
+``--baseline REV`` compares the in-process numerics with those of git revision ``REV`` in
+one run: two worker processes, one importing this tree and one ``REV``'s (``git archive`` of
+its ``service``, ``sim`` and ``bench`` in a temporary directory, whose numba cache fills on
+first use: minutes), each build the same prior records' sweep and then take the same fresh
+records in turn (the order alternating), timing ``live.measure`` and ``live.assess`` in CPU
+time. It prints both medians, the paired median ratio, and whether the two trees' answers
+(the repr of the detection and of the update) are identical record by record; the server is
+not started.
+
 Target (issue 13): under 50 ms of server time. The cores are shared with whatever else runs
 (the load average is printed). Writes bench/results/live_latency.json.
 """
@@ -34,9 +43,11 @@ Target (issue 13): under 50 ms of server time. The cores are shared with whateve
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
+import pickle
 import platform
 import signal
 import subprocess
@@ -135,6 +146,86 @@ def in_process(records: list[Record]) -> dict[str, float]:
             "assess_cold_cpu_ms": med(cold_c)}  # fmt: skip
 
 
+def worker(records_path: str, tree: str) -> int:
+    """``--worker``: with the numerics of the source tree ``tree``, build the prior records'
+    sweep of ``records_path`` (a pickle of :func:`lab_records`), then for each line ``k`` of
+    stdin time the detection and the assessment of ``fresh(last record, k)`` and answer
+    ``detect_cpu_ms assess_cpu_ms hash`` (the hash of both answers' repr)."""
+    sys.path.insert(0, tree)
+    from service.analysis import live
+
+    if not Path(live.__file__).resolve().is_relative_to(Path(tree).resolve()):
+        raise SystemExit(f"imported {live.__file__}, not the tree {tree}")
+
+    with open(records_path, "rb") as fh:
+        records = pickle.load(fh)
+    plan = live.LivePlan(step=0.2)
+    prior: list[live.LiveRecord] = []
+    for w, dt, mu in records[:-1]:
+        prior.append(live.update(prior, w, dt=dt, control=mu, plan=plan).record)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        w, dt, mu = fresh(records[-1], int(line))
+        c0 = time.process_time()
+        det, m, fl = live.measure(w, dt=dt, control=mu)
+        c1 = time.process_time()
+        u = live.assess(prior, det, m, mu, plan=plan, detection_flags=fl)
+        c2 = time.process_time()
+        h = hashlib.sha256(repr((det, u)).encode()).hexdigest()[:16]
+        print(f"{1e3 * (c1 - c0):.4f} {1e3 * (c2 - c1):.4f} {h}", flush=True)
+    return 0
+
+
+def compare(records: list[Record], rev: str, n: int) -> int:
+    """``--baseline``: this tree against revision ``rev``, interleaved (see the module notes)."""
+    tmp = Path(tempfile.mkdtemp(prefix="snapwarn-live-baseline-"))
+    blob = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "service", "sim", "bench"],
+                          check=True, capture_output=True).stdout  # fmt: skip
+    subprocess.run(["tar", "-x", "-C", str(tmp)], input=blob, check=True)
+    rec_path = tmp / "records.pkl"
+    rec_path.write_bytes(pickle.dumps(records))
+    trees = {"this tree": ROOT, rev: tmp}
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    procs = {}
+    for name, root in trees.items():
+        # this script in both workers (REV's may predate --worker), importing root's numerics
+        cmd = [sys.executable, __file__, "--worker", str(rec_path), "--tree", str(root)]
+        procs[name] = subprocess.Popen(cmd, cwd=root, env=env, stdin=subprocess.PIPE,
+                                       stdout=subprocess.PIPE, text=True)  # fmt: skip
+    for name, p in procs.items():
+        if p.stdout.readline().strip() != "ready":
+            raise SystemExit(f"the worker of {name} did not start")
+    det = {k: [] for k in trees}
+    ass = {k: [] for k in trees}
+    same = 0
+    load0 = os.getloadavg()[0]
+    for k in range(-1, n):  # one record each first, untimed (first calls)
+        order = list(procs) if k % 2 == 0 else list(procs)[::-1]
+        hashes = []
+        for name in order:
+            p = procs[name]
+            p.stdin.write(f"{2000 + k}\n")
+            p.stdin.flush()
+            d, a, h = p.stdout.readline().split()
+            hashes.append(h)
+            if k >= 0:
+                det[name].append(float(d))
+                ass[name].append(float(a))
+        same += k >= 0 and hashes[0] == hashes[1]
+    for p in procs.values():
+        p.stdin.close()
+        p.wait(60)
+    print(f"in process, {n} fresh records, the two trees in turn (load average "
+          f"{load0:.2f} -> {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus); answers "
+          f"identical on {same} of {n}")
+    base, this = rev, "this tree"
+    for label, v in (("detection", det), ("assessment", ass)):
+        b, t = np.array(v[base]), np.array(v[this])
+        print(f"  {label:10s} CPU median: {rev} {np.median(b):7.2f} ms, this tree "
+              f"{np.median(t):7.2f} ms; paired median ratio {np.median(t / b):.3f}")
+    return 0 if same == n else 1
+
+
 def start_server(tmp: Path) -> tuple[subprocess.Popen, str]:
     port = _free_port()
     env = dict(os.environ, SNAPWARN_DB_URL=f"sqlite:///{tmp / 'bench.db'}",
@@ -225,9 +316,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--records", type=int, default=20, help="records already in the sweep")
     ap.add_argument("--samples", type=int, default=10_000, help="samples of the timed record")
     ap.add_argument("--actuation", default="asymmetric")
+    ap.add_argument("--baseline", metavar="REV", default=None,
+                    help="compare the in-process numerics with revision REV (no server)")
+    ap.add_argument("--worker", metavar="RECORDS", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--tree", default=str(ROOT), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.worker:
+        return worker(args.worker, args.tree)
     print(f"building {args.records} + 1 beam records ({args.actuation}) ...", file=sys.stderr)
     records = lab_records(args.records, args.samples, args.actuation)
+    if args.baseline:
+        return compare(records, args.baseline, max(args.trials, 2) * 4)
     local = in_process(records)
     with tempfile.TemporaryDirectory() as tmp:
         proc, url = start_server(Path(tmp))
