@@ -630,6 +630,8 @@ def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) ->
     for k in idx:
         det = res[k]
         j = crit.get(k)
+        if j is None and not lo_c <= c[k] <= hi_c:
+            j = _beyond(crit, out, k, c)
         if j is None:
             res[k] = set_aside(det, names[k], (
                 f"the sweep's critical line (the one softening toward sigma^2 = 0 first, seen "
@@ -651,6 +653,38 @@ def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) ->
                 f"{1 / CLEARLY:.3g} in distance from the last record: the type is withheld")))
         res[k] = replace(det, fundamental=Fundamental(det.modes[j], j), flags=tuple(flags))
     return res
+
+
+def _beyond(line: dict[int, int], out: list[Detection], k: int, c: np.ndarray) -> int | None:
+    """The mode of record ``k``, outside the controls ``line`` is seen at, that lies within
+    :data:`TRACK_TOL` (plus its spread) of the line continued straight from its two nearest
+    controls (None: none does). The tracks follow lines forward from the first record, where
+    no line's trend is known yet: a first step that took a line too far for it to follow
+    (measured: blind arch_fold lab 100 with a rig mode, -1278 at 0 N then -871 at 58.65 N:
+    the critical line seen from the second record on, the first set aside) is recovered so."""
+    side = [(abs(c[a] - c[k]), c[a], a) for a in line]
+    side.sort()
+    pts: list[tuple[float, float]] = []
+    for _d, x, a in side:
+        if not pts or x != pts[-1][0]:
+            pts.append((x, out[a].modes[line[a]].sigma2))
+        if len(pts) == 2:
+            break
+    if len(pts) < 2:
+        return None
+    (x1, s1), (x2, s2) = pts
+    s_k = s1 + (s1 - s2) / (x1 - x2) * (c[k] - x1)
+    if s_k >= 0:
+        return None
+    want = 0.5 * math.log(-s_k)
+    best, bj = math.inf, None
+    for j, m in enumerate(out[k].modes):
+        if not _candidate(m):
+            continue
+        d = abs(math.log(_r(m)) - want)
+        if d <= math.log1p(TRACK_TOL) + _track_spread(m) and d < best:
+            best, bj = d, j
+    return bj
 
 
 def _strays(out: list[Detection], line: dict[int, int], tracks: list[dict[int, int]],

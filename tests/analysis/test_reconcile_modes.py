@@ -257,3 +257,21 @@ def test_the_critical_line_keeps_its_first_point_where_two_lines_start_close():
     for d, m in zip(out, mu, strict=True):
         assert SET_ASIDE not in d.flag_codes
         assert d.fundamental.sigma2 == pytest.approx(crit(m), rel=1e-12)
+
+
+def test_a_first_record_beyond_the_critical_lines_first_step_is_kept():
+    # blind arch_fold lab 100 with a rig mode (measured): a sensor's line stays put below the
+    # structure's (the records' own fundamental); the critical line follows a fold,
+    # -1278 sqrt(1 - mu/121.74), and its first step (0 to 58.65) is too long for it to be
+    # followed (-1278 to -920, while a second line, -2157.6 + 9.27 mu, lies at -1614 nearer).
+    # The critical line is seen from the second record on; the first record's mode on its
+    # backward continuation (-1372 expected) is taken instead of setting the record aside.
+    mu = np.array([0.0, 58.65, 73.79, 86.28, 102.39, 108.97, 111.46, 115.82, 117.01, 119.16,
+                   120.77])  # fmt: skip
+    crit = [-1278.0 * math.sqrt(1 - m / 121.74) for m in mu]
+    second = _line(2157.6, 9.27)
+    dets = [_det(-14.2, s, second(m)) for s, m in zip(crit, mu, strict=True)]
+    out = reconcile(dets, mu, names=_names(mu.size))
+    for d, s in zip(out, crit, strict=True):
+        assert SET_ASIDE not in d.flag_codes
+        assert d.fundamental.sigma2 == pytest.approx(s, rel=1e-12)
