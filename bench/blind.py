@@ -28,6 +28,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -75,16 +76,28 @@ def _detector_table(n: int, out: Path | None) -> None:
             "`WARNING_FLAGS`; wrong, SILENT: without.\n\n" + table + "\n")
 
 
+#: a sweep that has not answered after this long is recorded as no answer (``--timeout``)
+TIMEOUT_S = 900.0
+#: ``OUT.partial.csv`` while a run with ``--out`` goes on
+PARTIAL: Path | None = None
+_LOCK = threading.Lock()
 OVER: dict = {}  # --over key=value: the lab's recording (or damping) for every campaign
 
 
 def _one(family: str, plan: str, seed: int, folder: Path) -> dict:
     camp = S.campaign(family, plan, seed, **OVER)
     truth = camp.write(folder / f"{family}_{plan}_{seed}")
-    ans = T.cli_sweep(truth.manifest)
+    try:
+        ans = T.cli_sweep(truth.manifest, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:  # a door that does not answer: counted, the bench goes on
+        ans = T.Answer("cli", False, error=f"no answer within {TIMEOUT_S:.0f} s",
+                       seconds=TIMEOUT_S)  # fmt: skip
     v = T.judge(ans, truth)
     # the predictor alone on the exact measurements (0.1 % noise, static levels given)
-    pa = T.cli_predict(truth.write_table(truth.manifest.parent / "table.csv"))
+    try:
+        pa = T.cli_predict(truth.write_table(truth.manifest.parent / "table.csv"))
+    except subprocess.TimeoutExpired:
+        pa = T.Answer("predict", False, error="no answer within 600 s")
     pv = T.judge(pa, truth)
     row = {
         "family": family, "plan": plan, "seed": seed, "truth_kind": truth.kind,
@@ -107,6 +120,12 @@ def _one(family: str, plan: str, seed: int, folder: Path) -> dict:
                   f"/tmp/blind/{family}_{plan}_{seed}/manifest.csv --json"),
     }  # fmt: skip
     _print(row)
+    if PARTIAL is not None:  # each row as soon as it is known: a run that dies keeps its rows
+        with _LOCK, open(PARTIAL, "a", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(row))
+            if fh.tell() == 0:
+                w.writeheader()
+            w.writerow(row)
     return row
 
 
@@ -203,7 +222,14 @@ def main() -> None:
     ap.add_argument("--over", action="append", default=[], metavar="KEY=VALUE",
                     help="override the lab's recording for every campaign (a Python literal: "
                          "damping=0.3, second_hit=(0.25,0.5), sensor='accel', unit='g')")
+    ap.add_argument("--timeout", type=float, default=900.0,
+                    help="seconds one sweep may take before it counts as no answer (900)")
     a = ap.parse_args()
+    global TIMEOUT_S, PARTIAL
+    TIMEOUT_S = a.timeout
+    if a.out and not a.table_from and not a.detector:
+        PARTIAL = Path(a.out).with_suffix(".partial.csv")
+        PARTIAL.unlink(missing_ok=True)
     for kv in a.over:
         k, v = kv.split("=", 1)
         OVER[k] = ast.literal_eval(v)
@@ -227,6 +253,8 @@ def main() -> None:
     print(f"({len(rows)} campaigns, {time.time() - t0:.0f} s wall)")
     if a.out:
         _write(rows, a, Path(a.out), note=f"{time.time() - t0:.0f} s wall")
+        if PARTIAL is not None:
+            PARTIAL.unlink(missing_ok=True)
 
 
 def _write(rows: list[dict], a: argparse.Namespace, out: Path, note: str) -> None:
