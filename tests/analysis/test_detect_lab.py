@@ -187,6 +187,26 @@ def test_a_tiny_growing_component_beside_a_loud_ringing_is_not_an_instability() 
     assert _aside.negligible_growth([ring, big], 10.0) == frozenset()
 
 
+def test_a_slower_component_the_fit_cannot_tell_from_nothing_is_not_the_fundamental() -> None:
+    """The blind arch_fold past 2 record at 114.207 N (3.62 s window, Gauss-Newton errors):
+    two slow, heavily damped terms the fit made of the noise (0.58 Hz, amplitude 0.0111 +-
+    0.0178; 0.78 Hz, 0.0067 +- 0.0235) beside the critical mode it shows (1.886 Hz, 0.0208 +-
+    0.0003, sigma^2 -141.5 for the exact -142.5): the slowest was the fundamental (-16.5)."""
+    def mode(f: float, g: float, gs: float, a: float, a_s: float) -> Mode:
+        w = 2 * math.pi * f
+        return Mode(w, f, g, -(w * w + g * g), a, 0.0, 0.01, gs, 1.0, a_s)
+
+    modes = [mode(0.5844, 1.751, 0.79, 0.0111, 0.0178), mode(0.7771, 1.587, 1.66, 0.0067, 0.0235),
+             mode(1.8862, 1.039, 0.0146, 0.0208, 0.00029),
+             mode(4.583, 0.994, 0.0126, 0.0121, 1.2e-4)]
+    assert _aside.undetermined(modes, 3.62, frozenset()) == {0, 1}
+    # the same slow terms with their amplitudes determined stay candidates
+    sure = [mode(0.5844, 1.751, 0.79, 0.0111, 0.002), *modes[1:]]
+    assert _aside.undetermined(sure, 3.62, frozenset()) == {1}
+    # no ringing mode the record shows beside them: nothing is set aside
+    assert _aside.undetermined(modes[:2], 3.62, frozenset()) == frozenset()
+
+
 @pytest.mark.parametrize(
     ("unit", "quantity"),
     [("mm", "displacement"), ("um", "displacement"), ("mm/s", "velocity"), ("m/s", "velocity"),

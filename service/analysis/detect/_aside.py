@@ -230,6 +230,35 @@ def lines_and_drift(
     return frozenset(lines), frozenset(drift), frozenset(transient)
 
 
+#: A component slower than a kicked ringing mode is not the fundamental when the fit's own
+#: errors do not tell it from nothing: its amplitude below UNDETERMINED_Z of its standard
+#: error (the Gauss-Newton one: the poles' uncertainty included), while the ringing mode's
+#: amplitude lies beyond RING_Z of its own.
+UNDETERMINED_Z, RING_Z = 2.0, 10.0
+
+
+def undetermined(modes: list[Mode], T: float, exclude: frozenset[int] | set[int]
+                 ) -> frozenset[int]:  # fmt: skip
+    """Indices of the components, slower than a kicked ringing mode (:func:`_rings`) whose
+    amplitude is determined (beyond :data:`RING_Z` standard errors), whose own amplitude lies
+    within :data:`UNDETERMINED_Z` standard errors of 0: the record holds no evidence of them
+    (a pair of slow, heavily damped terms the fit made of the noise, their poles undetermined),
+    so they cannot be the fundamental beside a mode the record does show. They stay modes
+    (a sweep may still follow one); the record is flagged ``fundamental_ambiguous``."""
+    rings = [m for j, m in enumerate(modes)
+             if j not in exclude and _rings(m, T)
+             and m.amplitude > RING_Z * m.amplitude_std]  # fmt: skip
+    if not rings:
+        return frozenset()
+    fastest = max(abs(m.sigma2) for m in rings)
+    return frozenset(
+        k for k, m in enumerate(modes)
+        if k not in exclude and abs(m.sigma2) < fastest
+        and not m.amplitude > UNDETERMINED_Z * m.amplitude_std
+        and not any(m is r for r in rings)
+    )  # fmt: skip
+
+
 #: A slow component was there before the kick (a drift, not a kicked mode) when the lead-in,
 #: regressed on a constant, a ramp and the component's waveform extrapolated back over it, holds
 #: that waveform at more than BEFORE_SHARE of its size and BEFORE_Z standard errors from none.
@@ -435,3 +464,22 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
         f"the fundamental ({f.frequency:.6g} cycles/time) may not be the structure's: "
         + "; ".join(why) + ". Check the record (a clean single kick), or give the band",
     )
+
+
+def with_undetermined(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> Flag:
+    """The ``fundamental_ambiguous`` flag ``doubt`` (None: a new one) saying that the slower
+    components ``modes[idx]`` (:func:`undetermined`) were not taken as the fundamental."""
+    f = modes[0]
+    txt = ("the slower " + ", ".join(
+        f"modes[{j}] ({modes[j].frequency:.6g} cycles/time, amplitude {modes[j].amplitude:.3g} "
+        f"+- {modes[j].amplitude_std:.3g})" for j in idx)
+        + f" not taken: the fit does not tell {'it' if len(idx) == 1 else 'them'} from nothing "
+        f"(amplitude within {UNDETERMINED_Z:g} standard errors of 0) beside a ringing mode "
+        "the record shows")  # fmt: skip
+    if doubt is None:
+        return Flag("fundamental_ambiguous",
+                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
+                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
+                    "band")  # fmt: skip
+    head, sep, tail = doubt.message.partition(". Check the record")
+    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")

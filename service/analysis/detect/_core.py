@@ -499,8 +499,15 @@ def _result(
                                           lines)  # fmt: skip
                 drift = drift | before
             tiny = _aside.negligible_growth(out.modes, n * dt)
-    modes, order = _fundamental(out.modes, n=n, dt=dt, trend=trend | lines | drift | transient,
-                                aside=lines)
+    # on a lab window, a slower component the fit cannot tell from nothing is no fundamental
+    # beside a ringing mode the record shows (it stays a mode; the record is flagged)
+    undet = frozenset()
+    if base is not None and kind == "impulse":
+        undet = _aside.undetermined(out.modes, n * dt,
+                                    trend | lines | drift | transient | tiny
+                                    | frozenset(_combinations(out.modes, lines)))  # fmt: skip
+    modes, order = _fundamental(out.modes, n=n, dt=dt,
+                                trend=trend | lines | drift | transient | undet, aside=lines)
     if base is not None and modes:
         factors = _uncertainty.inflation(out.modes, _residual(rec, out, dt), dt,
                                          out.noise_std, censored)  # fmt: skip
@@ -543,6 +550,10 @@ def _result(
     )  # fmt: skip
     flags += _aside.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
     doubt = _aside.ambiguity(modes, n * dt) if base is not None and fund is not None else None
+    undet_at = sorted(at[k] for k in undet if fund is not None
+                      and abs(out.modes[k].sigma2) < abs(fund.mode.sigma2))  # fmt: skip
+    if undet_at and fund is not None:
+        doubt = _aside.with_undetermined(doubt, modes, undet_at)
     if doubt is not None:
         flags.append(doubt)
     static, static_std = out.static * u, out.static_std * u
