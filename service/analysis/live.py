@@ -176,7 +176,7 @@ def measure(
     opts = dict(options or {})
     exclude = bool(opts.pop("exclude", False))
     try:
-        det = detect(arr, dt=float(dt), method=method, **opts)
+        det = sweep_policy.doubt_overdamped(detect(arr, dt=float(dt), method=method, **opts))
     except ParameterError as exc:
         if exc.parameter != "w":  # the request is wrong (dt, an option): the caller hears it
             raise

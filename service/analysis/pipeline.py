@@ -38,6 +38,7 @@ from service.analysis.sweep_policy import (
     SetAside,
     SweepPlan,
     SweepPolicy,
+    doubt_overdamped,
     record_of,
     reduce_detection,
     samples_refused,
@@ -83,6 +84,11 @@ class WarnResult:
         Records left out of the prediction, each with its reason and name.
     next_control : float
         The next safe control after the last record (NaN: none).
+    record_duration, record_dt : float
+        Suggested length and sample step of the next record (the records' time unit; NaN:
+        no advice), as a live sweep advises them after the same records.
+    record_advice : str
+        How the record length was chosen (and whether it was bounded).
     """
 
     actuation: str | None
@@ -96,6 +102,9 @@ class WarnResult:
     detections: tuple[tuple[Detection, float, str | None], ...] = field(default=(), repr=False)
     set_aside: tuple[SetAside, ...] = ()
     next_control: float = math.nan
+    record_duration: float = math.nan
+    record_dt: float = math.nan
+    record_advice: str = ""
 
     @property
     def n_set_aside(self) -> int:
@@ -117,7 +126,8 @@ def result_of(
     advice of every door): ``alarms`` the alarm after each record, the last being ``u.alarm``."""
     return WarnResult(actuation, model, u.measurements, u.prediction, tuple(alarms) or (u.alarm,),
                       stopped, None, tuple(unique_flags([*u.flags, *extra_flags])),
-                      tuple(detections), u.set_aside, u.next_control)  # fmt: skip
+                      tuple(detections), u.set_aside, u.next_control, u.record_duration,
+                      u.record_dt, u.record_advice)  # fmt: skip
 
 
 def warn(
@@ -198,7 +208,7 @@ def warn(
             stopped = "snapped"
             break
         try:
-            det = detect(sig.w, dt=sig.dt)
+            det = doubt_overdamped(detect(sig.w, dt=sig.dt))
         except ValueError as exc:
             flags.append(Flag("no_mode", str(exc)))
             stopped = "no-mode"
@@ -259,7 +269,9 @@ def warn(
             truth["baseline_error"] = pred.baseline.mu_star - truth["mu_star"]
     return WarnResult(actuation, model, tuple(ms), pred, tuple(alarm), stopped, truth,
                       tuple(unique_flags(flags)), (), u.set_aside if u is not None else (),
-                      u.next_control if u is not None else math.nan)  # fmt: skip
+                      u.next_control if u is not None else math.nan,
+                      *((u.record_duration, u.record_dt, u.record_advice) if u is not None
+                        else ()))  # fmt: skip
 
 
 def sweep_from_signals(
@@ -322,7 +334,7 @@ def sweep_from_signals(
         if why is None:
             w = np.asarray(w, dtype=float)
             try:
-                det = detect(w, dt=float(dt), method=method, **opts)
+                det = doubt_overdamped(detect(w, dt=float(dt), method=method, **opts))
             except ParameterError as exc:  # say which record; its samples: set it aside
                 if exc.parameter != "w":
                     where = f"{name} (control {control!r})" if name else label

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SetAside",
     "SweepRecord",
+    "doubt_overdamped",
     "fit_points",
     "record_of",
     "reduce_detection",
@@ -264,6 +265,39 @@ def fit_points(records: Sequence[SweepRecord]) -> list[Measurement]:
                 w_static_std=float(w_sd[g]))  # fmt: skip
         for g, i in enumerate(starts)
     ]
+
+
+#: An overdamped fundamental beside a ringing mode at least this many times stronger is in
+#: doubt (the detector's own rule for a fundamental that does not ring beside a ringing mode
+#: 3x stronger, ``detect._aside.AMBIG_WEAK``; it looks at ringing fundamentals only).
+OVERDAMPED_DOUBT = 3.0
+
+
+def doubt_overdamped(detection: Any) -> Any:
+    """``detection`` with the flag ``fundamental_ambiguous`` when its fundamental is
+    overdamped (a relaxation of two real poles: it does not oscillate) while a mode of the
+    structure rings at least :data:`OVERDAMPED_DOUBT` times stronger: the structure's
+    fundamental may be the ringing one (a heavily damped component, or the hammer's contact,
+    read as the slowest mode). The flag is the detector's (every door reads it; the sweep-wide
+    choice of the fundamental treats such a record first); unchanged otherwise."""
+    f = getattr(detection, "fundamental", None)
+    if f is None or f.mode.regime != "overdamped" or "fundamental_ambiguous" in {
+            x.code for x in detection.flags}:  # fmt: skip
+        return detection
+    amp = f.mode.amplitude
+    ring = [(j, m) for j, m in enumerate(detection.modes)
+            if j != f.index and m.kind == "mode" and m.combination is None
+            and m.regime == "underdamped" and m.amplitude >= OVERDAMPED_DOUBT * amp]  # fmt: skip
+    if not ring:
+        return detection
+    j, m = max(ring, key=lambda jm: jm[1].amplitude)
+    flag = Flag("fundamental_ambiguous", (
+        f"the fundamental (sqrt|sigma^2| = {math.sqrt(abs(f.mode.sigma2)):.6g}) is overdamped "
+        f"(two real poles: it does not oscillate) beside modes[{j}] (sqrt|sigma^2| = "
+        f"{math.sqrt(abs(m.sigma2)):.6g}, {m.frequency:.6g} cycles/time) that rings "
+        f"{m.amplitude / amp:.3g}x stronger: the structure's fundamental may be the ringing "
+        "one. Check the record (a clean single kick), or give the band"))  # fmt: skip
+    return replace(detection, flags=(*detection.flags, flag))
 
 
 def reduce_detection(

@@ -274,6 +274,11 @@ class SweepResult(_Result):
     next_control: Num = Field(
         default=None, description="The next safe control after the last record (null: none)."
     )
+    record_duration: Num = Field(
+        default=None, description="Suggested length of the next record (the records' time "
+        "unit; null: no advice), as a live sweep of the same records advises it.")  # fmt: skip
+    record_dt: Num = Field(default=None, description="Suggested sample step of the next record.")
+    record_advice: str = Field(default="", description="How the record length was chosen.")
 
 
 __all__ = [

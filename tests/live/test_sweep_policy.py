@@ -146,6 +146,53 @@ def test_one_odd_first_record_does_not_turn_the_sweep_round(tmp_path, capsys) ->
     assert evaluate(rev, SweepPlan()).n_set_aside == 0
 
 
+def test_an_overdamped_pick_beside_a_stronger_ringing_mode_is_in_doubt() -> None:
+    """A slow relaxation (two real poles, sigma^2 = -143) in the record at 0.9 beside the
+    strip's ringing mode 7x stronger: the detector takes the relaxation as the fundamental and
+    its ambiguity rule looks at ringing fundamentals only (before: no flag). The policy flags
+    it fundamental_ambiguous (the reason names the ringing mode), in the batch door and the
+    live door alike; the sweep-wide choice takes the ringing line there. A ringing mode less
+    than 3x stronger puts no overdamped fundamental in doubt."""
+    from service.analysis.sweep_records import OVERDAMPED_DOUBT, doubt_overdamped
+
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5]
+    t = np.arange(4000) * DT
+    ws = [record(mu)[1] for mu in controls]
+    ws[3] = ws[3] + 1.4e-3 * (np.exp(-0.5 * t) - np.exp(-286.0 * t))
+    names = [f"rec_{k:02d}.csv" for k in range(len(controls))]
+    b = sweep_from_signals([(w, DT, mu) for w, mu in zip(ws, controls, strict=True)],
+                           names=names)  # fmt: skip
+    det = next(d for d, _, name in b.detections if name == "rec_03.csv")
+    assert det.fundamental.mode.regime == "overdamped"
+    doubt = [f.message for f in det.flags if f.code == "fundamental_ambiguous"]
+    assert len(doubt) == 1 and "overdamped" in doubt[0] and "7.1" in doubt[0]
+    assert sum("fundamental_ambiguous" in [f.code for f in d.flags]
+               for d, _, _ in b.detections) == 1  # fmt: skip
+    m = next(m for m in b.measurements if m.mu == 0.9)
+    assert m.sigma2 == pytest.approx(sigma2_of(0.9), rel=1e-6)  # the ringing line
+    lo, hi = b.prediction.mu_star_interval
+    assert lo <= MU_STAR <= hi
+    recs: list = []
+    for w, mu, name in zip(ws, controls, names, strict=True):
+        u = live.update(recs, w, dt=DT, control=mu, name=name)
+        recs.append(u.record)
+        if name == "rec_03.csv":
+            assert [f.message for f in u.detection.flags
+                    if f.code == "fundamental_ambiguous"] == doubt  # fmt: skip
+    assert u.prediction.mu_star_interval == b.prediction.mu_star_interval
+    # the same relaxation 2x weaker than the ringing mode (5e-3 against 1e-2): no doubt
+    weak = detect_of(record(0.9)[1] + 5e-3 * (np.exp(-0.5 * t) - np.exp(-286.0 * t)))
+    assert weak.fundamental.mode.regime == "overdamped"
+    assert "fundamental_ambiguous" not in [f.code for f in doubt_overdamped(weak).flags]
+    assert OVERDAMPED_DOUBT == 3.0
+
+
+def detect_of(w: np.ndarray) -> object:
+    from service.analysis.detect import detect
+
+    return detect(w, dt=DT)
+
+
 def test_the_advice_stays_below_every_bound() -> None:
     """Below the point estimate always, below the lower end of an interval that is evidence,
     below a record that grew; a live sweep recovers at the next good record."""
@@ -247,7 +294,8 @@ def test_the_cli_door_answers_as_the_live_door(tmp_path, capsys) -> None:  # noq
     assert text[0] == f"type: {p['transition']}" or text[0].startswith("type: undetermined (")
     assert text[1].startswith(f"theta* = {fmt(p['mu_star'], 0.5 * (hi - lo))} deg, "
                               f"95 % interval [{a}, {b}] deg")  # fmt: skip
-    assert text[2].startswith(f"alarm: {u.alarm.level} (rank {u.alarm.rank})")
+    # the alarm's reason counts in controls: the line says in which unit
+    assert text[2].startswith(f"alarm: {u.alarm.level} (rank {u.alarm.rank}; controls in deg): ")
     assert text[3].startswith("next safe theta: ") and text[3].endswith(" deg")
     assert float(text[3].split()[-2]) <= u.next_control
 
@@ -332,3 +380,24 @@ def test_the_default_control_resolution_is_the_grid_and_floors_the_interval() ->
     # written to full precision (the advice as given), the controls give 1e-4 of the step
     assert resolution([point(0.0), point(0.3), point(0.3 + 1.234567e-7)], plan,
                       0.3) == pytest.approx(3e-5)  # fmt: skip
+
+
+def test_the_plain_sweep_without_a_prediction_says_why_and_what_is_set_aside() -> None:
+    """Plain ``snapwarn sweep`` without a prediction (before: one line, 'no prediction (...)'):
+    why (too few records), the alarm, the advice, the next record's length and each record set
+    aside, with the unit."""
+    from service import convert
+    from service.cli.analysis_cmds import sweep_text
+
+    controls = [0.0, 0.3, 0.6, 0.9]
+    names = [f"rec_{k:02d}.csv" for k in range(len(controls))]
+    opts = [{"exclude": True}, {"exclude": True}, {}, {}]
+    b = sweep_from_signals([(record(mu)[1], DT, mu) for mu in controls], names=names,
+                           options=opts, plan=SweepPlan(step=0.3))  # fmt: skip
+    text = sweep_text(convert.sweep_result(b), "theta", "deg").splitlines()
+    assert text[0].startswith("no prediction (2 control(s) in the fit, 2 record(s) set aside): ")
+    assert "a prediction needs at least 3" in text[0]
+    assert text[1].startswith("alarm: insufficient (rank 0; controls in deg): ")
+    assert text[2] == f"next safe theta: {b.next_control:.6g} deg"
+    assert text[3].startswith(f"next record: {b.record_duration:.3g} long, sample step ")
+    assert text[4:] == [f"set aside: record {n} set aside: excluded by the user" for n in names[:2]]

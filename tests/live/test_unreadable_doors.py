@@ -105,6 +105,10 @@ def test_the_batch_and_the_live_sweep_set_it_aside_by_name(files: SimpleNamespac
                                  "name": files.names[BROKEN],
                                  "reason": f"record {files.names[BROKEN]} set aside: {REASON}"}]
     assert _wire(doc) == _wire(files.docs[-1])
+    # the batch document advises the next record as the live door does
+    keys = ("record_duration", "record_dt", "record_advice")
+    assert [doc[k] for k in keys] == [files.docs[-1][k] for k in keys]
+    assert doc["record_duration"] > 0 and "40 periods" in doc["record_advice"]
     lo, hi = doc["prediction"]["mu_star_interval"]
     assert lo <= MU_STAR <= hi
     bad = files.docs[BROKEN]  # the update of the unreadable record itself
