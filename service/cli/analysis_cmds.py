@@ -316,35 +316,50 @@ def _warn(args: argparse.Namespace) -> int:
     return 0
 
 
-def sweep_text(doc: Any, name: str = "mu", unit: str | None = None) -> str:
+def sweep_text(
+    doc: Any, name: str = "mu", unit: str | None = None, time_unit: str | None = None
+) -> str:
     """The plain summary of a sweep document: the type (or why it is withheld), the transition
-    point with its interval and unit (rounded to the interval), the alarm and the next safe
-    control; full precision stays in ``--json``."""
-    from service.numfmt import fmt, fmt_below, fmt_interval
+    point with its interval and unit (rounded to the interval), the alarm, the next safe
+    control and the next record's advised length (``time_unit``: the records'); full
+    precision stays in ``--json``."""
+    from service.numfmt import fmt, fmt_below, fmt_interval, sig
 
     u = f" {unit}" if unit else ""
     p = doc.prediction
     n, aside = len(doc.measurements), getattr(doc, "n_set_aside", 0)
     used = f"{n} control(s) in the fit" + (f", {aside} record(s) set aside" if aside else "")
-    if p is None:
-        return f"no prediction ({used})"
-    lo, hi = p.mu_star_interval
-    half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
-    a, b = fmt_interval(lo, hi)
-    kind = p.transition
-    if kind == "undetermined":
-        why = next((f.message for f in p.flags if f.code == "type_withheld"), None)
-        kind += f" ({why})" if why else ""
-    lines = [f"type: {kind}",
-             f"{name}* = {fmt(p.mu_star, half)}{u}, 95 % interval [{a}, {b}]{u} ({used})"]
+    half = None
+    if p is None:  # why, and what the lab may still do: the alarm, the advice, the records
+        why = next((f.message for f in getattr(doc, "flags", None) or ()
+                    if f.code in ("too_few_records", "predictor_failed")), None)  # fmt: skip
+        lines = [f"no prediction ({used})" + (f": {why}" if why else "")]
+    else:
+        lo, hi = p.mu_star_interval
+        half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
+        a, b = fmt_interval(lo, hi)
+        kind = p.transition
+        if kind == "undetermined":
+            why = next((f.message for f in p.flags if f.code == "type_withheld"), None)
+            kind += f" ({why})" if why else ""
+        lines = [f"type: {kind}",
+                 f"{name}* = {fmt(p.mu_star, half)}{u}, 95 % interval [{a}, {b}]{u} ({used})"]
     if doc.alarm:
         al = doc.alarm[-1]
-        lines.append(f"alarm: {al.level} (rank {al.rank}): {al.reason}")
+        within = f"; controls in {unit}" if unit else ""  # the reason's numbers are controls
+        lines.append(f"alarm: {al.level} (rank {al.rank}{within}): {al.reason}")
     nxt = getattr(doc, "next_control", None)
     if nxt is not None:
         lines.append(f"next safe {name}: {fmt_below(nxt, half)}{u}")
-    else:
+    elif p is not None:
         lines.append(f"next safe {name}: none (no safe step left)")
+    else:
+        lines.append(f"next safe {name}: none (no advice without a step: give --step)")
+    dur, dt = getattr(doc, "record_duration", None), getattr(doc, "record_dt", None)
+    if dur is not None and dt is not None:
+        tu = f" {time_unit}" if time_unit else ""
+        lines.append(f"next record: {sig(dur, 3)}{tu} long, sample step {sig(dt, 3)}{tu} "
+                     f"({doc.record_advice})")  # fmt: skip
     for x in getattr(doc, "set_aside", None) or ():  # each by its file, with the reason
         lines.append(f"set aside: {x.reason}")
     return "\n".join(lines)
@@ -491,7 +506,7 @@ def _sweep(args: argparse.Namespace) -> int:
                    control_unit=args.control_unit or table.units.get(control_col),
                    time_unit=time_unit)  # fmt: skip
     unit = args.control_unit or table.units.get(control_col)
-    text = sweep_text(doc, args.control_name, unit)
+    text = sweep_text(doc, args.control_name, unit, time_unit)
     emit(doc, json_mode=args.json, text=text)
     return 0
 

@@ -123,6 +123,10 @@ class InProcess:
         self.records.append(u.record)
         return convert.live_update(u, options=opts)
 
+    def time_unit(self) -> str | None:
+        """The sweep's time unit (its first read record's; None before one)."""
+        return self._unit(None)
+
     def _unit(self, unit: str | None) -> str | None:
         """The sweep's time unit: its first read record's (as the service's live door)."""
         from service.analysis.live import sweep_time_unit
@@ -192,28 +196,37 @@ class Remote:
 
 
 # ------------------------------------------------------------------------------- printing
-def line(u: Any, name: str) -> str:
-    """One human line: the record, the type, mu* and its interval, the alarm, the next value
-    (numbers written to the interval's precision, :mod:`service.numfmt`)."""
+def line(u: Any, name: str, unit: str | None = None, time_unit: str | None = None) -> str:
+    """One human line: the record, its fundamental (``sigma2`` to its standard error, in Hz
+    too when the record names its time unit), the type, mu* and its interval, the alarm, the
+    next value (numbers written to the interval's precision, :mod:`service.numfmt`), control
+    values with ``unit`` (the control's, ``--unit``); ``time_unit``: the sweep's (its first
+    record's), when the detection does not name it."""
     from service import numfmt
 
+    cu = f" {unit}" if unit else ""
     f = u.detection.fundamental
-    parts = [f"#{u.seq} {name} control={u.control:.8g}"]
-    parts.append(f"sigma2={f.sigma2:.6g}" if f is not None and f.sigma2 is not None else "no mode")
+    parts = [f"#{u.seq} {name} control={u.control:.8g}{cu}"]
+    if f is not None and f.sigma2 is not None:
+        tu = u.detection.time_unit or time_unit
+        s2 = f"sigma2={numfmt.fmt_pm(f.sigma2, f.sigma2_std)}" + (f" 1/{tu}^2" if tu else "")
+        freq = numfmt.hz(f.omega, tu) if f.omega else None
+        parts.append(s2 + (f" ({freq})" if freq else ""))
+    else:
+        parts.append("no mode")
+    half = None
+    if u.mu_star_interval and None not in u.mu_star_interval:
+        half = 0.5 * (u.mu_star_interval[1] - u.mu_star_interval[0])
     if u.mu_star is not None:
         lo, hi = u.mu_star_interval or (None, None)
         p = u.probabilities.get(u.transition)
         pt = f" p={p:.2f}" if p is not None else ""
         a, b = numfmt.fmt_interval(lo, hi)
-        half = 0.5 * (hi - lo) if lo is not None and hi is not None else None
-        parts.append(f"{u.transition}{pt} mu*={numfmt.fmt(u.mu_star, half)} [{a}, {b}]")
+        parts.append(f"{u.transition}{pt} mu*={numfmt.fmt(u.mu_star, half)}{cu} [{a}, {b}]{cu}")
     parts.append(f"alarm={u.alarm.level}")
     if u.next_control is not None:
-        half = None
-        if u.mu_star_interval and None not in u.mu_star_interval:
-            half = 0.5 * (u.mu_star_interval[1] - u.mu_star_interval[0])
         nxt = numfmt.fmt_below(u.next_control, half, digits=8)
-        parts.append(f"next<={nxt} ({u.next_bound_source})")
+        parts.append(f"next<={nxt}{cu} ({u.next_bound_source})")
     else:
         parts.append("next: none")
     if u.converged:
@@ -347,6 +360,7 @@ def _add(source: Any, p: Path, folder: _Folder, pattern: re.Pattern[str], args: 
         msg = str(err) if err is not None else f"{p.name}: {exc}"
         sys.stderr.write(f"snapwarn watch: skipped {msg}\n")
         return 0
-    emit(u, json_mode=args.json, text=line(u, p.name))
+    tu = source.time_unit() if isinstance(source, InProcess) else None
+    emit(u, json_mode=args.json, text=line(u, p.name, args.unit, tu))
     sys.stdout.flush()
     return 1

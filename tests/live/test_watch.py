@@ -130,9 +130,10 @@ def test_watch_refuses_a_regex_without_group(tmp_path: Path) -> None:
 
 def test_text_line_of_each_stage() -> None:
     """The human line: no prediction yet, then mu* with its interval, the alarm, the advice."""
+    import math
     import re
 
-    from service import convert
+    from service import convert, numfmt
     from service.analysis import live
     from service.cli.watch_cmds import control_of, line
 
@@ -152,6 +153,17 @@ def test_text_line_of_each_stage() -> None:
     assert "mu*=1.8" in lines[2] and "alarm=watch" in lines[2]
     # [1.62, 2.32] is evidence (no wider than the 1.2 travelled): its lower end bounds the step
     assert "mu*=1.8" in lines[4] and "(interval)" in lines[4] and "alarm=warning" in lines[4]
+    # numbers as a scientist writes them: sigma2 to its standard error (in Hz too when the time
+    # unit is known), mu*, its interval and the advice to the interval's precision, with units
+    u = convert.live_update(u)
+    text = line(u, "mu_1.2.csv", "deg", "s")
+    f = u.detection.fundamental
+    lo, hi = u.mu_star_interval
+    a, b = numfmt.fmt_interval(lo, hi)
+    assert f"control=1.2 deg | sigma2={numfmt.fmt_pm(f.sigma2, f.sigma2_std)} 1/s^2 (" in text
+    assert f"{f.omega / (2 * math.pi):.4g} Hz)" in text
+    assert f"mu*={numfmt.fmt(u.mu_star, 0.5 * (hi - lo))} deg [{a}, {b}] deg" in text
+    assert f"next<={numfmt.fmt_below(u.next_control, 0.5 * (hi - lo))} deg (interval)" in text
 
 
 def test_watch_takes_the_users_hand(tmp_path: Path) -> None:
