@@ -225,6 +225,13 @@ def _not_analysed(n: int, dt: float, method: str, flags: tuple[Flag, ...]) -> De
                      n_samples=int(n), dt=dt)  # fmt: skip
 
 
+def _advised(previous: Sequence[LiveRecord], control: float) -> bool:
+    """``control`` is the control advised after the last record (a fill-in below the largest
+    control measured is the advice, not a lab going its own way)."""
+    advised = previous[-1].next_control if previous else math.nan
+    return math.isfinite(advised) and abs(control - advised) <= _RTOL * max(1.0, abs(advised))
+
+
 def _record_flags(
     previous: Sequence[LiveRecord], control: float, m: Measurement | None, det_flags: tuple
 ) -> tuple[Flag, ...]:
@@ -239,7 +246,7 @@ def _record_flags(
                 "the records at this control into one point",
             )
         )
-    elif done and control < max(done):
+    elif done and control < max(done) and not _advised(previous, control):
         flags.append(
             Flag(
                 "out_of_order",

@@ -230,8 +230,10 @@ def warn(
             break
         cand = u.next_control
         # the advice may repeat the control just recorded (a record set aside there, or the
-        # interval reaching down to it: more evidence where it is needed), never go back
-        if not cand >= mu_next or not math.isfinite(u.record_duration):
+        # interval reaching down to it: more evidence where it is needed) or fill in below it
+        # (repeats did not lift the interval), never go back otherwise
+        back = u.next is not None and u.next.limited_by == "fill_in"
+        if not (cand >= mu_next or back) or not math.isfinite(u.record_duration):
             stopped = "no-safe-step"
             break
         duration, dt = u.record_duration, u.record_dt

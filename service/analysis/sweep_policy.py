@@ -233,12 +233,19 @@ def _failed(ms: Sequence[Measurement]) -> tuple[None, list[Flag]]:
 # ------------------------------------------------------------------------------- the policy
 def _advise(
     ms: Sequence[Measurement], pred: Prediction | None, trusted: bool, past: float,
-    plan: SweepPlan,
+    plan: SweepPlan, repeats: int = 1, res: float = 0.0,
 ) -> NextMeasurement | None:  # fmt: skip
     """The next control by :func:`service.analysis.alarm.next_measurement`: below the
     interval's lower end once the interval is evidence (no wider than the controls travelled),
     below the point estimate always, below a record that grew, below the sigma^4 bound until
-    the interval is trusted; capped by the lab's step until then."""
+    the interval is trusted; capped by the lab's step until then.
+
+    When no step up is safe (the interval reaches down to the last record, which was stable)
+    the record is repeated there; once it was (``repeats`` usable records at the last
+    control) and the interval still reaches down to it, the next record fills in halfway
+    between the last two controls (``fill_in``; stable ground, more than the control
+    resolution ``res`` from both): repeats narrow the noise of one point, not the law's
+    shape near the transition, which a point between them constrains."""
     if not ms:
         return None
     lo = None
@@ -275,7 +282,11 @@ def _advise(
     last = ms[-1].mu
     if not math.isfinite(nxt.mu) and nxt.source == "interval" and past == math.inf:
         # the interval reaches down to the last record: no step up is safe, but the strip was
-        # stable there: repeat the record at that control (more evidence where it is needed)
+        # stable there: repeat the record at that control (more evidence where it is needed),
+        # then fill in between the last two controls when a repeat did not lift it
+        fill = 0.5 * (ms[-2].mu + ms[-1].mu)
+        if repeats >= 2 and min(fill - ms[-2].mu, last - fill) > res:
+            return NextMeasurement(fill, nxt.bound, nxt.source, "fill_in")
         return NextMeasurement(last, nxt.bound, nxt.source, "repeat")
     return nxt
 
@@ -411,7 +422,8 @@ def evaluate(
         has_pred and last is not None and previous_interval is not None
         and interval_trusted(interval, previous_interval, last.mu, t_ratio)
     )  # fmt: skip
-    nxt = _advise(ms, pred if has_pred else None, trusted, past, plan)
+    repeats = sum(1 for r in a.usable if last is not None and r.measurement.mu == last.mu)
+    nxt = _advise(ms, pred if has_pred else None, trusted, past, plan, repeats, a.res)
     if a.unconfirmed:  # record again where the one record grew: it confirms or sets it aside
         nxt = NextMeasurement(past, past, "past_transition", "confirm")
         alarm = replace(alarm, reason=(
@@ -429,7 +441,7 @@ def evaluate(
         if hull is not None:  # the answer the sweep stops on: not the newest record's alone
             pred = replace(pred, mu_star_interval=hull)
             alarm = _alarm(ms, pred, last_mu, t_ratio, a.step, past)
-            nxt = _advise(ms, pred, trusted, past, plan)
+            nxt = _advise(ms, pred, trusted, past, plan, repeats, a.res)
     unit = next((r.time_unit for r in reversed(records) if r.measurement is not None), None)
     duration, dt, why = _record_advice(last, nxt, pred, unit)
     if pred is not None:

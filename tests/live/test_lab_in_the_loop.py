@@ -124,11 +124,13 @@ def test_ten_labs_per_type_following_the_advice(ready, kind: str, bad_at) -> Non
     assert not misses, f"{len(misses)} of 10 sessions miss the issue's criteria: {misses}"
 
 
-#: Imperfect labs whose sessions end wider than 1 % of the distance travelled (measured in
-#: process on 98996e3 with bench/lab_session.py's loop: seed 6 2.02 % clean and 1.99 % with the
-#: missed hammer, seed 7 1.01 % clean; 30 records each, the budget, covering the fold): the
-#: issue's 1 % is not met there. They keep every other criterion, and a bound of 2.5 %.
-_WIDE_IMPERFECT = {(None, 6), (None, 7), (6, 6)}
+#: Imperfect labs whose sessions end wider than 1 % of the distance travelled. Seeds 6 (2.02 %
+#: clean, 1.99 % with the missed hammer) and 7 (1.01 % clean) were, on 98996e3: their last
+#: record repeated 10-16 times while the interval reached down to it; since the advice fills
+#: in between the last two controls after one such repeat, in process: 0.061 %, 0.073 % and
+#: 0.093 % (the 20 imperfect sessions all under 0.39 %, covering the fold, never past it,
+#: within 30 records).
+_WIDE_IMPERFECT: set[tuple[int | None, int]] = set()
 
 
 @pytest.mark.slow

@@ -401,3 +401,41 @@ def test_the_plain_sweep_without_a_prediction_says_why_and_what_is_set_aside() -
     assert text[2] == f"next safe theta: {b.next_control:.6g} deg"
     assert text[3].startswith(f"next record: {b.record_duration:.3g} long, sample step ")
     assert text[4:] == [f"set aside: record {n} set aside: excluded by the user" for n in names[:2]]
+
+
+def test_after_a_repeat_that_did_not_lift_the_interval_the_advice_fills_in_below() -> None:
+    """No step up is safe when the interval reaches down to the last record: the record is
+    repeated there; when the repeat leaves the interval there too, the next record fills in
+    halfway between the last two controls (stable ground, below the last record): repeats
+    narrow one point's noise, not the law's shape (imperfect ten-lab seeds 6 and 7 repeated
+    10-16 times and ended 2.0 % and 1.0 % wide). A live sweep that follows it flags no
+    out_of_order; a fill-in finer than the control resolution is a repeat again."""
+    controls = [0.0, 0.3, 0.6, 0.9, 1.2, 1.5, 1.65, 1.72]
+    plan = SweepPlan(step=0.3)
+
+    def rec(c: float) -> SweepRecord:  # the record at 1.72 reads sigma^2 2 % soft
+        m = point(c)
+        return SweepRecord(0, c, replace(m, sigma2=m.sigma2 * 0.98) if c == 1.72 else m)
+
+    from service.analysis.sweep_policy import SweepPolicy
+
+    pol = SweepPolicy(plan)
+    for c in controls:
+        u = pol.add(rec(c))
+    last = u.next_control
+    assert u.next.limited_by == "bound" and 1.72 < last < MU_STAR
+    u = pol.add(rec(last))
+    assert u.next.limited_by == "repeat" and u.next_control == last
+    assert u.interval[0] == last  # the interval reaches down to the last record
+    u = pol.add(rec(last))
+    assert u.next.limited_by == "fill_in" and u.interval[0] == last
+    assert u.next_control == 0.5 * (1.72 + last) < last
+    # a live sweep: the advised fill-in below the largest control is no out_of_order, another
+    # control below it is
+    fill = u.next_control
+    assert "out_of_order" not in [f.code for f in live._record_flags(pol.records, fill, None, ())]
+    assert "out_of_order" in [f.code for f in live._record_flags(pol.records, 1.7, None, ())]
+    # halfway finer than the lab can set its control: a repeat again
+    coarse = evaluate(pol.records, SweepPlan(step=0.3, control_resolution=0.01),
+                      previous_interval=pol.records[-2].interval)  # fmt: skip
+    assert coarse.next.limited_by == "repeat" and coarse.next_control == last
