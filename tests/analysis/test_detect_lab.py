@@ -25,6 +25,7 @@ from service.analysis.detect import (  # noqa: E402
     _aside,  # noqa: E402
     detect,
 )
+from service.analysis.detect._modes import _fundamental  # noqa: E402
 from service.analysis.errors import ParameterError  # noqa: E402
 from service.recordings import quantity_of  # noqa: E402
 
@@ -185,6 +186,71 @@ def test_a_tiny_growing_component_beside_a_loud_ringing_is_not_an_instability() 
     big = Mode(0.0, 0.0, -0.1, 1e-4, 0.05, 0.0, 0.0, 1e-3, 1e-5, regime="overdamped",
                real_poles=(0.3, -0.1), real_amplitudes=(0.05, 0.0))  # fmt: skip
     assert _aside.negligible_growth([ring, big], 10.0) == frozenset()
+
+
+def _line(f: float, a: float, g: float = 1.5, g_std: float = 0.1, w_std: float = 0.02) -> Mode:
+    w = 2 * math.pi * f
+    return Mode(w, f, g, -(w * w + g * g), a, 0.0, w_std, g_std, 2 * w * w_std, 0.1 * a)
+
+
+def test_the_sidebands_of_a_friction_ring_down_are_never_the_fundamental() -> None:
+    """The blind friction truss (tests/blind truss_friction lab 0 and 1, first records): the
+    fit spreads the linearly decaying ring-down into a comb; its slowest line (1.7 % of the
+    dominant's amplitude) was the fundamental, sigma^2 low by 20 %."""
+    comb = [_line(6.83663, 0.00802), _line(7.2588, 0.11744), _line(7.60747, 0.46959),
+            _line(7.96448, 0.10971), _line(8.32324, 0.00977)]  # fmt: skip
+    side, bound = _aside.sidebands(comb, 4.731, frozenset())
+    assert side == {0: (2, -2), 1: (2, -1), 3: (2, 1), 4: (2, 2)} and bound is None
+    modes, order = _fundamental(comb, n=9462, dt=5e-4, sidebands=side)
+    assert order[0] == 2 and modes[1].combination is not None
+    # a main lobe split in two (lab 1, mu 0: 8.195 Hz read as 7.999 and 8.416): the carrier
+    # lies between them, the dominant's sigma^2 error covers half their difference
+    split = [_line(6.965, 0.003684), _line(7.5067, 0.04035), _line(7.9987, 0.3482),
+             _line(8.4164, 0.282), _line(8.8825, 0.01922)]  # fmt: skip
+    side, bound = _aside.sidebands(split, 4.39, frozenset())
+    assert side[3] == (2, 0) and set(side) == {0, 1, 3, 4} and bound == 3
+    f = _aside.comb_bounded(split[2], split[3])
+    assert f.sigma2_std == pytest.approx(0.5 * abs(split[2].sigma2 - split[3].sigma2))
+    assert abs(f.sigma2 + (2 * math.pi * 8.195268782902753) ** 2) < 1.0 * f.sigma2_std
+    # two modes and a third that is not at the mirrored frequency: no comb
+    assert _aside.sidebands([_line(5.0, 0.1), _line(8.0, 1.0), _line(12.0, 0.1)], 4.0,
+                            frozenset()) == ({}, None)  # fmt: skip
+    # the loudest term a heavily damped one (the hammer's contact, seed 2702 #38): no comb
+    contact = [_line(5.7903, 6.14, 0.0714), _line(9.7425, 9.80, 47.99, 2.0),
+               _line(11.3852, 1.42, 3.65), _line(15.7228, 1.26, 3.70)]  # fmt: skip
+    assert _aside.sidebands(contact, 6.0, frozenset()) == ({}, None)
+
+
+def test_a_weak_fundamental_beside_a_much_stronger_close_line_carries_their_difference() -> None:
+    """The blind friction truss far 0, last record (truth 9.049 Hz): a weak 8.42 Hz line
+    (sigma^2 -2802 +- 18.9, z +22.7) beside a 23x stronger 9.52 Hz one."""
+    lines = [_line(8.4185, 0.09), _line(8.9784, 0.588), _line(9.5187, 2.075)]
+    assert _aside.split_rival(lines, 0, {1, 2}) == 2
+    f = _aside.comb_bounded(lines[0], lines[2])
+    assert abs(f.sigma2 + (2 * math.pi * 9.0491423709298) ** 2) < 2.0 * f.sigma2_std
+    # a fundamental as strong as its close neighbour keeps its own error
+    assert _aside.split_rival([_line(8.4185, 1.0), _line(9.5187, 2.075)], 0, {1}) is None
+
+
+def test_a_quiet_line_far_below_a_loud_ringing_mode_is_not_the_fundamental() -> None:
+    """The unit-less subcritical lab of tests/live (record 17, sampled at 59.79 Hz): the 60 Hz
+    hum aliased to 0.205 Hz, its decay 0.0196 +- 0.0165 over 30 s beside the kicked mode (0.918
+    Hz, 190x stronger, 9 e-folds) was the fundamental (sigma^2 -1.66 for -33.41)."""
+    hum = _line(0.20532, 0.01272, 0.01959, 0.0165)
+    ring = _line(0.91822, 2.403, 0.2995, 0.00146)
+    assert _aside.quiet_lines([hum, ring], 30.0, frozenset()) == {0}
+    # a weak slow mode that decays measurably is a mode
+    assert _aside.quiet_lines([_line(0.20532, 0.01272, 0.05, 0.005), ring], 30.0,
+                              frozenset()) == frozenset()  # fmt: skip
+    # ... and so is a quiet one beside a ringing mode less than 10x stronger
+    assert _aside.quiet_lines([_line(0.20532, 0.3, 0.01959, 0.0165), ring], 30.0,
+                              frozenset()) == frozenset()  # fmt: skip
+    # ... and a fundamental too short-lived in its window to show its decay beside the
+    # hammer's contact (seed 2702 #103: 3.7 cycles, decay 0.036 +- 0.737; the contact 164 Hz,
+    # decay 414)
+    assert _aside.quiet_lines([_line(5.7373, 0.0526, 0.036, 0.737),
+                               _line(164.0, 1.151, 414.5, 50.0)], 0.6368,
+                              frozenset()) == frozenset()  # fmt: skip
 
 
 def test_a_slower_component_the_fit_cannot_tell_from_nothing_is_not_the_fundamental() -> None:

@@ -12,6 +12,7 @@ the structure's.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -30,6 +31,11 @@ LINE_LEAD_CYCLES = 3.0
 #: A slow component not kicked from rest: its value at the window's first sample above this
 #: fraction of its largest (a kicked overdamped mode starts from rest).
 DRIFT_REST = 0.25
+#: ... or (a quiet line, :func:`quiet_lines`) one whose decay is not significant (within 3
+#: standard errors of none) and measured below LINE_QUIET of the decay rate of a kicked mode
+#: whose rms envelope over the window is LINE_QUIET_LOUD times larger (an aliased mains line, a
+#: rig's or sensor's line: the window too short for LINE_DECAY to tell).
+LINE_QUIET, LINE_QUIET_LOUD = 0.2, 10.0
 #: A kicked ringing mode decays by at least this many e-folds over the window.
 RING_DECAY = 0.1
 #: A transient (the hammer's contact absorbed by the fit): a mode whose envelope decays by
@@ -91,6 +97,20 @@ def _from_rest(m: Mode, T: float) -> bool:
     t = np.linspace(0.0, T, 257)
     size = float(np.max(np.abs(ra[0] * np.exp(rp[0] * t) + ra[1] * np.exp(rp[1] * t))))
     return not size > 0 or abs(ra[0] + ra[1]) < DRIFT_REST * size
+
+
+def _huge_growth(m: Mode, T: float, peak: float) -> bool:
+    """An overdamped mode with a growing term that reaches more than :data:`TRANSIENT_HUGE`
+    times the window's largest deviation ``peak`` by the window's end: a record that large is
+    not there, so the fit cancels it with another term (a ramp, a response that comes to rest
+    off its equilibrium, read as two growing pairs), not a growth of the structure (which the
+    record itself would show)."""
+    if m.real_poles is None or m.real_amplitudes is None or not math.isfinite(peak):
+        return False
+    big = max(abs(b) * math.exp(min(s * T, 700.0))
+              for s, b in zip(m.real_poles, m.real_amplitudes, strict=True) if s > 0) \
+        if any(s > 0 for s in m.real_poles) else 0.0
+    return big > TRANSIENT_HUGE * peak
 
 
 def _size(m: Mode, T: float) -> float:
@@ -196,7 +216,7 @@ def lines_and_drift(
             if slow * T > TRANSIENT_DECAY:
                 transient.add(k)
             elif m.regime == "overdamped":
-                if not _from_rest(m, T) or (
+                if _huge_growth(m, T, peak) or not _from_rest(m, T) or (
                     0 <= slow * T < DRIFT_DECAY and slow < DRIFT_RELATIVE * ring_decay
                 ):
                     drift.add(k)
@@ -257,6 +277,111 @@ def undetermined(modes: list[Mode], T: float, exclude: frozenset[int] | set[int]
         and not m.amplitude > UNDETERMINED_Z * m.amplitude_std
         and not any(m is r for r in rings)
     )  # fmt: skip
+
+
+#: Sidebands of an amplitude-modulated line (a ring-down whose envelope is not exponential:
+#: joint friction decays it linearly until it sticks; a beat with a slow wobble). The fit
+#: spreads such a line into a comb: weaker lines at mirrored frequencies around its carrier. The
+#: carrier: the dominant line (the largest amplitude; a kicked ringing one), or midway between
+#: it and the strongest other line within SIDEBAND_SPAN of it when that one has SIDEBAND_SPLIT
+#: of its amplitude or more (a main lobe split in two). A comb: two lines weaker than
+#: SIDEBAND_AMP of the dominant (or that strongest other line), within SIDEBAND_SPAN of it, one
+#: on each side of the carrier (the most nearly mirrored pair chooses it) at mirrored
+#: frequencies (``omega_a + omega_b = 2 omega_c`` within SIDEBAND_TOL of their offset or
+#: SIDEBAND_Z combined standard errors). Then every line weaker than SIDEBAND_AMP of the
+#: dominant within SIDEBAND_ORDER + 1/2 of the comb's spacing (its closest pair's offset) from
+#: the carrier belongs to it. The comb's lines are never the fundamental (the dominant line is,
+#: flagged ``fundamental_ambiguous`` when a slower line was set aside), and the dominant's
+#: sigma^2 is known no better than half its difference from the strongest comb line (when that
+#: one has SIDEBAND_SPLIT of its amplitude): the carrier lies between them.
+SIDEBAND_AMP, SIDEBAND_SPAN, SIDEBAND_TOL, SIDEBAND_Z = 0.5, 0.5, 0.1, 4.0
+SIDEBAND_SPLIT, SIDEBAND_ORDER = 0.3, 4
+
+
+def sidebands(modes: list[Mode], T: float, exclude: frozenset[int] | set[int]
+              ) -> tuple[dict[int, tuple[int, int]], int | None]:  # fmt: skip
+    """The comb of the dominant line (see :data:`SIDEBAND_AMP`; it rings, :func:`_rings`, in the
+    window of length ``T``): its lines (index -> (the
+    dominant's index, the number of the comb's spacings from the carrier, signed)) and the
+    comb line that bounds the dominant's error (None: none as strong as SIDEBAND_SPLIT)."""
+    cand = [k for k, m in enumerate(modes)
+            if k not in exclude and m.regime == "underdamped" and m.omega > 0]  # fmt: skip
+    if len(cand) < 3:
+        return {}, None
+    d = max(cand, key=lambda k: modes[k].amplitude)
+    D = modes[d]
+    if not _rings(D, T):
+        return {}, None  # a heavily damped term (the hammer's contact) carries no comb
+    near_d = [k for k in cand
+              if k != d and abs(modes[k].omega - D.omega) <= SIDEBAND_SPAN * D.omega]
+    if not near_d:
+        return {}, None
+    s = max(near_d, key=lambda k: modes[k].amplitude)
+    strong = s if modes[s].amplitude >= SIDEBAND_SPLIT * D.amplitude else None
+    centres = [(D.omega, None)]
+    if strong is not None:
+        centres.append((0.5 * (D.omega + modes[s].omega), s))
+    best, offs = None, {}
+    for c, split in centres:
+        weaker = [k for k in cand if k not in (d, split)
+                  and modes[k].amplitude < SIDEBAND_AMP * D.amplitude]  # fmt: skip
+        if strong is not None and split is None:
+            weaker.append(strong)  # a strong sideband of the dominant line
+        weak = [k for k in weaker if k in near_d]
+        for a in weak:
+            for b in weak:
+                ma, mb = modes[a], modes[b]
+                if not ma.omega < c < mb.omega:
+                    continue
+                off = c - ma.omega
+                miss = abs(ma.omega + mb.omega - 2.0 * c)
+                sd = math.sqrt(ma.omega_std**2 + mb.omega_std**2 + 4.0 * D.omega_std**2)
+                if miss <= max(SIDEBAND_TOL * off, SIDEBAND_Z * sd):
+                    offs.setdefault(c, []).append(off)
+                    # the centre whose pair is the most nearly mirrored
+                    if best is None or miss / off < best[0]:
+                        best = (miss / off, c, split, weaker)
+    if best is None:
+        return {}, None
+    _, c, split, weaker = best
+    step = min(offs[c])  # the comb's spacing: its closest pair's offset
+    out = {}
+    for k in weaker:
+        off = modes[k].omega - c
+        if abs(off) <= (SIDEBAND_ORDER + 0.5) * step:
+            n = int(round(off / step))
+            out[k] = (d, n if n else (1 if off > 0 else -1))
+    if split is not None:
+        out[split] = (d, 0)
+    # the carrier lies between the dominant line and a line as strong as SIDEBAND_SPLIT of it
+    comb = [k for k in out if modes[k].amplitude >= SIDEBAND_SPLIT * D.amplitude]
+    if strong is not None:
+        comb.append(strong)
+    bound = max(comb, key=lambda k: modes[k].amplitude) if comb else None
+    return out, bound
+
+
+def quiet_lines(modes: list[Mode], T: float, exclude: frozenset[int] | set[int]
+                ) -> frozenset[int]:  # fmt: skip
+    """Indices of the quiet lines (see :data:`LINE_QUIET`): underdamped components of one cycle
+    or more in the window ``T`` whose decay is not significant and whose decay rate, plus two
+    standard errors, lies below LINE_QUIET of a kicked ringing mode's (:func:`_rings`, decaying
+    beyond 5 standard errors) whose rms envelope (:func:`_size`) is LINE_QUIET_LOUD times
+    larger. Never the fundamental; a record whose fundamental would have been one is flagged
+    ``fundamental_ambiguous``."""
+    out = set()
+    for k, m in enumerate(modes):
+        if k in exclude or m.regime != "underdamped" or m.omega <= 0 or _cycles(m, T) < 1.0:
+            continue
+        if not abs(m.damping) <= 3.0 * m.damping_std:
+            continue
+        top = abs(m.damping) + 2.0 * m.damping_std
+        if any(j != k and j not in exclude and _rings(mj, T)
+               and _size(mj, T) >= LINE_QUIET_LOUD * _size(m, T)
+               and top < LINE_QUIET * mj.damping and mj.damping > 5.0 * mj.damping_std
+               for j, mj in enumerate(modes)):  # fmt: skip
+            out.add(k)
+    return frozenset(out)
 
 
 #: A slow component was there before the kick (a drift, not a kicked mode) when the lead-in,
@@ -476,6 +601,77 @@ def with_undetermined(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> 
         + f" not taken: the fit does not tell {'it' if len(idx) == 1 else 'them'} from nothing "
         f"(amplitude within {UNDETERMINED_Z:g} standard errors of 0) beside a ringing mode "
         "the record shows")  # fmt: skip
+    if doubt is None:
+        return Flag("fundamental_ambiguous",
+                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
+                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
+                    "band")  # fmt: skip
+    head, sep, tail = doubt.message.partition(". Check the record")
+    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+
+
+def split_rival(modes: list[Mode], f: int, others: set[int]) -> int | None:
+    """The strongest of ``others`` (modes of the structure) within AMBIG_CLOSE of the
+    fundamental ``modes[f]``'s frequency and 1/AMBIG_WEAK times stronger (None: none): one line
+    split in several, whose frequency lies between them (its sigma^2 error covers half their
+    difference, :func:`comb_bounded`)."""
+    m = modes[f]
+    if m.regime != "underdamped" or not m.omega > 0:
+        return None
+    close = [k for k in others
+             if modes[k].regime == "underdamped" and modes[k].combination is None
+             and abs(modes[k].omega / m.omega - 1.0) <= AMBIG_CLOSE
+             and m.amplitude < AMBIG_WEAK * modes[k].amplitude]  # fmt: skip
+    return max(close, key=lambda k: modes[k].amplitude) if close else None
+
+
+def comb_bounded(f: Mode, other: Mode | None) -> Mode:
+    """The dominant line ``f`` of a comb (:func:`sidebands`) with its sigma^2 error at least half
+    its difference from the comb's strongest line ``other`` (None: ``f`` unchanged)."""
+    if other is None:
+        return f
+    sd = 0.5 * abs(f.sigma2 - other.sigma2)
+    if not sd > f.sigma2_std:
+        return f
+    om = 0.5 * abs(f.omega - other.omega)
+    return replace(f, sigma2_std=sd, omega_std=max(f.omega_std, om))
+
+
+def with_sidebands(doubt: Flag | None, modes: list[Mode], idx: list[int], bound: int | None
+                   ) -> Flag | None:  # fmt: skip
+    """The ``fundamental_ambiguous`` flag ``doubt`` (None: a new one) saying that the
+    fundamental ``modes[0]`` was read at the dominant line of a comb whose lines ``modes[idx]``
+    are its sidebands, when one of them is slower or bounds its error (else ``doubt``)."""
+    f = modes[0]
+    slower = [j for j in idx if modes[j].omega < f.omega]
+    if not slower and bound is None:
+        return doubt
+    txt = ("it is the dominant line of a comb of sidebands (" + ", ".join(
+        f"modes[{j}] ({modes[j].frequency:.6g})" for j in idx)
+        + "): an amplitude-modulated ring-down (an envelope that is not exponential: joint "
+        "friction, a line that sticks, a beat), read at the dominant line")  # fmt: skip
+    if bound is not None:
+        txt += (f"; its sigma^2 error is at least half its difference from modes[{bound}] "
+                "(the carrier lies between them)")
+    if doubt is None:
+        return Flag("fundamental_ambiguous",
+                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
+                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
+                    "band")  # fmt: skip
+    head, sep, tail = doubt.message.partition(". Check the record")
+    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+
+
+def with_quiet_lines(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> Flag:
+    """The ``fundamental_ambiguous`` flag ``doubt`` (None: a new one) saying that the slower
+    quiet lines ``modes[idx]`` (:func:`quiet_lines`) were not taken as the fundamental."""
+    f = modes[0]
+    txt = ("the slower " + ", ".join(f"modes[{j}] ({modes[j].frequency:.6g} cycles/time, "
+                                     f"decay {modes[j].damping:.3g} +- {modes[j].damping_std:.3g})"
+                                     for j in idx)
+           + " set aside as a stationary line: it does not decay measurably while a kicked "
+           "mode 10x stronger rings down (an aliased mains line, a rig's or a sensor's line; "
+           "a weak, lightly damped fundamental would look the same)")  # fmt: skip
     if doubt is None:
         return Flag("fundamental_ambiguous",
                     f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "

@@ -476,7 +476,7 @@ def _result(
     ``censored``: the window's clipped samples read as censored (None: none). On a lab
     window the standard errors are the sandwich's where larger (:mod:`._uncertainty`)."""
     trend = frozenset()
-    lines = drift = tiny = transient = frozenset()
+    lines = drift = tiny = transient = quiet = frozenset()
     if kind == "impulse":
         trend = _trends(out.modes, n=n, dt=dt, noise_std=out.noise_std)
         combos = frozenset(_combinations(out.modes))
@@ -492,6 +492,9 @@ def _result(
             if final != combos:
                 lines, drift, transient = _aside.lines_and_drift(
                     out.modes, n * dt, seeds, trend | final, lead_T, peak, base is not None)
+            quiet = _aside.quiet_lines(out.modes, n * dt, trend | final | lines | drift
+                                       | transient)  # fmt: skip
+            lines = lines | quiet
             if base is not None and base[1] is not None:
                 # a slow component the lead-in already holds was not kicked: a drift
                 before = _aside.before_kick(out.modes, n * dt, base[1] / rec.unit - rec.mean,
@@ -506,12 +509,30 @@ def _result(
         undet = _aside.undetermined(out.modes, n * dt,
                                     trend | lines | drift | transient | tiny
                                     | frozenset(_combinations(out.modes, lines)))  # fmt: skip
+    side, bound = {}, None
+    if base is not None and kind == "impulse":
+        side, bound = _aside.sidebands(out.modes, n * dt, trend | lines | drift | transient | tiny
+                                       | frozenset(_combinations(out.modes, lines)))  # fmt: skip
+        undet = undet - set(side)
     modes, order = _fundamental(out.modes, n=n, dt=dt,
-                                trend=trend | lines | drift | transient | undet, aside=lines)
+                                trend=trend | lines | drift | transient | undet, aside=lines,
+                                sidebands=side)  # fmt: skip
+    split_at = None
     if base is not None and modes:
         factors = _uncertainty.inflation(out.modes, _residual(rec, out, dt), dt,
                                          out.noise_std, censored)  # fmt: skip
         modes = [_uncertainty.inflated(m, factors[k]) for m, k in zip(modes, order)]
+        if side and order[0] == next(iter(side.values()))[0]:
+            modes[0] = _aside.comb_bounded(modes[0], None if bound is None else
+                                           out.modes[bound])  # fmt: skip
+        else:
+            # a weak fundamental beside a much stronger line close to it (one line split in
+            # several): the line lies between them
+            rival = _aside.split_rival(out.modes, order[0], set(order[1:]) - (
+                trend | lines | drift | transient | undet | set(side)))  # fmt: skip
+            if rival is not None:
+                modes[0] = _aside.comb_bounded(modes[0], out.modes[rival])
+                split_at = order.index(rival)
     growth = None if out.growth is None else [out.growth[k] for k in order]
     at = {k: i for i, k in enumerate(order)}
     trend_at = frozenset(at[k] for k in trend)
@@ -550,6 +571,17 @@ def _result(
     )  # fmt: skip
     flags += _aside.aside_flags(modes, lines_at, drift_at, tiny_at, trans_at)
     doubt = _aside.ambiguity(modes, n * dt) if base is not None and fund is not None else None
+    if side and fund is not None and order[0] == next(iter(side.values()))[0]:
+        doubt = _aside.with_sidebands(doubt, modes, sorted(at[k] for k in side),
+                                      None if bound is None else at[bound])  # fmt: skip
+    if split_at is not None and fund is not None and doubt is not None:
+        head, sep, tail = doubt.message.partition(". Check the record")
+        doubt = Flag(doubt.code, f"{head}; its sigma^2 error is at least half its difference "
+                                 f"from the stronger modes[{split_at}]{sep}{tail}")
+    quiet_at = sorted(at[k] for k in quiet if fund is not None
+                      and abs(out.modes[k].sigma2) < abs(fund.mode.sigma2))  # fmt: skip
+    if quiet_at and fund is not None:
+        doubt = _aside.with_quiet_lines(doubt, modes, quiet_at)
     undet_at = sorted(at[k] for k in undet if fund is not None
                       and abs(out.modes[k].sigma2) < abs(fund.mode.sigma2))  # fmt: skip
     if undet_at and fund is not None:

@@ -312,7 +312,7 @@ def _combinations(
 
 def _fundamental(
     modes: list[Mode], *, n: int, dt: float, trend: frozenset[int] = frozenset(),
-    aside: frozenset[int] = frozenset(),
+    aside: frozenset[int] = frozenset(), sidebands: dict[int, tuple[int, int]] | None = None,
 ) -> tuple[list[Mode], list[int]]:  # fmt: skip
     """Mark combination tones and put the fundamental first.
 
@@ -328,6 +328,10 @@ def _fundamental(
         drift or transients.
     aside : frozenset of int
         Indices of the stationary lines (no parents of combination tones).
+    sidebands : dict or None
+        Sidebands of an amplitude-modulated line (index -> (the line's index, how many of the
+        comb's spacings from its carrier, signed; 0: the other half of a split line)): marked
+        as combination tones of that line.
 
     Returns
     -------
@@ -341,8 +345,10 @@ def _fundamental(
     if not modes:
         return [], []
     comb = _combinations(modes, aside)
-    free = [k for k in range(len(modes)) if k not in comb and k not in trend]
-    first = free[0] if free else next((k for k in range(len(modes)) if k not in comb), 0)
+    side = {k: v for k, v in (sidebands or {}).items() if k not in comb}
+    free = [k for k in range(len(modes)) if k not in comb and k not in side and k not in trend]
+    first = free[0] if free else next((k for k in range(len(modes))
+                                       if k not in comb and k not in side), 0)  # fmt: skip
     order = [first] + [k for k in range(len(modes)) if k != first]
     pos = {k: i for i, k in enumerate(order)}
     out = []
@@ -359,6 +365,12 @@ def _fundamental(
             else:
                 txt = f"omega[{pos[i]}] {sign} omega[{pos[j]}]"
             m = replace(m, combination=txt)
+        elif k in side:
+            d, n = side[k]
+            txt = (f"omega[{pos[d]}], the other half of its split line" if n == 0 else
+                   f"omega[{pos[d]}]'s carrier {'+' if n > 0 else '-'} {abs(n)} x its "
+                   "sideband spacing")  # fmt: skip
+            m = replace(m, combination=txt + " (amplitude modulation)")
         out.append(m)
     return out, order
 
