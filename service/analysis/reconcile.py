@@ -582,6 +582,12 @@ def _zero(track: dict[int, int], out: list[Detection], c: np.ndarray, *, fold: b
     return last + scale * min(ahead) if ahead else math.inf
 
 
+def _earliest(track: dict[int, int], out: list[Detection], c: np.ndarray) -> float:
+    """The earlier of the line's two continuations to ``sigma^2 = 0`` (:func:`_zero`: a
+    quadratic in ``sigma^2``, a pitchfork's, or in ``(sigma^2)^2``, a fold's)."""
+    return min(_zero(track, out, c), _zero(track, out, c, fold=True))
+
+
 def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) -> list[Detection]:
     """Each usable record's fundamental on the sweep's critical line: the line (followed from
     record to record, :func:`_tracks`) whose ``sigma^2`` reaches zero first (:func:`_zero`),
@@ -603,17 +609,15 @@ def _critical_line(out: list[Detection], c: np.ndarray, names: Sequence[str]) ->
         return out
     own = max(seen, key=lambda t: sum(out[k].fundamental.index == j for k, j in t.items()))
     n_own = sum(out[k].fundamental.index == j for k, j in own.items())
-    zeros = [_zero(t, out, c) for t in seen]
+    zeros = [_earliest(t, out, c) for t in seen]
     i_c = int(np.argmin(zeros))
     crit = seen[i_c]
     if crit is own or not math.isfinite(zeros[i_c]):
         return _strays(out, own, tracks, c) if n_own * 2 >= len(idx) else out
     last = max(c[k] for k in idx)
     d_c = max(zeros[i_c] - last, 0.0)
-    # the switch needs the evidence it claims: the rival reaches 0 first even against the
-    # own line's earliest continuation (a fold's, or a pitchfork's quadratic)
-    z_own = (min(_zero(own, out, c), _zero(own, out, c, fold=True))
-             if n_own * 2 >= len(idx) else math.inf)  # fmt: skip
+    # each line continued both ways (a fold's, or a pitchfork's quadratic): the earliest
+    z_own = _earliest(own, out, c) if n_own * 2 >= len(idx) else math.inf
     d_own = z_own - last
     if not d_c < AGREE * d_own:
         return _strays(out, own, tracks, c) if n_own * 2 >= len(idx) else out

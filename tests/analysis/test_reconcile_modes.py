@@ -275,3 +275,24 @@ def test_a_first_record_beyond_the_critical_lines_first_step_is_kept():
     for d, s in zip(out, crit, strict=True):
         assert SET_ASIDE not in d.flag_codes
         assert d.fundamental.sigma2 == pytest.approx(s, rel=1e-12)
+
+
+def test_both_lines_are_continued_as_a_fold_too_before_they_are_compared():
+    # blind arch_crossing far 0 (the detected sigma^2, measured): the lowest line (symmetric
+    # mode) and the critical one (antisymmetric, truth: 0 at 5.0398) meet near 3.6 and are read
+    # as one mode there. Continued as a pitchfork (quadratic in sigma^2) the critical line
+    # reaches 0 at 5.64, the lowest at 6.17; as a fold at 4.68 and 5.00. With the lowest line
+    # given its fold continuation and the critical one not, no switch was made and the sweep's
+    # interval missed mu* early; each line's earliest continuation compared, the critical line
+    # is followed, with the sweep-level doubt (the type withheld).
+    mu = np.array([0.0, 1.274, 1.309, 1.763, 2.039, 3.398, 3.59, 3.795])
+    low = [-1230.4, -1042.7, -1037.5, -963.6, -918.1, -660.9]
+    crit = [-1435.5, -1185.5, -1178.0, -1079.9, -1020.4, -677.9]
+    dets = [_det(a, b) for a, b in zip(low, crit, strict=True)] + [_det(-622.3), _det(-566.3)]
+    out = reconcile(dets, mu, names=_names(mu.size))
+    for d, s in zip(out[:6], crit, strict=True):
+        assert d.fundamental.sigma2 == s
+    for d in out:
+        assert SET_ASIDE not in d.flag_codes
+        assert any(f.code == "fundamental_ambiguous" and f.message.startswith(SWEEP_DOUBT)
+                   for f in d.flags)  # fmt: skip
