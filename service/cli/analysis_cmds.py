@@ -349,7 +349,10 @@ def sweep_text(
         within = f"; controls in {unit}" if unit else ""  # the reason's numbers are controls
         lines.append(f"alarm: {al.level} (rank {al.rank}{within}): {al.reason}")
     nxt = getattr(doc, "next_control", None)
-    if nxt is not None:
+    if nxt is not None and p is None:  # a step of the trust region: nothing bounds mu* yet
+        lines.append(f"next {name} (not known safe: no prediction bounds {name}* yet): "
+                     f"{fmt_below(nxt, half)}{u}")  # fmt: skip
+    elif nxt is not None:
         lines.append(f"next safe {name}: {fmt_below(nxt, half)}{u}")
     elif p is not None:
         lines.append(f"next safe {name}: none (no safe step left)")
