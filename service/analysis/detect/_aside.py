@@ -591,6 +591,18 @@ def ambiguity(modes: list[Mode], T: float) -> Flag | None:
     )
 
 
+def _doubt_with(doubt: Flag | None, f: Mode, txt: str) -> Flag:
+    """The ``fundamental_ambiguous`` flag ``doubt`` with the reason ``txt`` added before its
+    advice (None: a new flag for the fundamental ``f`` with that reason)."""
+    if doubt is None:
+        return Flag("fundamental_ambiguous",
+                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
+                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
+                    "band")  # fmt: skip
+    head, sep, tail = doubt.message.partition(". Check the record")
+    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+
+
 def with_undetermined(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> Flag:
     """The ``fundamental_ambiguous`` flag ``doubt`` (None: a new one) saying that the slower
     components ``modes[idx]`` (:func:`undetermined`) were not taken as the fundamental."""
@@ -601,13 +613,7 @@ def with_undetermined(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> 
         + f" not taken: the fit does not tell {'it' if len(idx) == 1 else 'them'} from nothing "
         f"(amplitude within {UNDETERMINED_Z:g} standard errors of 0) beside a ringing mode "
         "the record shows")  # fmt: skip
-    if doubt is None:
-        return Flag("fundamental_ambiguous",
-                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
-                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
-                    "band")  # fmt: skip
-    head, sep, tail = doubt.message.partition(". Check the record")
-    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+    return _doubt_with(doubt, f, txt)
 
 
 def split_rival(modes: list[Mode], f: int, others: set[int]) -> int | None:
@@ -653,13 +659,7 @@ def with_sidebands(doubt: Flag | None, modes: list[Mode], idx: list[int], bound:
     if bound is not None:
         txt += (f"; its sigma^2 error is at least half its difference from modes[{bound}] "
                 "(the carrier lies between them)")
-    if doubt is None:
-        return Flag("fundamental_ambiguous",
-                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
-                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
-                    "band")  # fmt: skip
-    head, sep, tail = doubt.message.partition(". Check the record")
-    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+    return _doubt_with(doubt, f, txt)
 
 
 def with_quiet_lines(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> Flag:
@@ -672,10 +672,4 @@ def with_quiet_lines(doubt: Flag | None, modes: list[Mode], idx: list[int]) -> F
            + " set aside as a stationary line: it does not decay measurably while a kicked "
            "mode 10x stronger rings down (an aliased mains line, a rig's or a sensor's line; "
            "a weak, lightly damped fundamental would look the same)")  # fmt: skip
-    if doubt is None:
-        return Flag("fundamental_ambiguous",
-                    f"the fundamental ({f.frequency:.6g} cycles/time) may not be the "
-                    f"structure's: {txt}. Check the record (a clean single kick), or give the "
-                    "band")  # fmt: skip
-    head, sep, tail = doubt.message.partition(". Check the record")
-    return Flag(doubt.code, f"{head}; {txt}{sep}{tail}")
+    return _doubt_with(doubt, f, txt)
